@@ -1,0 +1,88 @@
+"""The camera protocol: `read()` returns an aligned colour + metric depth `Frame`."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Pinhole intrinsics of the (depth-aligned) colour image, in pixels."""
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    @property
+    def K(self) -> np.ndarray:
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k) for k in ("width", "height", "fx", "fy", "cx", "cy")}
+
+    @classmethod
+    def from_fov(cls, width: int, height: int, hfov_deg: float) -> Intrinsics:
+        """Square pixels, principal point at the image centre, horizontal field of view `hfov_deg`."""
+        f = (width / 2) / np.tan(np.radians(hfov_deg) / 2)
+        return cls(width, height, float(f), float(f), (width - 1) / 2, (height - 1) / 2)
+
+
+class SegLabel(IntEnum):
+    """Labels of `Frame.segmentation` (simulation oracle only)."""
+
+    BACKGROUND = 0
+    OBJECT = 1
+    HANDLE = 2
+    ROBOT = 3
+
+
+@dataclass
+class Frame:
+    """One aligned RGB-D frame.
+
+    color: (H, W, 3) uint8 RGB; depth_m: (H, W) float32 metres, 0 where invalid; t: seconds since the
+    stream started; T_base_camera: 4x4 pose of the camera in the robot base frame (None if unknown);
+    segmentation: (H, W) uint8 `SegLabel`s, only from simulation; mask: (H, W) bool object mask when
+    a recording stores one.
+    """
+
+    index: int
+    t: float
+    color: np.ndarray
+    depth_m: np.ndarray
+    intrinsics: Intrinsics
+    T_base_camera: np.ndarray | None = None
+    segmentation: np.ndarray | None = None
+    mask: np.ndarray | None = None
+
+
+class Camera(ABC):
+    """Base class of every camera. Use as a context manager: `with camera: frame = camera.read()`."""
+
+    @property
+    @abstractmethod
+    def intrinsics(self) -> Intrinsics: ...
+
+    def connect(self) -> None:
+        """Open the device or file (idempotent)."""
+
+    def disconnect(self) -> None:
+        """Release the device or file (idempotent, safe after a failure)."""
+
+    @abstractmethod
+    def read(self, timeout_s: float = 2.0) -> Frame:
+        """The next frame; raises CameraError on timeout and RecordingError at the end of a recording."""
+
+    def __enter__(self) -> Camera:
+        self.connect()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.disconnect()

@@ -1,0 +1,17 @@
+"""Driver-level errors (re-exported by deploy.errors so users catch one family per failure)."""
+
+
+class DriverError(Exception):
+    """Base class for hardware and recording failures; messages name the device, the cause and the fix."""
+
+
+class CameraError(DriverError):
+    """A camera that cannot be opened, times out or disappears."""
+
+
+class RecordingError(DriverError):
+    """A missing, corrupt or unreadable recording."""
+
+
+class ArmError(DriverError):
+    """An arm or CAN bus fault; the arm has been stopped when this is raised."""

@@ -1,0 +1,1 @@
+"""axisloop: sim_fallback."""
