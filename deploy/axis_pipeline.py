@@ -1,0 +1,110 @@
+"""One geometry step per camera frame: cloud -> radius filter -> body box or moving part -> axis estimate.
+
+The first frame fixes the body box (handle removed); every later frame's moving part joins a sliding
+window of observations from which the estimator re-estimates the axis.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from deploy.config import Config
+from deploy.geometry.boxes import oriented_box, remove_handle, yaw_box
+from deploy.geometry.cloud import depth_to_points
+from deploy.geometry.estimators import make_estimator
+from deploy.geometry.estimators.base import AxisEstimator, Observation
+from deploy.geometry.moving_part import moving_part
+from deploy.geometry.radius_filter import radius_filter
+from deploy.geometry.types import AxisResult, Box, JointType, NoAxis
+from drivers.camera.base import Frame
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """What one frame produced: the estimate and the sizes and timings behind it."""
+
+    index: int
+    t: float
+    result: AxisResult
+    object_points: int
+    moving_points: int
+    timings_ms: dict[str, float] = field(default_factory=dict)
+
+
+def frame_points(frame: Frame, mask: np.ndarray, config: Config) -> np.ndarray:
+    """The masked depth of `frame` as an (N,3) cloud in the base frame (camera frame without a pose)."""
+    g = config.geometry
+    return depth_to_points(
+        frame.depth_m, frame.intrinsics.K, mask=mask, T_base_camera=frame.T_base_camera,
+        min_depth_m=g.min_depth_m, max_depth_m=g.max_depth_m,
+    )
+
+
+def viewpoint(frame: Frame) -> np.ndarray:
+    """The camera centre in the frame the points are expressed in."""
+    return np.zeros(3) if frame.T_base_camera is None else np.asarray(frame.T_base_camera)[:3, 3]
+
+
+class AxisPipeline:
+    """Stateful runner of the per-frame geometry (the functions it calls are pure)."""
+
+    def __init__(self, config: Config, estimator: AxisEstimator | None = None):
+        self.config = config
+        self.filter = config.filter.resolve()
+        self.estimator = estimator or make_estimator(config.estimator.name)
+        joint = config.estimator.joint
+        self.joint = None if joint == "auto" else JointType(joint)
+        self.window: deque[Observation] = deque(maxlen=config.estimator.window)
+        self.body_box: Box | None = None
+        self.handle_points = np.empty((0, 3))
+
+    def _box(self, points: np.ndarray) -> Box:
+        return yaw_box(points) if self.config.geometry.box == "yaw" else oriented_box(points)
+
+    def update(
+        self, points: np.ndarray, index: int, t: float, view: np.ndarray, gripper_pose: np.ndarray | None = None
+    ) -> StepResult:
+        """Feed one frame's object cloud; the first call fixes the body box and returns NoAxis."""
+        timings: dict[str, float] = {}
+        clock = time.perf_counter()
+        kept = radius_filter(points, self.filter.radius_m, self.filter.eps)
+        timings["filter"] = (time.perf_counter() - clock) * 1e3
+        if self.body_box is None:
+            return self._first(kept, index, t, view, timings)
+        clock = time.perf_counter()
+        moving = moving_part(
+            kept, self.body_box, margin_m=self.config.geometry.body_margin_m,
+            radius_m=self.filter.radius_m, eps=self.filter.eps,
+        )
+        timings["moving_part"] = (time.perf_counter() - clock) * 1e3
+        self.window.append(Observation(index, t, moving, self.body_box, gripper_pose))
+        clock = time.perf_counter()
+        result = self.estimator.estimate(list(self.window), self.joint)
+        timings["estimate"] = (time.perf_counter() - clock) * 1e3
+        return StepResult(index, t, result, len(kept), len(moving), timings)
+
+    def _first(self, kept: np.ndarray, index: int, t: float, view: np.ndarray, timings: dict) -> StepResult:
+        if len(kept) < 4:
+            return StepResult(index, t, NoAxis("no object points on the first frame: check the mask"),
+                              len(kept), 0, timings)
+        clock = time.perf_counter()
+        if self.config.geometry.remove_handle:
+            self.body_box, _, self.handle_points = remove_handle(kept, view, box_fn=self._box)
+        else:
+            self.body_box = self._box(kept)
+        timings["body_box"] = (time.perf_counter() - clock) * 1e3
+        return StepResult(index, t, NoAxis("first frame: body box fixed, waiting for motion"), len(kept), 0,
+                          timings)
+
+    def update_frame(self, frame: Frame, mask: np.ndarray, gripper_pose: np.ndarray | None = None) -> StepResult:
+        """`update` on a camera frame and its object mask."""
+        clock = time.perf_counter()
+        points = frame_points(frame, mask, self.config)
+        cloud_ms = (time.perf_counter() - clock) * 1e3
+        step = self.update(points, frame.index, frame.t, viewpoint(frame), gripper_pose)
+        step.timings_ms["cloud"] = cloud_ms
+        return step

@@ -1,0 +1,140 @@
+"""Synthetic RGB-D sequences of a cabinet opening, with ground truth, and their frames recordings."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from deploy.geometry.types import Axis, Box
+from deploy.synthetic.cabinet import Kind, SyntheticCabinet
+from deploy.synthetic.raycast import render_rgbd
+from drivers.camera.base import Frame, Intrinsics, SegLabel
+from drivers.camera.depth_noise import DepthNoise
+from drivers.camera.frames_dir import FramesWriter
+
+D415_640X480 = Intrinsics(640, 480, 615.0, 615.0, 319.5, 239.5)
+"""Typical D415 colour intrinsics at 640x480 (depth aligned to colour)."""
+
+
+@dataclass(frozen=True)
+class SyntheticSequence:
+    """Frames of one opening (`mask` = object incl. handle, `segmentation` = labels) with ground truth.
+
+    gripper_poses: 4x4 handle grasp pose per frame (base frame), as a robot holding the handle would
+    sense it; joint_values: q per frame (m or rad).
+    """
+
+    frames: list[Frame]
+    gripper_poses: list[np.ndarray]
+    cabinet: SyntheticCabinet
+    true_axis: Axis
+    joint_values: np.ndarray
+    T_base_camera: np.ndarray
+
+    @property
+    def kind(self) -> Kind:
+        return self.cabinet.kind
+
+
+def look_at(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """4x4 OpenCV camera pose (x right, y down, z forward) at `eye` looking at `target`, z up."""
+    forward = np.asarray(target, float) - eye
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    if np.linalg.norm(right) < 1e-9 * max(np.linalg.norm(forward), 1.0):
+        raise ValueError(f"look_at: camera at {eye} looks straight up or down at {target}; roll undefined")
+    forward /= np.linalg.norm(forward)
+    right /= np.linalg.norm(right)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([right, np.cross(forward, right), forward])
+    T[:3, 3] = eye
+    return T
+
+
+def random_camera_pose(rng: np.random.Generator, cabinet: SyntheticCabinet) -> np.ndarray:
+    """A tripod camera 0.6-0.9 m from the point of the moving part's front behind the handle, 15-35 deg
+    off the front normal, above it and to one side."""
+    normal = cabinet.T_base_cabinet[:3, 0]
+    target = cabinet.handle_pose(0.0)[:3, 3] - cabinet.handle_standoff_m * normal
+    side = np.cross([0.0, 0.0, 1.0], normal) * rng.choice([-1.0, 1.0])
+    off_normal, lift = np.radians(rng.uniform(15, 35)), np.radians(rng.uniform(30, 70))
+    direction = math.cos(off_normal) * normal + math.sin(off_normal) * (
+        math.cos(lift) * side + math.sin(lift) * np.array([0.0, 0.0, 1.0])
+    )
+    return look_at(target + rng.uniform(0.6, 0.9) * direction, target)
+
+
+def _scene_background(cabinet: SyntheticCabinet) -> list[tuple[Box, SegLabel]]:
+    """The floor (z = 0) and, for a raised cabinet, a table under it."""
+    boxes = [(Box(np.array([0.0, 0.0, -0.01]), np.eye(3), np.array([6.0, 6.0, 0.02])), SegLabel.BACKGROUND)]
+    top = cabinet.position[2]
+    if top > 0:
+        T = cabinet.T_base_cabinet
+        center = T[:3, 3] + T[:3, :3] @ np.array([-cabinet.depth_m / 2, 0.0, -top / 2])
+        extent = np.array([cabinet.depth_m + 0.3, cabinet.width_m + 0.4, top])
+        boxes.append((Box(center, T[:3, :3].copy(), extent), SegLabel.BACKGROUND))
+    return boxes
+
+
+def synthetic_sequence(
+    kind: Kind,
+    rng: np.random.Generator,
+    travel: float,
+    n_frames: int,
+    noise: DepthNoise | None = None,
+    intrinsics: Intrinsics = D415_640X480,
+    fps: float = 10.0,
+    gripper_noise_m: float = 0.0,
+    cabinet: SyntheticCabinet | None = None,
+) -> SyntheticSequence:
+    """Render a cabinet (random unless given) opening from q = 0 to `travel` (m or rad) in `n_frames`
+    evenly spaced steps, seen by a random tripod camera, with `noise` (default `DepthNoise.d415()`)
+    on the depth and Gaussian noise of `gripper_noise_m` on the gripper positions."""
+    if n_frames < 1:
+        raise ValueError(f"n_frames must be at least 1, got {n_frames}")
+    noise = DepthNoise.d415() if noise is None else noise
+    cabinet = SyntheticCabinet.random(rng, kind) if cabinet is None else cabinet
+    T_base_camera = random_camera_pose(rng, cabinet)
+    background = _scene_background(cabinet)
+    joint_values = np.linspace(0.0, travel, n_frames)
+    frames, poses = [], []
+    for i, q in enumerate(joint_values):
+        color, depth, labels = render_rgbd(background + cabinet.parts(q), intrinsics, T_base_camera)
+        frames.append(
+            Frame(
+                index=i,
+                t=i / fps,
+                color=color,
+                depth_m=noise.apply(depth, intrinsics.fx, rng),
+                intrinsics=intrinsics,
+                T_base_camera=T_base_camera.copy(),
+                segmentation=labels,
+                mask=(labels == SegLabel.OBJECT) | (labels == SegLabel.HANDLE),
+            )
+        )
+        pose = cabinet.handle_pose(q)
+        if gripper_noise_m > 0:
+            pose[:3, 3] += rng.normal(0.0, gripper_noise_m, 3)
+        poses.append(pose)
+    return SyntheticSequence(frames, poses, cabinet, cabinet.true_axis(), joint_values, T_base_camera)
+
+
+def write_sequence(seq: SyntheticSequence, path: str | Path) -> None:
+    """Write `seq` as a frames recording (masks, ee_pose = gripper pose, joint_positions = [q]) plus
+    truth.json {"joint_type", "origin", "direction", "joint_values"}."""
+    frames = seq.frames
+    if not frames:
+        raise ValueError("cannot write an empty sequence")
+    with FramesWriter(path, frames[0].intrinsics, T_base_camera=seq.T_base_camera) as writer:
+        for frame, pose, q in zip(frames, seq.gripper_poses, seq.joint_values, strict=True):
+            writer.write(frame, mask=frame.mask, joint_positions=[q], ee_pose=pose)
+    truth = {
+        "joint_type": seq.true_axis.joint_type.value,
+        "origin": [float(v) for v in seq.true_axis.origin],
+        "direction": [float(v) for v in seq.true_axis.direction],
+        "joint_values": [float(q) for q in seq.joint_values],
+    }
+    (Path(path) / "truth.json").write_text(json.dumps(truth, indent=2) + "\n", encoding="utf-8")

@@ -1,0 +1,64 @@
+"""Robot models: where each arm's URDF lives, its joints, tool frame, ready pose and hardware limits."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pybullet_data
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """What the kinematics, safety and motion code need to know about one arm model.
+
+    `tool_frame` is the URDF frame the grasp is planned for; `q_ready` (rad) holds the hand
+    forward-horizontal in front of the robot; `a_max` (rad/s^2) and `j_max` (rad/s^3) are the
+    per-joint hardware limits (velocity limits come from the URDF); the workspace box bounds the
+    tool position in the base frame (m).
+    """
+
+    name: str
+    urdf: Path
+    arm_joints: tuple[str, ...]
+    finger_joints: tuple[str, ...]
+    tool_frame: str
+    q_ready: np.ndarray
+    gripper_max_width_m: float
+    a_max: np.ndarray
+    j_max: np.ndarray
+    workspace_min: np.ndarray
+    workspace_max: np.ndarray
+
+
+def panda_urdf() -> Path:
+    """The Franka Panda URDF shipped with pybullet_data."""
+    return Path(pybullet_data.getDataPath()) / "franka_panda" / "panda.urdf"
+
+
+def panda() -> RobotSpec:
+    """Franka Panda: 7 arm joints, two mimicking fingers, grasp frame `panda_grasptarget`.
+
+    `panda_grasptarget` is the URDF's fixed frame between the fingertips, 0.105 m along the hand's
+    z axis. At `q_ready` that frame sits at (0.45, 0, 0.70) m with its z axis (the approach direction)
+    along +x, its x axis up and the fingers closing along y. Among sampled IK solutions for that pose it
+    is the one furthest from the joint limits (>= 0.8 rad each): straight lines of 0.25 m along +-x, y, z
+    and door arcs of 90 deg either way (hinge 0.4 m to the side) follow from it without IK restarts.
+    Accelerations and jerks are the Franka datasheet joint limits.
+    """
+    return RobotSpec(
+        name="panda",
+        urdf=panda_urdf(),
+        arm_joints=tuple(f"panda_joint{i}" for i in range(1, 8)),
+        finger_joints=("panda_finger_joint1", "panda_finger_joint2"),
+        tool_frame="panda_grasptarget",
+        q_ready=np.array([-0.4458, -0.8106, 0.4453, -2.3138, 1.7639, 3.0177, -0.6601]),
+        gripper_max_width_m=0.08,
+        a_max=np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0]),
+        j_max=np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0]),
+        workspace_min=np.array([-0.9, -0.9, 0.02]),
+        workspace_max=np.array([0.9, 0.9, 1.25]),
+    )
+
+

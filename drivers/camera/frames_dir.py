@@ -1,0 +1,360 @@
+"""The frames-directory recording format (version 1): writer, reader and replay camera.
+
+Layout (see docs/recording-format.md): `meta.json`, `frames.jsonl` (one JSON object per frame),
+`color/NNNNNN.png` (8-bit RGB), `depth/NNNNNN.png` (16-bit depth units), optional `mask/NNNNNN.png`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from drivers.camera.base import Camera, Frame, Intrinsics
+from drivers.errors import RecordingError
+
+FORMAT = "axisloop-frames"
+VERSION = 1
+_INTRINSICS_FIELDS = ("width", "height", "fx", "fy", "cx", "cy")
+_ENTRIES = ("meta.json", "frames.jsonl", "color", "depth", "mask")
+
+
+def _png_name(index: int) -> str:
+    return f"{index:06d}.png"
+
+
+def _pose_list(pose: np.ndarray | None, what: str) -> list[list[float]] | None:
+    if pose is None:
+        return None
+    pose = np.asarray(pose, np.float64)
+    if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
+        raise ValueError(f"{what} must be a finite 4x4 matrix, got shape {pose.shape}")
+    return pose.tolist()
+
+
+class FramesWriter:
+    """Writes a frames recording; every frame is flushed to disk before `write` returns.
+
+    `with FramesWriter(path, intrinsics) as w: w.write(frame, mask=...)`. An existing frames recording
+    at `path` is replaced; any other non-empty directory is refused.
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        intrinsics: Intrinsics,
+        depth_scale: float = 0.001,
+        T_base_camera: np.ndarray | None = None,
+    ) -> None:
+        if not (math.isfinite(depth_scale) and depth_scale > 0):
+            raise ValueError(f"depth_scale must be a positive number of metres per unit, got {depth_scale}")
+        self.path = Path(path)
+        self.intrinsics = intrinsics
+        self.depth_scale = float(depth_scale)
+        meta = {
+            "format": FORMAT,
+            "version": VERSION,
+            "intrinsics": intrinsics.to_dict(),
+            "depth_scale": self.depth_scale,
+            "T_base_camera": _pose_list(T_base_camera, "T_base_camera"),
+        }
+        self._prepare_directory()
+        for sub in ("color", "depth"):
+            (self.path / sub).mkdir()
+        _write_durably(self.path / "meta.json", (json.dumps(meta, indent=2) + "\n").encode())
+        self._jsonl = open(self.path / "frames.jsonl", "a", encoding="utf-8")
+        self._count = 0
+
+    def _prepare_directory(self) -> None:
+        if self.path.exists() and not self.path.is_dir():
+            raise RecordingError(f"cannot record to {self.path}: it is a file; choose a directory path")
+        if self.path.is_dir() and any(self.path.iterdir()):
+            if not _is_frames_recording(self.path):
+                raise RecordingError(
+                    f"refusing to record into {self.path}: the directory is not empty and is not a frames "
+                    "recording; choose a new or empty directory"
+                )
+            for name in _ENTRIES:
+                entry = self.path / name
+                if entry.is_dir():
+                    shutil.rmtree(entry)
+                elif entry.exists():
+                    entry.unlink()
+        self.path.mkdir(parents=True, exist_ok=True)
+
+    def write(
+        self,
+        frame: Frame,
+        mask: np.ndarray | None = None,
+        joint_positions: np.ndarray | list[float] | None = None,
+        ee_pose: np.ndarray | None = None,
+    ) -> None:
+        """Append one frame (`mask` defaults to `frame.mask`); its PNGs first, then its frames.jsonl line."""
+        if self._jsonl.closed:
+            raise RecordingError(f"cannot write to {self.path}: the writer is closed")
+        h, w = self.intrinsics.height, self.intrinsics.width
+        color = np.asarray(frame.color)
+        if color.shape != (h, w, 3) or color.dtype != np.uint8:
+            raise RecordingError(
+                f"frame {frame.index}: colour must be ({h}, {w}, 3) uint8 to match the recording's "
+                f"intrinsics, got {color.shape} {color.dtype}"
+            )
+        depth = np.asarray(frame.depth_m, np.float64)
+        if depth.shape != (h, w):
+            raise RecordingError(f"frame {frame.index}: depth must be ({h}, {w}), got {depth.shape}")
+        mask = frame.mask if mask is None else mask
+        if mask is not None and np.shape(mask) != (h, w):
+            raise RecordingError(f"frame {frame.index}: mask must be ({h}, {w}), got {np.shape(mask)}")
+
+        units = np.where(np.isfinite(depth) & (depth > 0), np.round(depth / self.depth_scale), 0.0)
+        name = _png_name(self._count)
+        _write_png(self.path / "color" / name, cv2.cvtColor(color, cv2.COLOR_RGB2BGR))
+        _write_png(self.path / "depth" / name, np.clip(units, 0, 65535).astype(np.uint16))
+        if mask is not None:
+            (self.path / "mask").mkdir(exist_ok=True)
+            _write_png(self.path / "mask" / name, np.where(np.asarray(mask, bool), 255, 0).astype(np.uint8))
+
+        record: dict = {"index": self._count, "t": float(frame.t)}
+        if joint_positions is not None:
+            record["joint_positions"] = [float(v) for v in np.ravel(joint_positions)]
+        if ee_pose is not None:
+            record["ee_pose"] = _pose_list(ee_pose, "ee_pose")
+        self._jsonl.write(json.dumps(record) + "\n")
+        self._jsonl.flush()
+        os.fsync(self._jsonl.fileno())
+        self._count += 1
+
+    def close(self) -> None:
+        """Close frames.jsonl (idempotent)."""
+        self._jsonl.close()
+
+    def __enter__(self) -> FramesWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _write_durably(path: Path, data: bytes) -> None:
+    with open(path, "wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
+
+
+def _write_png(path: Path, image: np.ndarray) -> None:
+    ok, encoded = cv2.imencode(".png", image)
+    if not ok:
+        raise RecordingError(f"could not encode {path} as PNG")
+    _write_durably(path, encoded.tobytes())
+
+
+def _is_frames_recording(path: Path) -> bool:
+    try:
+        meta = json.loads((path / "meta.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(meta, dict) and meta.get("format") == FORMAT
+
+
+class FramesRecording:
+    """Reads a frames recording; meta.json is validated on open, frames.jsonl read on first use.
+
+    An interrupted recording (truncated last frames.jsonl line, or missing PNGs of the last listed
+    frame) is read up to its last complete frame.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        if not self.path.is_dir():
+            raise RecordingError(
+                f"recording {self.path} not found: no such directory; pass the directory holding meta.json"
+            )
+        meta = self._read_meta()
+        self.intrinsics: Intrinsics = meta["intrinsics"]
+        self.depth_scale: float = meta["depth_scale"]
+        self.T_base_camera: np.ndarray | None = meta["T_base_camera"]
+        self._records: list[dict] | None = None
+
+    def _read_meta(self) -> dict:
+        file = self.path / "meta.json"
+        fix = "re-record, or write a meta.json as described in docs/recording-format.md"
+        try:
+            meta = json.loads(file.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise RecordingError(f"{file} is missing: {self.path} is not a frames recording; {fix}") from None
+        except (OSError, ValueError) as e:
+            raise RecordingError(f"{file} is not valid JSON ({e}); {fix}") from None
+        if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+            got = meta.get("format") if isinstance(meta, dict) else type(meta).__name__
+            raise RecordingError(f"{file}: format is {got!r}, expected {FORMAT!r}; {fix}")
+        if meta.get("version") != VERSION:
+            raise RecordingError(
+                f"{file}: unsupported format version {meta.get('version')!r} (this axisloop reads version "
+                f"{VERSION}); convert the recording or use a matching axisloop release"
+            )
+        raw = meta.get("intrinsics")
+        if not isinstance(raw, dict):
+            raise RecordingError(f"{file}: 'intrinsics' is missing or not an object; {fix}")
+        missing = [k for k in _INTRINSICS_FIELDS if k not in raw]
+        if missing:
+            raise RecordingError(f"{file}: intrinsics field(s) {', '.join(missing)} missing; {fix}")
+        try:
+            intr = Intrinsics(
+                int(raw["width"]), int(raw["height"]), *(float(raw[k]) for k in ("fx", "fy", "cx", "cy"))
+            )
+            depth_scale = float(meta.get("depth_scale", 0.001))
+            pose = meta.get("T_base_camera")
+            pose = None if pose is None else np.asarray(pose, np.float64)
+        except (TypeError, ValueError) as e:
+            raise RecordingError(f"{file}: a field has the wrong type ({e}); {fix}") from None
+        if min(intr.width, intr.height) <= 0 or not all(
+            math.isfinite(v) and v > 0 for v in (intr.fx, intr.fy)
+        ):
+            raise RecordingError(f"{file}: intrinsics {intr.to_dict()} are not a valid camera; {fix}")
+        if not (math.isfinite(depth_scale) and depth_scale > 0):
+            raise RecordingError(f"{file}: depth_scale must be positive (m/unit), not {depth_scale}; {fix}")
+        if pose is not None and (pose.shape != (4, 4) or not np.all(np.isfinite(pose))):
+            raise RecordingError(f"{file}: T_base_camera must be a 4x4 row-major nested list or null; {fix}")
+        return {"intrinsics": intr, "depth_scale": depth_scale, "T_base_camera": pose}
+
+    @property
+    def records(self) -> list[dict]:
+        """The frames.jsonl objects of the complete frames, in order."""
+        if self._records is None:
+            self._records = self._read_records()
+        return self._records
+
+    def _read_records(self) -> list[dict]:
+        file = self.path / "frames.jsonl"
+        if not file.exists():
+            return []
+        lines = file.read_text(encoding="utf-8").split("\n")
+        records = []
+        for number, line in enumerate(lines, start=1):
+            if not line.strip():
+                continue
+            try:
+                record = json.loads(line)
+                if not isinstance(record, dict):
+                    raise ValueError("not a JSON object")
+                int(record["index"]), float(record["t"])
+            except (ValueError, KeyError, TypeError) as e:
+                if number == len(lines):  # no newline after it: the recording was interrupted mid-line
+                    break
+                raise RecordingError(
+                    f"{file}, line {number}: not a frame record ({e}); each line must be a JSON object "
+                    "with 'index' and 't'; remove or fix the line"
+                ) from None
+            records.append(record)
+        if records and not all(self._png(records[-1], s).exists() for s in ("color", "depth")):
+            records.pop()  # interrupted while writing the last frame's images
+        return records
+
+    def _png(self, record: dict, sub: str) -> Path:
+        return self.path / sub / _png_name(int(record["index"]))
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    @property
+    def has_masks(self) -> bool:
+        return bool(self.records) and self._png(self.records[0], "mask").exists()
+
+    def frame(self, i: int) -> Frame:
+        """Frame `i` (0-based position in frames.jsonl): RGB colour, depth in metres, mask if recorded."""
+        n = len(self)
+        if not -n <= i < n:
+            raise IndexError(f"frame {i} out of range: {self.path} has {n} frames")
+        record = self.records[i]
+        h, w = self.intrinsics.height, self.intrinsics.width
+        color = self._load(record, "color", np.uint8, 3)
+        depth = self._load(record, "depth", np.uint16, None)
+        mask = None
+        if self._png(record, "mask").exists():
+            mask = self._load(record, "mask", np.uint8, None) > 0
+        for name, image in (("colour", color), ("depth", depth), ("mask", mask)):
+            if image is not None and image.shape[:2] != (h, w):
+                raise RecordingError(
+                    f"{self.path}: {name} image of frame {record['index']} is "
+                    f"{image.shape[1]}x{image.shape[0]} but meta.json intrinsics say {w}x{h}; "
+                    "fix meta.json or re-record"
+                )
+        return Frame(
+            index=int(record["index"]),
+            t=float(record["t"]),
+            color=cv2.cvtColor(color, cv2.COLOR_BGR2RGB),
+            depth_m=(depth * self.depth_scale).astype(np.float32),
+            intrinsics=self.intrinsics,
+            T_base_camera=None if self.T_base_camera is None else self.T_base_camera.copy(),
+            mask=mask,
+        )
+
+    def _load(self, record: dict, sub: str, dtype: type, channels: int | None) -> np.ndarray:
+        file = self._png(record, sub)
+        if not file.exists():
+            raise RecordingError(
+                f"{file} is missing (listed in frames.jsonl); restore it or remove the frame's line"
+            )
+        image = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)
+        if image is None:
+            raise RecordingError(f"{file} is not a readable PNG; restore it or remove the frame's line")
+        want = f"{np.dtype(dtype).name} with {channels or 1} channel(s)"
+        got_channels = 1 if image.ndim == 2 else image.shape[2]
+        if image.dtype != dtype or got_channels != (channels or 1):
+            raise RecordingError(
+                f"{file} is {image.dtype.name} with {got_channels} channel(s), expected {want} "
+                "(colour 8-bit RGB, depth 16-bit units, mask 8-bit); re-export it"
+            )
+        return image
+
+
+class FramesReplayCamera(Camera):
+    """Plays a frames recording as a camera (`--camera replay:PATH`).
+
+    realtime: sleep to honour the recorded timestamps; loop: restart at the end (timestamps and
+    indices keep increasing) instead of raising RecordingError.
+    """
+
+    def __init__(self, path: str | Path, realtime: bool = False, loop: bool = False) -> None:
+        self.recording = FramesRecording(path)
+        self.realtime = realtime
+        self.loop = loop
+        self._next = 0
+        self._start_wall: float | None = None
+
+    @property
+    def intrinsics(self) -> Intrinsics:
+        return self.recording.intrinsics
+
+    def connect(self) -> None:
+        self._next = 0
+        self._start_wall = None
+
+    def read(self, timeout_s: float = 2.0) -> Frame:
+        rec = self.recording
+        n = len(rec)
+        if n == 0:
+            raise RecordingError(f"recording {rec.path} has no frames; record again")
+        lap, i = divmod(self._next, n)
+        if lap > 0 and not self.loop:
+            raise RecordingError(
+                f"end of recording {rec.path} after {n} frames; pass loop=True to replay it again"
+            )
+        frame = rec.frame(i)
+        t0, t_last = float(rec.records[0]["t"]), float(rec.records[-1]["t"])
+        period = (t_last - t0) * n / (n - 1) if n > 1 else 0.0
+        frame.t += lap * period
+        frame.index += lap * n
+        if self.realtime:
+            if self._start_wall is None:
+                self._start_wall = time.monotonic()
+            time.sleep(max(0.0, self._start_wall + (frame.t - t0) - time.monotonic()))
+        self._next += 1
+        return frame

@@ -1,0 +1,140 @@
+"""The D415-like depth-noise model: axial noise, quantisation, holes, range, flying pixels, dropout."""
+
+import numpy as np
+import pytest
+
+from drivers.camera.depth_noise import DepthNoise
+
+FX = 615.0
+
+
+def wall(depth_m: float, shape=(200, 200)) -> np.ndarray:
+    return np.full(shape, depth_m, np.float32)
+
+
+def step(near_m=0.6, far_m=1.0, shape=(60, 80)) -> np.ndarray:
+    """Left half at near_m, right half at far_m: one vertical depth edge between columns 39 and 40."""
+    depth = np.full(shape, far_m, np.float32)
+    depth[:, : shape[1] // 2] = near_m
+    return depth
+
+
+@pytest.mark.parametrize("z", [0.5, 1.0, 2.0])
+def test_axial_std_on_a_flat_wall_matches_the_stereo_formula(z):
+    noise = DepthNoise(subpixel=0.08)
+    out = noise.apply(wall(z), FX, np.random.default_rng(0)).astype(np.float64)
+    expected = z**2 * 0.08 / (FX * 0.055)
+    assert np.all(out > 0)
+    assert out.std() == pytest.approx(expected, rel=0.10)
+    assert abs(out.mean() - z) < 5 * expected / np.sqrt(out.size)
+    assert noise.sigma_m(z, FX) == pytest.approx(expected)
+
+
+def test_noise_grows_with_distance_squared():
+    noise = DepthNoise(subpixel=0.08)
+    stds = [noise.apply(wall(z), FX, np.random.default_rng(1)).std() for z in (0.5, 1.0, 1.5)]
+    assert stds[1] / stds[0] == pytest.approx(4.0, rel=0.10)
+    assert stds[2] / stds[0] == pytest.approx(9.0, rel=0.10)
+
+
+def test_noise_shrinks_with_focal_length():
+    noise = DepthNoise(subpixel=0.08)
+    rng = np.random.default_rng(2)
+    assert noise.apply(wall(1.0), 2 * FX, rng).std() == pytest.approx(
+        noise.apply(wall(1.0), FX, rng).std() / 2, rel=0.10
+    )
+
+
+def test_d415_quantises_to_the_depth_unit():
+    out = DepthNoise.d415().apply(wall(0.8), FX, np.random.default_rng(3)).astype(np.float64)
+    valid = out[out > 0]
+    assert np.allclose(valid / 0.001, np.round(valid / 0.001), atol=1e-3)
+    assert len(np.unique(valid)) > 1  # noise survives quantisation at 0.8 m (sigma ~1.5 mm)
+
+
+@pytest.mark.parametrize("rate", [0.02, 0.1])
+def test_hole_rate(rate):
+    out = DepthNoise(hole_rate=rate).apply(wall(1.0), FX, np.random.default_rng(4))
+    assert np.mean(out == 0) == pytest.approx(rate, abs=0.005)
+    assert np.all(out[out > 0] == np.float32(1.0))
+
+
+def test_min_and_max_range_give_zero():
+    noise = DepthNoise.d415()
+    rng = np.random.default_rng(5)
+    assert np.all(noise.apply(wall(0.25), FX, rng) == 0)
+    assert np.all(noise.apply(wall(12.0), FX, rng) == 0)
+    assert np.mean(noise.apply(wall(0.4), FX, rng) > 0) > 0.95
+    assert DepthNoise.d415().min_range_m == 0.3
+
+
+def test_flying_pixels_only_at_edges_and_between_the_sides():
+    depth = step()
+    out = DepthNoise(flying_pixel_rate=1.0).apply(depth, FX, np.random.default_rng(6))
+    changed = out != depth
+    assert np.all(changed[:, [39, 40]].mean(axis=0) > 0.95)  # u == 0 exactly has probability 0
+    assert not changed[:, :39].any() and not changed[:, 41:].any()
+    assert np.all((out[changed] > 0.6) & (out[changed] < 1.0))
+
+
+def test_flying_pixel_rate_and_small_steps():
+    out = DepthNoise(flying_pixel_rate=0.5).apply(step(), FX, np.random.default_rng(7))
+    assert np.mean(out[:, [39, 40]] != step()[:, [39, 40]]) == pytest.approx(0.5, abs=0.12)
+    smooth = step(near_m=0.99, far_m=1.0)  # a 1 cm step is below the 2 cm edge threshold
+    out = DepthNoise(flying_pixel_rate=1.0).apply(smooth, FX, np.random.default_rng(8))
+    assert np.array_equal(out, smooth)
+
+
+def test_no_flying_pixels_next_to_missing_depth():
+    depth = step(near_m=0.0, far_m=1.0)
+    out = DepthNoise(flying_pixel_rate=1.0).apply(depth, FX, np.random.default_rng(9))
+    assert np.array_equal(out, depth)
+
+
+def tilted_plane(tilt_deg: float, shape=(100, 100)) -> np.ndarray:
+    """Depth of a plane through (0, 0, 1 m) turned `tilt_deg` about the camera's y axis (0.3-3 m kept)."""
+    h, w = shape
+    x = (np.arange(w) - (w - 1) / 2) / FX
+    c, s = np.cos(np.radians(tilt_deg)), np.sin(np.radians(tilt_deg))
+    with np.errstate(divide="ignore"):
+        row = c / (c + s * x)
+    depth = np.broadcast_to(row[None, :], (h, w))
+    return np.where((depth > 0.3) & (depth < 3.0), depth, 0.0).astype(np.float32)
+
+
+def test_grazing_surfaces_drop_out():
+    noise = DepthNoise(max_incidence_deg=80.0)
+    steep = tilted_plane(87.0)  # incidence 82-88 deg over the image
+    out = noise.apply(steep, FX, np.random.default_rng(10))
+    assert (steep > 0).sum() > 1000
+    assert np.mean(out[steep > 0] == 0) > 0.95
+    moderate = tilted_plane(60.0)  # incidence below 66 deg everywhere
+    assert np.array_equal(noise.apply(moderate, FX, np.random.default_rng(10)), moderate)
+    edge = step(near_m=0.6, far_m=1.5)  # a depth jump is not a grazing surface
+    assert np.array_equal(noise.apply(edge, FX, np.random.default_rng(10)), edge)
+
+
+def test_none_is_identity_and_apply_is_pure():
+    depth = step()
+    depth[0, 0] = np.nan
+    depth[1, 1] = -1.0
+    before = depth.copy()
+    out = DepthNoise.none().apply(depth, FX, np.random.default_rng(11))
+    assert out.dtype == np.float32
+    assert out[0, 0] == 0 and out[1, 1] == 0
+    assert np.array_equal(out[2:], before[2:])
+    assert np.array_equal(depth, before, equal_nan=True)
+
+
+def test_seeded_and_deterministic():
+    depth = step()
+    a = DepthNoise.d415().apply(depth, FX, np.random.default_rng(12))
+    b = DepthNoise.d415().apply(depth, FX, np.random.default_rng(12))
+    c = DepthNoise.d415().apply(depth, FX, np.random.default_rng(13))
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+def test_invalid_focal_length_raises():
+    with pytest.raises(ValueError, match="fx"):
+        DepthNoise.d415().apply(wall(1.0), 0.0, np.random.default_rng(0))

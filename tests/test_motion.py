@@ -1,0 +1,221 @@
+"""Motion code on the ideal arm: joint moves, Cartesian lines and arcs, stopping, blocking, safety."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from drivers.arm.base import ArmState
+from drivers.arm.ideal import IdealArm
+from drivers.arm.motion import (
+    arc_path,
+    follow_cartesian_path,
+    follow_joint_trajectory,
+    line_path,
+    move_to_joints,
+    move_to_pose,
+)
+from drivers.arm.robots import panda
+from drivers.arm.trajectory import MotionLimits, joint_trajectory
+from drivers.errors import ArmError
+
+LINE_LIMITS = MotionLimits(0.1, 0.5, 5.0)  # m/s, m/s^2, m/s^3
+ARC_LIMITS = MotionLimits(0.4, 1.0, 10.0)  # rad/s, rad/s^2, rad/s^3
+
+
+class EndStopArm(IdealArm):
+    """An ideal arm holding a drawer that hits its end stop: the tool cannot go below x = x_stop."""
+
+    def __init__(self, x_stop: float) -> None:
+        arm = IdealArm.panda()
+        super().__init__(arm.kin, arm.guard, panda().q_ready)
+        self.x_stop = x_stop
+
+    def sync(self) -> None:
+        q_before = self._q
+        super().sync()
+        if self.kin.fk(self._q)[0, 3] < self.x_stop:
+            self._q, self._dq = q_before, np.zeros_like(q_before)
+
+
+def _record(states: list[ArmState]):
+    def on_tick(state: ArmState, t: float) -> bool:
+        states.append(state)
+        return True
+
+    return on_tick
+
+
+def _rotation_error(R_a: np.ndarray, R_b: np.ndarray) -> float:
+    return float(np.linalg.norm(pin.log3(R_a.T @ R_b)))
+
+
+def test_line_keeps_the_tool_on_the_line():
+    arm = IdealArm.panda()
+    kin = arm.kin
+    T0 = kin.fk(arm.state().q)
+    u = np.array([-1.0, 0.0, 0.0])
+    states: list[ArmState] = []
+    result = follow_cartesian_path(arm, kin, line_path(T0, u), 0.2, LINE_LIMITS, on_tick=_record(states))
+    assert result.reason == "completed" and not result.stopped_early
+    assert result.s_reached == pytest.approx(0.2)
+    assert np.allclose(np.diff([s.t for s in states]), arm.control_period_s)  # on_tick at every tick
+    for state in states:
+        T = kin.fk(state.q)
+        offset = T[:3, 3] - T0[:3, 3]
+        along = offset @ u
+        assert -1e-6 <= along <= 0.2 + 1e-6
+        assert np.linalg.norm(offset - along * u) < 1e-3
+        assert _rotation_error(T[:3, :3], T0[:3, :3]) < 1e-3
+    assert np.allclose(kin.fk(arm.state().q)[:3, 3], T0[:3, 3] + 0.2 * u, atol=1e-5)
+    assert np.allclose(arm.state().dq, 0.0, atol=1e-6)
+    assert len(result.t) == len(result.s) == len(result.planned) == len(result.measured)
+    assert len(result.t) == pytest.approx(len(states) / 10, abs=1.5)
+    assert result.t[-1] == pytest.approx(states[-1].t) and result.max_tracking_error_m < 1e-4
+
+
+def test_arc_turns_the_tool_with_the_door():
+    arm = IdealArm.panda()
+    kin = arm.kin
+    T0 = kin.fk(arm.state().q)
+    hinge, up = T0[:3, 3] + [0.0, -0.4, 0.0], np.array([0.0, 0.0, 1.0])
+    angle = np.radians(60)
+    states: list[ArmState] = []
+    path = arc_path(T0, hinge, up)
+    result = follow_cartesian_path(arm, kin, path, angle, ARC_LIMITS, on_tick=_record(states))
+    assert result.reason == "completed" and result.s_reached == pytest.approx(angle)
+    for state in states:
+        T = kin.fk(state.q)
+        radial = T[:3, 3] - hinge
+        assert abs(np.linalg.norm(radial[:2]) - 0.4) < 1e-3 and abs(radial[2]) < 1e-3
+        turned = np.arctan2(radial[1], radial[0]) - np.pi / 2  # the handle starts at +y from the hinge
+        assert _rotation_error(T[:3, :3], pin.exp3(turned * up) @ T0[:3, :3]) < 1e-3
+    T_end = kin.fk(arm.state().q)
+    assert np.allclose(T_end[:3, 3], hinge + 0.4 * np.array([-np.sin(angle), np.cos(angle), 0.0]), atol=1e-4)
+    assert np.allclose(T_end[:3, 2], [np.cos(angle), np.sin(angle), 0.0], atol=1e-4)  # approach axis turned
+
+
+def test_on_tick_false_brakes_along_the_path():
+    arm = IdealArm.panda()
+    kin = arm.kin
+    T0 = kin.fk(arm.state().q)
+    s_at_stop = []
+
+    def stop_after_half_a_second(state: ArmState, t: float) -> bool:
+        if t >= 0.5 and not s_at_stop:
+            s_at_stop.append(-(kin.fk(state.q)[0, 3] - T0[0, 3]))
+        return t < 0.5
+
+    result = follow_cartesian_path(
+        arm, kin, line_path(T0, [-1, 0, 0]), 0.2, LINE_LIMITS, on_tick=stop_after_half_a_second
+    )
+    assert result.stopped_early and result.reason == "stopped by on_tick"
+    assert s_at_stop[0] < result.s_reached < 0.2
+    assert result.t[-1] < 1.0
+    assert np.allclose(arm.state().dq, 0.0, atol=1e-6)
+    travelled = -(kin.fk(arm.state().q)[0, 3] - T0[0, 3])
+    assert travelled == pytest.approx(result.s_reached, abs=1e-5)
+
+
+def test_a_blocked_arm_stops_with_reason_blocked():
+    arm = EndStopArm(x_stop=panda_tool_x() - 0.05)
+    T0 = arm.kin.fk(arm.state().q)
+    result = follow_cartesian_path(arm, arm.kin, line_path(T0, [-1, 0, 0]), 0.2, LINE_LIMITS)
+    assert result.stopped_early and result.reason.startswith("blocked: tracking error")
+    assert 0.02 < result.max_tracking_error_m < 0.04  # 20 mm, then braking pushes on about 15 mm
+    assert result.s_reached < 0.1
+    measured_x = result.measured[:, 0, 3]
+    assert measured_x.min() >= T0[0, 3] - 0.05 - 1e-3
+
+
+def panda_tool_x() -> float:
+    arm = IdealArm.panda()
+    return float(arm.kin.fk(arm.state().q)[0, 3])
+
+
+def test_unsolvable_paths_raise_before_any_motion():
+    arm = IdealArm.panda()
+    kin = arm.kin
+    T0 = kin.fk(arm.state().q)
+    q0 = arm.state().q
+    with pytest.raises(ArmError, match=r"path waypoint \d+ of \d+ (is not reachable|needs joint)"):
+        follow_cartesian_path(arm, kin, line_path(T0, [1, 0, 0]), 1.0, LINE_LIMITS)
+    assert arm.state().t == 0.0 and np.array_equal(arm.state().q, q0)
+    far = T0.copy()
+    far[2, 3] += 0.05
+    with pytest.raises(ArmError, match="path starts 50 mm from the tool"):
+        follow_cartesian_path(arm, kin, line_path(far, [0, 0, -1]), 0.1, LINE_LIMITS)
+    with pytest.raises(ValueError, match="line direction"):
+        line_path(T0, [0, 0, 0])
+
+
+def test_zero_length_path_does_not_move():
+    arm = IdealArm.panda()
+    T0 = arm.kin.fk(arm.state().q)
+    result = follow_cartesian_path(arm, arm.kin, line_path(T0, [0, 0, 1]), 0.0, LINE_LIMITS)
+    assert result.reason == "completed" and result.s_reached == 0.0 and arm.state().t == 0.0
+
+
+def test_move_to_joints_and_to_pose_reach_their_goals():
+    arm = IdealArm.panda()
+    kin = arm.kin
+    limits = MotionLimits.for_robot(panda(), kin, fraction=0.5)
+    q_goal = panda().q_ready + np.array([0.3, 0.2, -0.2, 0.3, 0.2, -0.3, 0.5])
+    ticks = []
+    assert move_to_joints(arm, q_goal, limits, on_tick=lambda state, t: ticks.append(t) is None)
+    assert np.allclose(arm.state().q, q_goal) and len(ticks) > 10
+    T_goal = kin.fk(panda().q_ready)
+    T_goal[:3, 3] += [0.1, 0.1, -0.1]
+    assert move_to_pose(arm, kin, T_goal, limits)
+    T = kin.fk(arm.state().q)
+    assert np.allclose(T[:3, 3], T_goal[:3, 3], atol=1e-4)
+    assert _rotation_error(T[:3, :3], T_goal[:3, :3]) < 1e-3
+
+
+def test_joint_trajectory_stopped_by_on_tick_ends_at_rest_short_of_the_goal():
+    arm = IdealArm.panda()
+    limits = MotionLimits.for_robot(panda(), arm.kin, fraction=0.5)
+    q_goal = panda().q_ready + 0.5
+    traj = joint_trajectory(arm.state().q, q_goal, limits)
+    assert not follow_joint_trajectory(arm, traj, on_tick=lambda state, t: t < traj.duration / 2)
+    assert np.allclose(arm.state().dq, 0.0, atol=1e-9)
+    assert not np.allclose(arm.state().q, q_goal, atol=0.05)
+    assert arm.state().t < traj.duration
+
+
+def test_safety_violation_stops_the_arm():
+    arm = IdealArm.panda()
+    too_fast = MotionLimits(arm.kin.v_max * 2.0, 7.0, 100.0)  # accelerations within the safety limits
+    with pytest.raises(ArmError, match="joint panda_joint1 velocity .* exceeds its limit"):
+        move_to_joints(arm, panda().q_ready + [1.5, 0, 0, 0, 0, 0, 0], too_fast)
+    assert 0.0 < arm.state().t and np.allclose(arm.state().dq, 0.0)
+    arm.sync()
+    assert np.allclose(arm.state().dq, 0.0)  # holding, not moving on
+
+
+def test_an_on_tick_exception_stops_the_arm():
+    arm = IdealArm.panda()
+    limits = MotionLimits.for_robot(panda(), arm.kin, fraction=0.5)
+
+    def camera_fails(state: ArmState, t: float) -> bool:
+        if t > 0.2:
+            raise RuntimeError("camera unplugged")
+        return True
+
+    with pytest.raises(RuntimeError, match="camera unplugged"):
+        move_to_joints(arm, panda().q_ready + 0.5, limits, on_tick=camera_fails)
+    q = arm.state().q
+    arm.sync()
+    assert np.array_equal(arm.state().q, q)
+
+
+def test_ideal_gripper_moves_to_its_command():
+    arm = IdealArm.panda()
+    arm.set_gripper(0.0)
+    for _ in range(500):  # 1 s at 0.1 m/s covers the 0.08 m stroke
+        arm.sync()
+    assert arm.state().gripper_width_m == pytest.approx(0.0, abs=1e-12)
+    arm.set_gripper(1.0)  # clamped to the stroke
+    arm.sync()
+    assert arm.state().gripper_width_m == pytest.approx(0.1 * arm.control_period_s)
+    with pytest.raises(ArmError, match="not finite"):
+        arm.set_gripper(float("nan"))

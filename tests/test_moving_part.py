@@ -1,0 +1,60 @@
+"""The moving part: points outside the grown body box, filtered again."""
+
+import numpy as np
+import pytest
+
+from deploy.geometry.boxes import yaw_box
+from deploy.geometry.moving_part import moving_part
+from deploy.geometry.radius_filter import radius_filter
+from deploy.geometry.types import Box
+
+
+def grid(x, y, z) -> np.ndarray:
+    return np.stack(np.meshgrid(x, y, z), axis=-1).reshape(-1, 3)
+
+
+@pytest.fixture
+def scene():
+    """A closed cabinet's front face (x = 0) and a drawer front pulled 5 cm out (x = -0.05)."""
+    cabinet = grid([0.0], np.arange(0.0, 0.5, 0.005), np.arange(0.0, 0.6, 0.005))
+    drawer = grid([-0.05], np.arange(0.1, 0.4, 0.005), np.arange(0.3, 0.45, 0.005))
+    box = yaw_box(np.concatenate([cabinet, grid([0.4], [0.0, 0.495], [0.0, 0.595])]))  # 0.4 deep body
+    return cabinet, drawer, box
+
+
+def test_moving_part_is_what_left_the_body_box(scene):
+    cabinet, drawer, box = scene
+    lone = np.array([[-0.3, 0.2, 0.2]])
+    grazing = drawer + [0.045, 0, 0]  # 5 mm in front of the face: inside the 1 cm margin
+    moving = moving_part(np.concatenate([cabinet, drawer, lone, grazing]), box, radius_m=0.02, eps=5)
+    assert {tuple(p) for p in moving} == {tuple(p) for p in drawer}
+    # with a 1 mm margin the grazing points count as outside (and have neighbours): they are kept
+    everything = np.concatenate([cabinet, drawer, lone, grazing])
+    moving = moving_part(everything, box, margin_m=0.001, radius_m=0.02, eps=5)
+    assert len(moving) == len(drawer) + len(grazing)
+
+
+def test_default_filter_is_the_papers_sim_profile(scene):
+    cabinet, drawer, box = scene
+    sparse = drawer[::40]  # too few neighbours within 5 cm for eps = 100
+    moving = moving_part(np.concatenate([cabinet, drawer]), box)
+    assert np.array_equal(moving, radius_filter(drawer, 0.05, 100))
+    assert 0.95 * len(drawer) < len(moving) < len(drawer)  # only the drawer's corners are thinned
+    assert len(moving_part(np.concatenate([cabinet, sparse]), box)) == 0
+    assert len(moving_part(np.concatenate([cabinet, sparse]), box, radius_m=0.05, eps=3)) == len(sparse)
+
+
+def test_empty_and_non_finite_input(scene):
+    _, drawer, box = scene
+    assert moving_part(np.zeros((0, 3)), box).shape == (0, 3)
+    with_nan = np.concatenate([drawer, [[np.nan, 0.2, 0.3]]])
+    assert np.all(np.isfinite(moving_part(with_nan, box, radius_m=0.02, eps=5)))
+
+
+def test_body_box_rotation_is_used():
+    quarter_turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    box = Box(np.zeros(3), quarter_turn, np.array([1.0, 0.2, 0.2]))
+    inside_rotated = grid([0.0], np.arange(-0.4, 0.4, 0.01), [0.0])  # along the box's long axis (world y)
+    outside_rotated = grid(np.arange(0.2, 0.4, 0.01), [0.0], [0.0])  # along world x, beyond 0.1 + margin
+    moving = moving_part(np.concatenate([inside_rotated, outside_rotated]), box, radius_m=0.02, eps=1)
+    assert {tuple(p) for p in moving} == {tuple(p) for p in outside_rotated}
