@@ -36,10 +36,16 @@ class StepResult:
 
 
 def frame_points(frame: Frame, mask: np.ndarray, config: Config) -> np.ndarray:
-    """The masked depth of `frame` as an (N,3) cloud in the base frame (camera frame without a pose)."""
+    """The masked depth of `frame` as an (N,3) cloud in the base frame (camera frame without a pose).
+
+    With `geometry.decimation` n > 1 only every n-th pixel in each direction is used (like the
+    RealSense decimation filter, without averaging): n^2 times fewer points for the same surfaces.
+    """
     g = config.geometry
+    n = g.decimation
+    K = np.diag([1.0 / n, 1.0 / n, 1.0]) @ frame.intrinsics.K
     return depth_to_points(
-        frame.depth_m, frame.intrinsics.K, mask=mask, T_base_camera=frame.T_base_camera,
+        frame.depth_m[::n, ::n], K, mask=np.asarray(mask)[::n, ::n], T_base_camera=frame.T_base_camera,
         min_depth_m=g.min_depth_m, max_depth_m=g.max_depth_m,
     )
 
@@ -68,16 +74,22 @@ class AxisPipeline:
     def update(
         self, points: np.ndarray, index: int, t: float, view: np.ndarray, gripper_pose: np.ndarray | None = None
     ) -> StepResult:
-        """Feed one frame's object cloud; the first call fixes the body box and returns NoAxis."""
+        """Feed one frame's object cloud; the first call fixes the body box and returns NoAxis.
+
+        The whole cloud is radius-filtered on the first frame only (for the body box). Later frames
+        filter just the points outside the box, which is all the moving part needs: the paper filters
+        the whole cloud first as well, which can only differ where an outside point's neighbour was
+        itself an outlier of the whole cloud, and costs 5-10x more on a 640x480 cloud.
+        """
         timings: dict[str, float] = {}
-        clock = time.perf_counter()
-        kept = radius_filter(points, self.filter.radius_m, self.filter.eps)
-        timings["filter"] = (time.perf_counter() - clock) * 1e3
         if self.body_box is None:
+            clock = time.perf_counter()
+            kept = radius_filter(points, self.filter.radius_m, self.filter.eps)
+            timings["filter"] = (time.perf_counter() - clock) * 1e3
             return self._first(kept, index, t, view, timings)
         clock = time.perf_counter()
         moving = moving_part(
-            kept, self.body_box, margin_m=self.config.geometry.body_margin_m,
+            points, self.body_box, margin_m=self.config.geometry.body_margin_m,
             radius_m=self.filter.radius_m, eps=self.filter.eps,
         )
         timings["moving_part"] = (time.perf_counter() - clock) * 1e3
@@ -85,7 +97,7 @@ class AxisPipeline:
         clock = time.perf_counter()
         result = self.estimator.estimate(list(self.window), self.joint)
         timings["estimate"] = (time.perf_counter() - clock) * 1e3
-        return StepResult(index, t, result, len(kept), len(moving), timings)
+        return StepResult(index, t, result, len(points), len(moving), timings)
 
     def _first(self, kept: np.ndarray, index: int, t: float, view: np.ndarray, timings: dict) -> StepResult:
         if len(kept) < 4:

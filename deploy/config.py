@@ -60,6 +60,7 @@ class GeometryConfig(_Section):
     body_margin_m: float = Field(default=0.01, ge=0, le=0.1)
     min_depth_m: float = Field(default=0.1, ge=0)
     max_depth_m: float = Field(default=3.0, gt=0)
+    decimation: int = Field(default=2, ge=1, le=8, description="use every n-th pixel in each direction")
 
     @model_validator(mode="after")
     def _depth_range(self) -> GeometryConfig:

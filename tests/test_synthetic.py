@@ -192,20 +192,27 @@ def test_invalid_cabinet_raises():
 # ---- sequences ----
 
 
-def test_camera_pose_is_a_tripod_beside_and_above():
+def test_camera_pose_is_a_tripod_beside_and_above_framing_the_cabinet():
     for seed in range(20):
         rng = np.random.default_rng(seed)
         cabinet = SyntheticCabinet.random(rng, "door")
-        T = random_camera_pose(rng, cabinet)
-        normal = cabinet.T_base_cabinet[:3, 0]
-        target = cabinet.handle_pose(0.0)[:3, 3] - cabinet.handle_standoff_m * normal
-        offset = T[:3, 3] - target
-        assert 0.6 <= np.linalg.norm(offset) <= 0.9
+        T = random_camera_pose(rng, cabinet, D415_640X480)
+        R, normal = cabinet.T_base_cabinet[:3, :3], cabinet.T_base_cabinet[:3, 0]
+        center = R @ np.array([-cabinet.depth_m / 2, 0.0, cabinet.height_m / 2]) + cabinet.T_base_cabinet[:3, 3]
+        front = center + cabinet.depth_m / 2 * normal
+        offset = T[:3, 3] - front
+        assert 0.6 <= np.linalg.norm(offset) <= 3.0
         assert 15 - 1e-9 <= np.degrees(np.arccos(offset @ normal / np.linalg.norm(offset))) <= 35 + 1e-9
         assert offset[2] > 0
-        np.testing.assert_allclose(T[:3, 2], -offset / np.linalg.norm(offset), atol=1e-12)  # looks at it
+        view = center - T[:3, 3]
+        np.testing.assert_allclose(T[:3, 2], view / np.linalg.norm(view), atol=1e-12)  # looks at the centre
         assert T[:3, 0] @ [0, 0, 1] == pytest.approx(0.0, abs=1e-12)  # no roll
         np.testing.assert_allclose(T[:3, :3].T @ T[:3, :3], np.eye(3), atol=1e-12)
+        corners = np.vstack([box.corners() for box, _ in cabinet.body_parts()])
+        cam = (corners - T[:3, 3]) @ T[:3, :3]
+        u = D415_640X480.fx * cam[:, 0] / cam[:, 2] + D415_640X480.cx
+        v = D415_640X480.fy * cam[:, 1] / cam[:, 2] + D415_640X480.cy
+        assert np.all((u > 0) & (u < 640) & (v > 0) & (v < 480))  # the whole cabinet is in view
     with pytest.raises(ValueError, match="straight up or down"):
         look_at(np.array([0.0, 0.0, 2.0]), np.zeros(3))
 

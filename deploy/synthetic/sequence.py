@@ -54,17 +54,32 @@ def look_at(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
     return T
 
 
-def random_camera_pose(rng: np.random.Generator, cabinet: SyntheticCabinet) -> np.ndarray:
-    """A tripod camera 0.6-0.9 m from the point of the moving part's front behind the handle, 15-35 deg
-    off the front normal, above it and to one side."""
-    normal = cabinet.T_base_cabinet[:3, 0]
-    target = cabinet.handle_pose(0.0)[:3, 3] - cabinet.handle_standoff_m * normal
+def random_camera_pose(
+    rng: np.random.Generator, cabinet: SyntheticCabinet, intrinsics: Intrinsics | None = None, margin_px: int = 16
+) -> np.ndarray:
+    """A tripod camera 15-35 deg off the front normal, above the cabinet and to one side, aimed at the
+    cabinet's centre, 0.6-0.9 m from the front, moved back until the whole cabinet is in view."""
+    intrinsics = D415_640X480 if intrinsics is None else intrinsics
+    T = cabinet.T_base_cabinet
+    normal = T[:3, 0]
+    target = T[:3, :3] @ np.array([-cabinet.depth_m / 2, 0.0, cabinet.height_m / 2]) + T[:3, 3]
+    front = target + cabinet.depth_m / 2 * normal
     side = np.cross([0.0, 0.0, 1.0], normal) * rng.choice([-1.0, 1.0])
     off_normal, lift = np.radians(rng.uniform(15, 35)), np.radians(rng.uniform(30, 70))
     direction = math.cos(off_normal) * normal + math.sin(off_normal) * (
         math.cos(lift) * side + math.sin(lift) * np.array([0.0, 0.0, 1.0])
     )
-    return look_at(target + rng.uniform(0.6, 0.9) * direction, target)
+    corners = np.vstack([box.corners() for box, _ in cabinet.body_parts()])
+    distance = rng.uniform(0.6, 0.9)
+    while True:
+        pose = look_at(front + distance * direction, target)
+        cam = (corners - pose[:3, 3]) @ pose[:3, :3]
+        u = intrinsics.fx * cam[:, 0] / cam[:, 2] + intrinsics.cx
+        v = intrinsics.fy * cam[:, 1] / cam[:, 2] + intrinsics.cy
+        inside = (u >= margin_px) & (u <= intrinsics.width - margin_px) & (v >= margin_px)
+        if np.all(cam[:, 2] > 0) and np.all(inside & (v <= intrinsics.height - margin_px)) or distance > 3.0:
+            return pose
+        distance += 0.05
 
 
 def _scene_background(cabinet: SyntheticCabinet) -> list[tuple[Box, SegLabel]]:
@@ -97,7 +112,7 @@ def synthetic_sequence(
         raise ValueError(f"n_frames must be at least 1, got {n_frames}")
     noise = DepthNoise.d415() if noise is None else noise
     cabinet = SyntheticCabinet.random(rng, kind) if cabinet is None else cabinet
-    T_base_camera = random_camera_pose(rng, cabinet)
+    T_base_camera = random_camera_pose(rng, cabinet, intrinsics)
     background = _scene_background(cabinet)
     joint_values = np.linspace(0.0, travel, n_frames)
     frames, poses = [], []

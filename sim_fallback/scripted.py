@@ -1,0 +1,220 @@
+"""Scripted openings that use the simulator's GROUND TRUTH: a data generator, NOT the opening policy.
+
+The script reads the true handle pose and joint axis from the world, grasps the handle and pulls along
+the true line or arc. Use it to make recordings with known axes (`deploy sim record`) and to benchmark
+the simulation; the policy must only ever see the camera and the arm.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from drivers.arm.base import ArmState
+from drivers.arm.kinematics import Kinematics
+from drivers.arm.motion import (
+    OnTick,
+    PathFn,
+    PathResult,
+    arc_path,
+    follow_cartesian_path,
+    line_path,
+    move_to_joints,
+)
+from drivers.arm.trajectory import MotionLimits
+from drivers.camera.base import SegLabel
+from drivers.camera.frames_dir import FramesWriter
+from drivers.errors import ArmError
+from sim_fallback.arm import SimArm
+from sim_fallback.cabinet_urdf import Kind, Split
+from sim_fallback.camera import SimCamera, d415_intrinsics
+from sim_fallback.scenario import Q_START, Scenario
+from sim_fallback.world import JointTruth, SimWorld
+
+log = logging.getLogger(__name__)
+
+GRASP_DEPTH_M = 0.01  # tool frame this far past the grip centre: the bar sits well inside the finger pads
+GRASP_PITCH_RAD = 0.25  # approach tilted down: keeps the Panda's wrist (joint 6) off its upper limit
+LIMIT_MARGIN_RAD = 0.1  # planned configurations stay this far inside the joint limits
+PREGRASP_M = 0.10  # straight approach along the gripper's axis over the last 10 cm
+GRIPPER_FORCE_N = 40.0
+CLOSE_TIME_S = 0.5
+DEFAULT_TARGET = {"drawer": 0.20, "door": float(np.radians(30.0))}  # m, rad
+APPROACH_LIMITS = MotionLimits(0.10, 0.5, 5.0)  # m/s, m/s^2, m/s^3 along the approach line
+OPEN_LIMITS = {"drawer": MotionLimits(0.10, 0.3, 3.0), "door": MotionLimits(0.25, 0.6, 6.0)}  # m or rad
+
+
+def grasp_pose(
+    handle_pose: np.ndarray,
+    vertical_bar: bool,
+    depth_m: float = GRASP_DEPTH_M,
+    pitch_rad: float = GRASP_PITCH_RAD,
+) -> np.ndarray:
+    """Tool pose grasping a handle from the front: approach (tool z) into the cabinet front, tilted down by
+    `pitch_rad`, fingers (tool y) across the bar (vertical-ish for a horizontal bar, horizontal for a
+    vertical one).
+
+    `handle_pose` is the handle frame (x out of the front, grip centre at the origin), 4x4 base frame.
+    """
+    up = np.array([0.0, 0.0, 1.0])
+    z = -np.cos(pitch_rad) * handle_pose[:3, 0] - np.sin(pitch_rad) * up
+    x = up - z * (z @ up) if vertical_bar else np.cross(z, up)
+    x /= np.linalg.norm(x)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    T[:3, 3] = handle_pose[:3, 3] + depth_m * z
+    return T
+
+
+def opening_path(T_start: np.ndarray, truth: JointTruth) -> PathFn:
+    """Tool poses opening the joint by s (m or rad) from `T_start` along the TRUE axis."""
+    if truth.joint_type.value == "prismatic":
+        return line_path(T_start, truth.direction)
+    return arc_path(T_start, truth.origin, truth.direction)
+
+
+def pregrasp_configuration(
+    kin: Kinematics, T_grasp: np.ndarray, opening: PathFn, length: float
+) -> np.ndarray:
+    """Joint positions at the pre-grasp pose from which the approach and the opening path stay farthest
+    from singularities (largest smallest singular value of the Jacobian along them); the Panda is
+    redundant and per-tick IK near a singularity spins joints 1 and 3."""
+    T_pre = T_grasp.copy()
+    T_pre[:3, 3] -= PREGRASP_M * T_grasp[:3, 2]
+    poses = [T_pre, T_grasp, *(opening(s) for s in np.linspace(0.0, length, 12)[1:])]
+    best, best_score = None, -np.inf
+    for q2, q4 in itertools.product((-0.6, 0.0, 0.6), (-2.6, -1.9)):
+        seed = Q_START.copy()
+        seed[:4] = np.arctan2(T_pre[1, 3], T_pre[0, 3]), q2, 0.0, q4  # face the handle
+        try:
+            qs = kin.solve_path(poses, seed, restarts=0)
+        except ArmError:
+            continue
+        if np.any(qs < kin.q_min + LIMIT_MARGIN_RAD) or np.any(qs > kin.q_max - LIMIT_MARGIN_RAD):
+            continue
+        score = min(np.linalg.svd(kin.jacobian(q), compute_uv=False)[-1] for q in qs)
+        if score > best_score:
+            best, best_score = qs[0], score
+    if best is None:
+        raise ArmError(f"scripted grasp: no arm configuration reaches the handle and follows the opening "
+                       f"by {length:.3f} (m or rad) clear of joint limits and singularities; try another "
+                       "seed or a smaller target")
+    return best
+
+
+def grasp_handle(
+    world: SimWorld, arm: SimArm, limits: MotionLimits, target: float, on_tick: OnTick | None = None
+) -> None:
+    """Move to the pre-grasp pose, approach along the gripper axis and close on the handle (ground truth).
+    `target` is the opening that follows, used to pick an arm configuration that can make it."""
+    T_grasp = grasp_pose(world.handle_pose(), world.scenario.cabinet.handle_vertical)
+    q_pre = pregrasp_configuration(arm.kin, T_grasp, opening_path(T_grasp, world.truth()), target)
+    arm.set_gripper(world.robot_spec.gripper_max_width_m)
+    move_to_joints(arm, q_pre, limits, on_tick)
+    approach = T_grasp[:3, 2]
+    follow_cartesian_path(arm, arm.kin, line_path(arm.kin.fk(arm.state().q), approach), PREGRASP_M,
+                          APPROACH_LIMITS, on_tick)
+    arm.set_gripper(0.0, GRIPPER_FORCE_N)
+    wait(arm, CLOSE_TIME_S, on_tick)
+
+
+def open_along_truth(
+    world: SimWorld, arm: SimArm, target: float, limits: MotionLimits, on_tick: OnTick | None = None
+) -> PathResult:
+    """Pull the grasped handle open by `target` (m or rad) along the true line or arc."""
+    T_start = arm.kin.fk(arm.state().q)
+    return follow_cartesian_path(arm, arm.kin, opening_path(T_start, world.truth()), target, limits, on_tick)
+
+
+def wait(arm: SimArm, duration_s: float, on_tick: OnTick | None = None) -> None:
+    """Let `duration_s` of simulated time pass with the arm holding its last command."""
+    t0 = arm.time()
+    for _ in range(int(round(duration_s / arm.control_period_s))):
+        arm.sync()
+        if on_tick is not None:
+            on_tick(arm.state(), arm.time() - t0)
+
+
+@dataclass(frozen=True)
+class RecordingSummary:
+    """What a scripted recording produced: joint values in m (drawer) or rad (door)."""
+
+    path: Path
+    task: Kind
+    seed: int
+    split: Split
+    frames: int
+    joint_start: float
+    joint_end: float
+    target: float
+    sim_time_s: float
+    wall_time_s: float
+
+    def __str__(self) -> str:
+        scale, unit = (100.0, "cm") if self.task == "drawer" else (float(np.degrees(1.0)), "deg")
+        return (f"{self.frames} frames, {self.task} opened {self.joint_end * scale:.1f} of "
+                f"{self.target * scale:.1f} {unit} in {self.sim_time_s:.1f} s simulated "
+                f"({self.wall_time_s:.1f} s wall)")
+
+
+def record_scripted(
+    task: Kind,
+    seed: int,
+    out_dir: str | Path,
+    split: Split = "train",
+    target: float | None = None,
+    fps: float = 10.0,
+    resolution: tuple[int, int] = (640, 480),
+) -> RecordingSummary:
+    """Record a scripted opening driven by GROUND TRUTH (a data generator, not the policy).
+
+    Writes the frames-directory format at `out_dir` (colour, noisy depth, object mask including the
+    handle, T_base_camera, joint positions, tool pose per frame) plus truth.json with the true
+    joint type, axis (base frame; positive opens) and the joint value at every frame. `target`: opening in
+    m (drawer, default 0.2) or rad (door, default 30 deg).
+    """
+    target = DEFAULT_TARGET[task] if target is None else float(target)
+    out = Path(out_dir)
+    wall0 = time.perf_counter()
+    log.info("scripted %s opening from GROUND TRUTH (data generator, not the policy): seed %d, split %s",
+             task, seed, split)
+    with SimWorld(Scenario.make(task, seed, split)) as world:
+        arm = SimArm(world)
+        camera = SimCamera(world, intrinsics=d415_intrinsics(*resolution), seed=seed, fps=fps)
+        limits = MotionLimits.for_robot(world.robot_spec, arm.kin, fraction=0.3)
+        joint_values: list[float] = []
+        with FramesWriter(out, camera.intrinsics, T_base_camera=camera.T_base_camera) as writer:
+            next_t = 0.0
+
+            def capture(state: ArmState, _t: float = 0.0) -> None:
+                nonlocal next_t
+                if state.t < next_t - 1e-9:
+                    return
+                frame = camera.read()
+                mask = (frame.segmentation == SegLabel.OBJECT) | (frame.segmentation == SegLabel.HANDLE)
+                writer.write(frame, mask=mask, joint_positions=state.q, ee_pose=arm.kin.fk(state.q))
+                joint_values.append(world.joint_value())
+                next_t = (frame.index + 1) / fps
+
+            capture(arm.state())
+            grasp_handle(world, arm, limits, target, capture)
+            open_along_truth(world, arm, target, OPEN_LIMITS[task], capture)
+            wait(arm, 0.5, capture)
+        truth = world.truth()
+        (out / "truth.json").write_text(json.dumps({
+            "source": "simulator ground truth (scripted data generator)",
+            "task": task, "seed": seed, "split": split, "target": target,
+            "joint_type": truth.joint_type.value,
+            "origin": truth.origin.tolist(), "direction": truth.direction.tolist(),
+            "joint_upper": truth.upper, "joint_values": joint_values,
+        }, indent=2) + "\n")
+        summary = RecordingSummary(out, task, seed, split, len(joint_values), joint_values[0],
+                                   joint_values[-1], target, world.time, time.perf_counter() - wall0)
+    log.info("recorded %s: %s", out, summary)
+    return summary

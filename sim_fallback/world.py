@@ -1,0 +1,186 @@
+"""The PyBullet world of one scenario: Panda, cabinet on a pedestal, physics clock and ground truth.
+
+Each `SimWorld` owns its own DIRECT-mode client, so several can coexist. Devices (`SimCamera`,
+`SimArm`) are built from a world but keep only a `PhysicsClock` and body ids, never the world: the
+ground truth (`SimWorld.truth()`) is for evaluation code and scripted data generation only.
+"""
+
+from __future__ import annotations
+
+import re
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pybullet as pb
+
+from deploy.geometry.types import Axis, JointType
+from drivers.arm.robots import panda
+from sim_fallback.cabinet_urdf import write_cabinet_urdf
+from sim_fallback.scenario import Scenario
+
+PHYSICS_HZ = 240
+FLOOR_SIZE_M = 4.0  # a floor box: about +15 ms a 640x480 frame (pybullet_data's plane doubles the time)
+
+
+class PhysicsClock:
+    """Steps one PyBullet client and keeps simulated time; hooks run after every physics step."""
+
+    def __init__(self, client: int, hz: int = PHYSICS_HZ) -> None:
+        self.client = client
+        self.dt = 1.0 / hz
+        self.steps = 0
+        self._hooks: list[Callable[[], None]] = []
+
+    @property
+    def time(self) -> float:
+        """Simulated seconds since the world was built."""
+        return self.steps * self.dt
+
+    def add_hook(self, hook: Callable[[], None]) -> None:
+        self._hooks.append(hook)
+
+    def step(self, n: int = 1) -> None:
+        for _ in range(n):
+            pb.stepSimulation(physicsClientId=self.client)
+            self.steps += 1
+            for hook in self._hooks:
+                hook()
+
+
+@dataclass(frozen=True)
+class JointTruth:
+    """Ground truth of the cabinet joint in the robot base frame (evaluation only).
+
+    origin: prismatic, the grip centre when closed; revolute, the point of the hinge line at the grip's
+    height. direction: unit; positive joint motion opens. value: m or rad, 0 closed.
+    """
+
+    joint_type: JointType
+    origin: np.ndarray
+    direction: np.ndarray
+    value: float
+    upper: float
+
+    @property
+    def axis(self) -> Axis:
+        return Axis(self.joint_type, self.origin.copy(), self.direction.copy())
+
+
+class SimWorld:
+    """PyBullet world of a scenario. Context manager: leaving it disconnects the client.
+
+    floor: draw a 4 m floor square under the robot and cabinet (costs render time; off by default,
+    background pixels then read depth 0 like out-of-range stereo).
+    """
+
+    def __init__(self, scenario: Scenario, floor: bool = False) -> None:
+        self.scenario = scenario
+        self.client = pb.connect(pb.DIRECT)
+        self.clock = PhysicsClock(self.client)
+        self._tmp = tempfile.TemporaryDirectory(prefix="axisloop_cabinet_")
+        try:
+            self._build(floor)
+        except Exception:
+            self.close()
+            raise
+
+    def _build(self, floor: bool) -> None:
+        c, sc = self.client, self.scenario
+        pb.setGravity(0, 0, -9.81, physicsClientId=c)
+        pb.setTimeStep(self.clock.dt, physicsClientId=c)
+        self.robot_spec = panda()
+        robot_urdf = _low_poly_copy(self.robot_spec.urdf, Path(self._tmp.name))
+        self.robot_id = pb.loadURDF(str(robot_urdf), useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE,
+                                    physicsClientId=c)
+        names = [pb.getJointInfo(self.robot_id, j, physicsClientId=c)[1].decode()
+                 for j in range(pb.getNumJoints(self.robot_id, physicsClientId=c))]
+        self.robot_joints = {name: j for j, name in enumerate(names)}
+        for name, q in zip(self.robot_spec.arm_joints, sc.q_start, strict=True):
+            pb.resetJointState(self.robot_id, self.robot_joints[name], q, physicsClientId=c)
+        half_open = self.robot_spec.gripper_max_width_m / 2
+        for name in self.robot_spec.finger_joints:
+            pb.resetJointState(self.robot_id, self.robot_joints[name], half_open, physicsClientId=c)
+
+        spec, T = sc.cabinet, sc.T_base_cabinet
+        urdf = write_cabinet_urdf(spec, Path(self._tmp.name))
+        quat = pb.getQuaternionFromEuler([0.0, 0.0, sc.cabinet_yaw])
+        self.cabinet_id = pb.loadURDF(str(urdf), T[:3, 3].tolist(), quat, useFixedBase=True,
+                                      physicsClientId=c)
+        self.cabinet_joint, self.handle_link = 0, 1
+        pb.changeDynamics(self.cabinet_id, self.cabinet_joint, jointDamping=spec.damping, linearDamping=0.0,
+                          angularDamping=0.0, physicsClientId=c)
+        pb.setJointMotorControl2(self.cabinet_id, self.cabinet_joint, pb.VELOCITY_CONTROL, targetVelocity=0.0,
+                                 force=spec.friction, physicsClientId=c)  # Coulomb friction
+
+        half = [spec.depth_m / 2 - 0.01, spec.width_m / 2 - 0.01, sc.pedestal_height_m / 2]
+        centre = T[:3, :3] @ [0.0, 0.0, -sc.pedestal_height_m / 2] + T[:3, 3]
+        _static_box(c, half, centre.tolist(), quat, (0.45, 0.45, 0.47, 1.0))
+        if floor:
+            _static_box(c, [FLOOR_SIZE_M / 2, FLOOR_SIZE_M / 2, 0.005], [0.5, 0.0, -0.005], [0, 0, 0, 1],
+                        (0.62, 0.6, 0.55, 1.0))
+
+    @property
+    def time(self) -> float:
+        return self.clock.time
+
+    def joint_value(self) -> float:
+        """The cabinet joint's value (m or rad; ground truth)."""
+        return float(pb.getJointState(self.cabinet_id, self.cabinet_joint, physicsClientId=self.client)[0])
+
+    def handle_pose(self) -> np.ndarray:
+        """4x4 pose of the handle frame (grip centre, cabinet axes) in the base frame (ground truth)."""
+        state = pb.getLinkState(self.cabinet_id, self.handle_link, computeForwardKinematics=True,
+                                physicsClientId=self.client)
+        return _pose(state[4], state[5])
+
+    def truth(self) -> JointTruth:
+        """The cabinet joint's type, axis and value in the base frame. Evaluation and data generation only."""
+        spec, T = self.scenario.cabinet, self.scenario.T_base_cabinet
+        direction = T[:3, :3] @ spec.joint_axis_cabinet
+        value = self.joint_value()
+        if spec.kind == "drawer":
+            origin = T[:3, :3] @ spec.handle_cabinet + T[:3, 3]
+            joint_type = JointType.PRISMATIC
+        else:
+            hinge = T[:3, :3] @ spec.joint_origin_cabinet + T[:3, 3]
+            origin = hinge + direction * float(direction @ (self.handle_pose()[:3, 3] - hinge))
+            joint_type = JointType.REVOLUTE
+        return JointTruth(joint_type, origin, direction, value, spec.joint_upper)
+
+    def close(self) -> None:
+        """Disconnect the client and remove the generated URDF (idempotent)."""
+        if pb.isConnected(self.client):
+            pb.disconnect(self.client)
+        self._tmp.cleanup()
+
+    def __enter__(self) -> SimWorld:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _low_poly_copy(urdf: Path, directory: Path) -> Path:
+    """A copy of the robot URDF drawn with its collision meshes: same kinematics, dynamics and collisions,
+    but TinyRenderer draws the frame ~30 ms faster (the Panda's visual meshes are 1-2 MB each)."""
+    meshes = urdf.parent / "meshes"
+    text = re.sub(r"package://meshes/visual/(\w+)\.obj", rf"{meshes}/collision/\1.obj", urdf.read_text())
+    copy = directory / urdf.name
+    copy.write_text(text.replace("package://meshes/", f"{meshes}/"))
+    return copy
+
+
+def _static_box(client: int, half: list[float], pos: list[float], quat, rgba: tuple) -> int:
+    shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=client)
+    visual = pb.createVisualShape(pb.GEOM_BOX, halfExtents=half, rgbaColor=rgba, physicsClientId=client)
+    return pb.createMultiBody(0.0, shape, visual, pos, quat, physicsClientId=client)
+
+
+def _pose(position, quaternion) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = np.reshape(pb.getMatrixFromQuaternion(quaternion), (3, 3))
+    T[:3, 3] = position
+    return T
