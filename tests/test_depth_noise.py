@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from drivers.camera.depth_noise import DepthNoise
 
@@ -52,11 +53,30 @@ def test_d415_quantises_to_the_depth_unit():
     assert len(np.unique(valid)) > 1  # noise survives quantisation at 0.8 m (sigma ~1.5 mm)
 
 
+def test_axial_noise_is_gaussian_and_independent_between_pixels():
+    noise = DepthNoise(subpixel=0.08)
+    out = noise.apply(wall(1.0, shape=(480, 640)), FX, np.random.default_rng(14)).astype(np.float64)
+    r = (out - 1.0) / noise.sigma_m(1.0, FX)
+    assert stats.kstest(r.ravel(), "norm").pvalue > 0.01
+    assert np.mean(np.abs(r) > 3) == pytest.approx(0.0027, abs=0.0005)
+    spectrum = np.fft.rfft(r.ravel() - r.mean(), 2 * r.size)  # zero-padded: no wrap-around
+    autocorr = np.fft.irfft(np.abs(spectrum) ** 2)[: r.size // 2] / np.sum((r - r.mean()) ** 2)
+    assert np.max(np.abs(autocorr[1:])) < 0.02  # white: no pixel's noise repeats or predicts another's
+
+
+def test_d415_gives_the_float32_nearest_each_millimetre():
+    out = DepthNoise.d415().apply(wall(0.8), FX, np.random.default_rng(15))
+    valid = out[out > 0]
+    assert np.array_equal(valid, (np.round(valid.astype(np.float64) / 0.001) * 0.001).astype(np.float32))
+
+
 @pytest.mark.parametrize("rate", [0.02, 0.1])
 def test_hole_rate(rate):
     out = DepthNoise(hole_rate=rate).apply(wall(1.0), FX, np.random.default_rng(4))
     assert np.mean(out == 0) == pytest.approx(rate, abs=0.005)
     assert np.all(out[out > 0] == np.float32(1.0))
+    for half in (out[:100], out[100:], out[:, :100], out[:, 100:]):  # spread over the image
+        assert np.mean(half == 0) == pytest.approx(rate, abs=0.01)
 
 
 def test_min_and_max_range_give_zero():
@@ -83,6 +103,33 @@ def test_flying_pixel_rate_and_small_steps():
     smooth = step(near_m=0.99, far_m=1.0)  # a 1 cm step is below the 2 cm edge threshold
     out = DepthNoise(flying_pixel_rate=1.0).apply(smooth, FX, np.random.default_rng(8))
     assert np.array_equal(out, smooth)
+
+
+def blocks(shape=(480, 640), seed=0) -> np.ndarray:
+    """Random boxes of random depth (0.5-1.5 m) over a wall, with missing-depth boxes, and two bands of
+    2-row stripes, one row out of phase, so that some column has a depth jump between any two rows."""
+    rng = np.random.default_rng(seed)
+    depth = np.full(shape, 1.6, np.float32)
+    for _ in range(60):
+        (v0, v1), (u0, u1) = np.sort(rng.integers(0, shape[0], 2)), np.sort(rng.integers(0, shape[1], 2))
+        depth[v0:v1, u0:u1] = 0.0 if rng.random() < 0.2 else rng.uniform(0.5, 1.5)
+    stripes = np.repeat(rng.uniform(0.5, 1.5, shape[0] // 2 + 1), 2)
+    depth[:, :40], depth[:, 40:80] = stripes[: shape[0], None], stripes[1 : shape[0] + 1, None]
+    return depth
+
+
+def test_flying_pixels_on_a_large_image_match_a_brute_force_reference():
+    depth = blocks()
+    padded = np.pad(depth.astype(np.float64), 1, mode="edge")
+    nbs = np.stack([padded[:-2, 1:-1], padded[2:, 1:-1], padded[1:-1, :-2], padded[1:-1, 2:]])
+    jumps = np.where(nbs > 0, np.abs(nbs - depth), 0.0)
+    edge = (depth > 0) & (jumps.max(axis=0) > 0.02)
+    other = np.take_along_axis(nbs, jumps.argmax(axis=0)[None], axis=0)[0]
+    out = DepthNoise(flying_pixel_rate=1.0).apply(depth, FX, np.random.default_rng(16))
+    changed = out != depth
+    assert edge.sum() > 5000 and np.array_equal(changed, edge)
+    lo, hi = np.minimum(depth, other)[changed], np.maximum(depth, other)[changed]
+    assert np.all((out[changed] > lo) & (out[changed] < hi))
 
 
 def test_no_flying_pixels_next_to_missing_depth():
@@ -114,6 +161,29 @@ def test_grazing_surfaces_drop_out():
     assert np.array_equal(noise.apply(edge, FX, np.random.default_rng(10)), edge)
 
 
+def oblique_plane(tilt_deg: float, shape=(480, 640)) -> tuple[np.ndarray, np.ndarray]:
+    """Depth of a plane through (0, 0, 1 m) turned `tilt_deg` about the image diagonal (0.3-3 m kept),
+    and the angle (deg) between each pixel's view ray and the plane normal."""
+    h, w = shape
+    x = ((np.arange(w) - (w - 1) / 2) / FX)[None, :]
+    y = ((np.arange(h) - (h - 1) / 2) / FX)[:, None]
+    s, c = np.sin(np.radians(tilt_deg)) / np.sqrt(2), np.cos(np.radians(tilt_deg))
+    along = s * x + s * y - c  # normal (s, s, -c) . (x, y, 1)
+    with np.errstate(divide="ignore"):
+        depth = -c / along
+    incidence = np.degrees(np.arccos(np.abs(along) / np.sqrt(x * x + y * y + 1)))
+    return np.where((depth > 0.3) & (depth < 3.0), depth, 0.0).astype(np.float32), incidence
+
+
+def test_grazing_dropout_follows_the_incidence_angle_over_a_large_image():
+    depth, incidence = oblique_plane(70.0)  # 37-84 deg over the valid part
+    dropped = DepthNoise(max_incidence_deg=80.0).apply(depth, FX, np.random.default_rng(17)) == 0
+    valid = depth > 0
+    assert valid.mean() > 0.7 and (valid & (incidence > 80.25)).sum() > 10000
+    assert np.all(dropped[valid & (incidence > 80.25)])
+    assert not dropped[valid & (incidence < 79.75)].any()
+
+
 def test_none_is_identity_and_apply_is_pure():
     depth = step()
     depth[0, 0] = np.nan
@@ -124,6 +194,23 @@ def test_none_is_identity_and_apply_is_pure():
     assert out[0, 0] == 0 and out[1, 1] == 0
     assert np.array_equal(out[2:], before[2:])
     assert np.array_equal(depth, before, equal_nan=True)
+
+
+def test_absurd_depth_reads_zero_and_float64_input_is_untouched():
+    depth = np.array([[np.nan, np.inf, -np.inf, -1.0, 0.0, 1e30, 1.0, 0.8]] * 3)
+    before = depth.copy()
+    for noise in (DepthNoise.d415(), DepthNoise(subpixel=0.5, flying_pixel_rate=1.0, max_incidence_deg=60.0)):
+        out = noise.apply(depth, FX, np.random.default_rng(18))
+        assert out.dtype == np.float32 and np.all(np.isfinite(out))
+        assert np.all(out[:, :6] == 0)
+    assert np.array_equal(depth, before, equal_nan=True)
+
+
+@pytest.mark.parametrize("shape", [(0, 5), (5, 0), (1, 1), (1, 7), (7, 1)])
+def test_tiny_images(shape):
+    out = DepthNoise.d415().apply(np.full(shape, 0.8), FX, np.random.default_rng(19))
+    assert out.shape == shape and out.dtype == np.float32
+    assert np.all(np.abs(out[out > 0] - 0.8) < 0.01)
 
 
 def test_seeded_and_deterministic():
