@@ -1,0 +1,363 @@
+"""Screw-axis estimator: register the moving part's frames rigidly, then fit one joint to all the motions.
+
+Each new frame costs one registration: its moving part (sparse source) onto the current keyframe (dense
+target with normals, computed once per keyframe), by Open3D point-to-plane ICP with a Tukey kernel.
+Registering to a keyframe rather than frame to frame keeps the pose errors from adding up; a frame
+becomes the next keyframe when the keyframe no longer covers most of it (the part grows as the object
+opens). Registrations are cached by (keyframe index, frame index). The poses relative to the window
+start are fitted jointly by a prismatic and a revolute model (see `ScrewEstimator.estimate`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import open3d as o3d
+from scipy.spatial.transform import Rotation
+
+from deploy.geometry.estimators.base import AxisEstimator, Observation
+from deploy.geometry.types import Axis, AxisResult, Box, JointType, NoAxis
+
+_REG = o3d.pipelines.registration
+
+
+@dataclass(frozen=True)
+class _Cloud:
+    """A frame's moving part: the finite input points, a sparse downsampled source for registration
+    (also as an array), the body box it was cut from, and a fingerprint of the input."""
+
+    raw: np.ndarray
+    source: o3d.geometry.PointCloud
+    points: np.ndarray
+    box: Box
+    fingerprint: tuple[int, bytes]
+
+
+@dataclass(frozen=True)
+class _Registration:
+    """Motion (4x4, base frame) taking the keyframe's part to the frame's, and how much of it matched."""
+
+    motion: np.ndarray
+    fitness: float
+
+
+@dataclass(frozen=True)
+class _JointFit:
+    direction: np.ndarray
+    point: np.ndarray
+    rms_m: float
+    bic: float
+
+
+class ScrewEstimator(AxisEstimator):
+    """Screw axis of the moving part's rigid motion over the whole window (any axis orientation).
+
+    voxel_m: downsampling voxel; max_source / max_target: points used per registration (random,
+    fixed seed; time); min_points: points a frame needs after downsampling; min_fitness: share of
+    a frame's source that must match the keyframe; keyframe_coverage: a frame becomes the next
+    keyframe when the keyframe saw less than this share of it; overlap_margin_m: how far outside the
+    body box a point must have been to count as seen (at least the margin used to cut the moving part);
+    min_travel_m / min_rotation_deg: motion below both gives NoAxis; noise_floor_m: registration
+    noise (sigma0 of the BIC); max_radius_m: a revolute fit whose axis lies farther than this from
+    the moving part counts as prismatic (a drawer that wobbles).
+    """
+
+    name = "screw"
+
+    def __init__(
+        self,
+        voxel_m: float = 0.005,
+        max_source: int = 2000,
+        max_target: int = 6000,
+        min_points: int = 100,
+        min_fitness: float = 0.3,
+        keyframe_coverage: float = 0.8,
+        overlap_margin_m: float = 0.02,
+        min_travel_m: float = 0.01,
+        min_rotation_deg: float = 2.0,
+        noise_floor_m: float = 0.001,
+        max_radius_m: float = 3.0,
+    ) -> None:
+        self.voxel_m = voxel_m
+        self.max_source = max_source
+        self.max_target = max_target
+        self.min_points = min_points
+        self.min_fitness = min_fitness
+        self.keyframe_coverage = keyframe_coverage
+        self.overlap_margin_m = overlap_margin_m
+        self.min_travel_m = min_travel_m
+        self.min_rotation_deg = min_rotation_deg
+        self.noise_floor_m = noise_floor_m
+        self.max_radius_m = max_radius_m
+        self.registrations = 0  # frames registered so far (cache misses): one per new frame
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget cached clouds, poses and keyframes (done automatically when a frame index is reused)."""
+        self._clouds: dict[int, _Cloud] = {}
+        self._pairs: dict[tuple[int, int], _Registration] = {}
+        self._poses: dict[int, np.ndarray] = {}  # motion of each frame's part from the first keyframe's
+        self._keyframe: int | None = None
+        self._keyframe_target = o3d.geometry.PointCloud()
+        self._keyframe_centre = np.zeros(3)
+        self._failures = 0
+
+    def estimate(self, window: Sequence[Observation], joint: JointType | None = None) -> AxisResult:
+        """The joint axis from the moving part's motion over the window.
+
+        Prismatic: direction = dominant direction of the translations (along the motion), origin =
+        centroid of the window-start moving part. Revolute: direction from least squares over
+        R_k w = w (signed so the observed motion is a positive rotation), axis point from stacking
+        (I - R_k) a = t_k. When the window-start part is a plate (a door panel), w is projected onto
+        its plane: a hinge lies in its door's plane, and the rotation about a plate's normal is what
+        registration measures worst. Origin = the axis point nearest the latest moving-part centroid,
+        radius_m = distance from that centroid to the axis. residual_m = RMS distance between the
+        registered and the joint model's positions of the window-start points; confidence = fitness
+        (1 from 90 %) x motion (1 from 5 cm or 10 deg) x 1 / (1 + (residual / 2 mm)^2).
+
+        Joint type when `joint` is None: BIC = n ln(rms^2 + sigma0^2) + k ln n with n = 6 per pose
+        (what a registration measures), k = poses + 2 (prismatic) or poses + 4 (revolute); the lower
+        wins, except that a revolute axis farther than max_radius_m from the part means prismatic.
+        """
+        if len(window) < 2:
+            return NoAxis(f"need at least 2 frames of the moving part, got {len(window)}")
+        cached = [self._clouds[o.index].fingerprint for o in window if o.index in self._clouds]
+        if cached != [_fingerprint(o) for o in window if o.index in self._clouds]:
+            self.reset()  # a frame index now holds other points: a new episode
+        clouds = {o.index: self._cloud(o) for o in window}
+        usable = [o.index for o in window if len(clouds[o.index].points) >= self.min_points]
+        self._forget_all_but(clouds)
+        if len(usable) < 2:
+            counts = [len(clouds[o.index].points) for o in window]
+            return NoAxis(
+                f"too few moving-part points: {max(counts)} at most after {self.voxel_m * 1000:.0f} mm "
+                f"downsampling, need {self.min_points} in at least 2 frames",
+                {"points": counts},
+            )
+        if not any(i in self._poses for i in usable):
+            self._keyframe = None  # a new stretch of frames: the first becomes the keyframe
+        registrations = {i: self._register(i, clouds) for i in usable}
+        latest = registrations[usable[-1]]
+        if latest is not None and latest.fitness < self.min_fitness:
+            return NoAxis(
+                f"registration of frame {usable[-1]} failed: only {latest.fitness:.0%} of its moving part "
+                f"matches the keyframe (need {self.min_fitness:.0%}); the part changed too much or too "
+                "fast, or the segmentation jumped",
+                {"fitness": latest.fitness, "frame": usable[-1]},
+            )
+        registered = [i for i in usable if i in self._poses]  # earlier failures are skipped
+        if len(registered) < 2:
+            return NoAxis(f"only {len(registered)} frame of the window registered; waiting for more")
+        start = self._poses[registered[0]]
+        poses = np.array([self._poses[i] @ np.linalg.inv(start) for i in registered[1:]])
+        matched = [r.fitness for r in registrations.values() if r and r.fitness >= self.min_fitness]
+        fitness = min(matched + [0.9]) / 0.9
+        return self._fit(poses, clouds[registered[0]].points, clouds[registered[-1]].points, fitness, joint)
+
+    def _cloud(self, observation: Observation) -> _Cloud:
+        """The frame's cloud, cached by frame index."""
+        if observation.index in self._clouds:
+            return self._clouds[observation.index]
+        points = np.asarray(observation.moving, float).reshape(-1, 3)
+        points = points[np.all(np.isfinite(points), axis=1)]
+        # A random subset (fixed seed), then the voxel grid: cheap whatever the input size, and not a
+        # coarse grid, whose cell centres would stick to the grid as surfaces slide along themselves.
+        subset = points[np.random.default_rng(0).integers(0, len(points), self.max_source)] if len(
+            points) > self.max_source else points
+        source = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(subset)).voxel_down_sample(self.voxel_m)
+        fingerprint = _fingerprint(observation)
+        cloud = _Cloud(points, source, np.asarray(source.points), observation.body_box, fingerprint)
+        self._clouds[observation.index] = cloud
+        return cloud
+
+    def _forget_all_but(self, clouds: dict[int, _Cloud]) -> None:
+        keep = set(clouds) | {self._keyframe}
+        self._clouds = {i: c for i, c in self._clouds.items() if i in keep}
+        self._poses = {i: p for i, p in self._poses.items() if i in keep}
+        self._pairs = {p: r for p, r in self._pairs.items() if p[1] in keep}
+
+    def _make_keyframe(self, index: int) -> None:
+        """The frame's dense cloud with normals becomes the target of the next registrations."""
+        target = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(self._clouds[index].raw))
+        target = target.voxel_down_sample(self.voxel_m)
+        if len(target.points) > self.max_target:
+            keep = np.random.default_rng(0).permutation(len(target.points))[: self.max_target]
+            target = target.select_by_index(np.sort(keep))
+        target.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(10))
+        self._keyframe, self._keyframe_target = index, target
+        self._keyframe_centre = self._clouds[index].points.mean(axis=0)
+
+    def _register(self, index: int, clouds: dict[int, _Cloud]) -> _Registration | None:
+        """Register a new frame onto the keyframe (None for the first keyframe itself).
+
+        The source is the part of the frame the keyframe saw: its points that, moved back to the
+        keyframe, lie outside the body box grown by overlap_margin_m (the rest came out of the box
+        later and would pull the fit). The start is the previous frame's pose (extrapolating would
+        also extrapolate its errors in the directions a plate barely constrains); when the match is
+        worse than the last frame's, a search as wide as the last step runs too. The frame becomes
+        the next keyframe when the keyframe saw less than keyframe_coverage of it. A frame that fails
+        is skipped; a second failure in a row starts a new chain at that frame (a bad keyframe).
+        """
+        if index in self._poses:
+            return self._pairs.get((self._keyframe_of(index), index))
+        if (self._keyframe, index) in self._pairs:  # failed before
+            return self._pairs[(self._keyframe, index)]
+        if self._keyframe is None or self._keyframe not in self._poses:
+            self._poses = {index: np.eye(4)}
+            self._pairs = {}
+            self._make_keyframe(index)
+            return None
+        key_pose = self._poses[self._keyframe]
+        previous = [i for i in sorted(self._poses) if i < index][-2:] or [self._keyframe]
+        guess = self._poses[previous[-1]] @ np.linalg.inv(key_pose)  # keyframe -> frame
+        cloud = clouds[index]
+        back = (cloud.points - guess[:3, 3]) @ guess[:3, :3]
+        seen = ~cloud.box.contains(back, self.overlap_margin_m)
+        coverage = float(seen.mean())
+        source = cloud.source
+        if seen.sum() >= self.min_points:
+            source = source.select_by_index(np.flatnonzero(seen))
+        # ICP finds the transform taking the frame's points onto the keyframe's: the inverse motion.
+        fine_m = 2 * self.voxel_m
+        result = self._icp(source, np.linalg.inv(guess), (fine_m,))
+        last = self._pairs.get((self._keyframe, previous[-1]))
+        if result.fitness < 0.9 * (last.fitness if last is not None else 1.0):
+            centre = guess @ np.append(self._keyframe_centre, 1.0)
+            step = guess @ np.linalg.inv(self._poses[previous[0]] @ np.linalg.inv(key_pose)) @ centre - centre
+            reach_m = max(5 * self.voxel_m, 1.5 * float(np.linalg.norm(step)))
+            wide = self._icp(source, np.linalg.inv(guess), (reach_m, fine_m))
+            result = max(result, wide, key=lambda r: r.fitness)
+        self.registrations += 1
+        registration = _Registration(np.linalg.inv(result.transformation), float(result.fitness))
+        self._pairs[(self._keyframe, index)] = registration
+        if registration.fitness >= self.min_fitness:
+            self._failures = 0
+            self._poses[index] = registration.motion @ key_pose
+            if coverage < self.keyframe_coverage:
+                self._make_keyframe(index)
+        else:  # skip the frame; after two failures in a row, suspect the keyframe and start over here
+            self._failures += 1
+            if self._failures >= 2:
+                self._failures = 0
+                self._poses = {index: np.eye(4)}
+                self._make_keyframe(index)
+        return registration
+
+    def _icp(self, source: o3d.geometry.PointCloud, transform: np.ndarray, distances_m: tuple[float, ...]):
+        """Point-to-plane ICP onto the keyframe with a Tukey kernel, once per correspondence distance."""
+        for distance_m in distances_m:
+            result = _REG.registration_icp(
+                source, self._keyframe_target, distance_m, transform,
+                _REG.TransformationEstimationPointToPlane(_REG.TukeyLoss(k=distance_m)),
+                _REG.ICPConvergenceCriteria(relative_fitness=1e-5, relative_rmse=1e-5, max_iteration=20),
+            )
+            transform = result.transformation
+        return result
+
+    def _keyframe_of(self, index: int) -> int | None:
+        return next((a for a, b in self._pairs if b == index), None)
+
+    def _fit(
+        self, poses: np.ndarray, start: np.ndarray, latest: np.ndarray, fitness: float,
+        joint: JointType | None,
+    ) -> AxisResult:
+        """Fit the joint to the motions `poses` (K,4,4) of the window-start points `start` (M,3)."""
+        sample = start[np.linspace(0, len(start) - 1, min(len(start), 200)).astype(int)]
+        moved = np.einsum("kij,mj->kmi", poses[:, :3, :3], sample) + poses[:, None, :3, 3]
+        centroid = sample.mean(axis=0)
+        travel_m = float(np.max(np.linalg.norm(moved.mean(axis=1) - centroid, axis=1)))
+        rotation_deg = float(np.degrees(np.max(Rotation.from_matrix(poses[:, :3, :3]).magnitude())))
+        if travel_m < self.min_travel_m and rotation_deg < self.min_rotation_deg:
+            return NoAxis(
+                f"not enough motion yet: {travel_m * 1000:.1f} mm of {self.min_travel_m * 1000:.0f} mm "
+                f"and {rotation_deg:.1f} deg of {self.min_rotation_deg:.0f} deg",
+                {"travel_m": travel_m, "rotation_deg": rotation_deg},
+            )
+        n = 6 * len(poses)
+        fits = {}
+        if joint is not JointType.REVOLUTE:
+            fits[JointType.PRISMATIC] = self._prismatic(sample, moved, n)
+        if joint is not JointType.PRISMATIC:
+            fits[JointType.REVOLUTE] = self._revolute(poses, sample, moved, n)
+        handle = latest.mean(axis=0)
+        radius_m = _distance_to_line(handle, fits[JointType.REVOLUTE]) if JointType.REVOLUTE in fits else 0.0
+        far = radius_m > self.max_radius_m
+        if joint is None:
+            joint = JointType.PRISMATIC if far else min(fits, key=lambda j: fits[j].bic)
+        elif joint is JointType.REVOLUTE and far:
+            return NoAxis(
+                f"the motion is too straight to locate a hinge: the fitted axis is more than "
+                f"{self.max_radius_m:.1f} m from the moving part",
+                {"radius_m": radius_m},
+            )
+        fit = fits[joint]
+        motion = min(1.0, max(travel_m / 0.05, rotation_deg / 10.0))
+        confidence = float(np.clip(fitness * motion / (1 + (fit.rms_m / 0.002) ** 2), 0.0, 1.0))
+        if joint is JointType.PRISMATIC:
+            return Axis(joint, centroid, fit.direction, confidence=confidence, residual_m=fit.rms_m)
+        origin = fit.point + ((handle - fit.point) @ fit.direction) * fit.direction
+        return Axis(
+            joint, origin, fit.direction, confidence=confidence, residual_m=fit.rms_m, radius_m=radius_m
+        )
+
+    def _bic(self, rms_m: float, n: int, k: int) -> float:
+        return float(n * np.log(rms_m**2 + self.noise_floor_m**2) + k * np.log(n))
+
+    def _prismatic(self, sample: np.ndarray, moved: np.ndarray, n: int) -> _JointFit:
+        """Points move by s_k d: d = principal direction of the mean displacements, along the motion."""
+        shifts = moved.mean(axis=1) - sample.mean(axis=0)
+        d = np.linalg.svd(shifts)[2][0]
+        travel = shifts @ d
+        if travel[np.argmax(np.abs(travel))] < 0:
+            d, travel = -d, -travel
+        predicted = sample[None] + travel[:, None, None] * d
+        rms = float(np.sqrt(np.mean(np.sum((moved - predicted) ** 2, axis=2))))
+        return _JointFit(d, sample.mean(axis=0), rms, self._bic(rms, n, len(moved) + 2))
+
+    def _revolute(self, poses: np.ndarray, sample: np.ndarray, moved: np.ndarray, n: int) -> _JointFit:
+        """Rotation about the line (w, a): R_k w = w and (I - R_k) a = t_k in least squares."""
+        rotations, translations = poses[:, :3, :3], poses[:, :3, 3]
+        m = rotations - np.eye(3)
+        w = np.linalg.eigh(np.einsum("kji,kjl->il", m, m))[1][:, 0]
+        plate = _plate_normal(sample)
+        if plate is not None and abs(w @ plate) < np.sin(np.radians(30)):
+            w = w - (w @ plate) * plate
+            w = w / np.linalg.norm(w)
+        if Rotation.from_matrix(rotations).as_rotvec().sum(axis=0) @ w < 0:
+            w = -w
+        anchor = w @ sample.mean(axis=0)
+        a = np.linalg.lstsq(np.vstack([-m.reshape(-1, 3), w]), np.append(translations, anchor), rcond=None)[0]
+        # Each pose's best angle about the axis (2D Procrustes in the plane normal to w).
+        x = (sample - a) - np.outer((sample - a) @ w, w)
+        y = moved - a
+        angles = np.arctan2(np.einsum("mi,kmi->k", np.cross(w, x), y), np.einsum("mi,kmi->k", x, y))
+        turns = Rotation.from_rotvec(np.outer(angles, w)).as_matrix()
+        predicted = np.einsum("kij,mj->kmi", turns, sample - a) + a
+        rms = float(np.sqrt(np.mean(np.sum((moved - predicted) ** 2, axis=2))))
+        return _JointFit(w, a, rms, self._bic(rms, n, len(moved) + 4))
+
+
+def _fingerprint(observation: Observation) -> tuple[int, bytes]:
+    """A cheap identity check of a frame's points: their count and eight of them."""
+    points = np.asarray(observation.moving, float).reshape(-1, 3)
+    return len(points), points[:: max(1, len(points) // 8)].tobytes()
+
+
+def _distance_to_line(point: np.ndarray, fit: _JointFit) -> float:
+    offset = point - fit.point
+    return float(np.linalg.norm(offset - (offset @ fit.direction) * fit.direction))
+
+
+def _plate_normal(points: np.ndarray) -> np.ndarray | None:
+    """Normal of the plate the points mostly lie on (trimmed PCA), None when they are not a plate."""
+    kept = points
+    for _ in range(3):
+        centre = kept.mean(axis=0)
+        _, spread, axes = np.linalg.svd(kept - centre, full_matrices=False)
+        distance = np.abs((points - centre) @ axes[2])
+        kept = points[distance <= max(3 * np.median(distance), 0.002)]
+    if len(kept) < 0.6 * len(points) or spread[2] > 0.1 * spread[1]:
+        return None
+    return axes[2]

@@ -1,0 +1,281 @@
+"""Screw estimator on synthetic moving-part clouds of drawers and doors seen by a D415-like camera."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from deploy.geometry.estimators.base import Observation
+from deploy.geometry.estimators.screw import ScrewEstimator
+from deploy.geometry.types import Axis, Box, JointType, NoAxis
+
+# Cabinet frame: x out of the front face, z up. The body box includes the closed fronts.
+BODY_LO, BODY_HI = np.array([-0.45, -0.3, 0.0]), np.array([0.02, 0.3, 0.7])
+MARGIN_M = 0.01
+CAMERA = np.array([0.75, 0.3, 0.85])
+
+
+def box_faces(lo, hi) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """(centre, outward normal, edge u, edge v) of the six faces of an axis-aligned box."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    centre, extent = (lo + hi) / 2, hi - lo
+    faces = []
+    for axis in range(3):
+        u, v = (np.eye(3)[i] * extent[i] for i in range(3) if i != axis)
+        for sign in (-1.0, 1.0):
+            normal = sign * np.eye(3)[axis]
+            faces.append((centre + normal * extent[axis] / 2, normal, u, v))
+    return faces
+
+
+def sample_faces(faces, rng, spacing_m=0.004) -> tuple[np.ndarray, np.ndarray]:
+    points, normals = [], []
+    for centre, normal, u, v in faces:
+        count = rng.poisson(np.linalg.norm(u) * np.linalg.norm(v) / spacing_m**2)
+        ab = rng.uniform(-0.5, 0.5, (count, 2))
+        points.append(centre + ab[:, :1] * u + ab[:, 1:] * v)
+        normals.append(np.tile(normal, (count, 1)))
+    return np.concatenate(points), np.concatenate(normals)
+
+
+def camera_view(points, normals, rng, noise_m) -> np.ndarray:
+    """Surfaces facing the camera, two holes, axial noise growing with distance^2, 0.5 % flying pixels."""
+    ray = points - CAMERA
+    distance = np.linalg.norm(ray, axis=1)
+    keep = np.einsum("ij,ij->i", normals, -ray) > 0.05 * distance
+    for _ in range(2):
+        keep &= np.linalg.norm(points - points[rng.integers(len(points))], axis=1) > rng.uniform(0.01, 0.025)
+    ray = ray[keep] / distance[keep, None]
+    noise = rng.normal(scale=noise_m * (distance[keep] / 0.6) ** 2)
+    flying = (rng.random(len(ray)) < 0.005) * rng.uniform(-0.05, 0.05, len(ray)) * (noise_m > 0)
+    return points[keep] + ray * (noise + flying)[:, None]
+
+
+def drawer(opening_m):
+    """Front panel, tray and handle pulled out by `opening_m` along +x; axis (+x) through the handle.
+
+    The tray's front face is left out: the panel hides it (the camera model does not occlude).
+    """
+    tray = box_faces([-0.35 + opening_m, -0.19, 0.36], [opening_m, 0.19, 0.5])
+    faces = [
+        *box_faces([opening_m, -0.2, 0.35], [0.02 + opening_m, 0.2, 0.52]),
+        *(face for face in tray if face[1][0] <= 0),
+        *box_faces([0.02 + opening_m, -0.06, 0.43], [0.045 + opening_m, 0.06, 0.445]),
+    ]
+    return faces, (np.array([1.0, 0, 0]), np.array([0, 0, 0.43]))
+
+
+def door_faces(hinge_left: bool):
+    y_handle = 0.22 if hinge_left else -0.22
+    return [
+        *box_faces([0.0, -0.3, 0.02], [0.02, 0.3, 0.68]),
+        *box_faces([0.02, y_handle - 0.008, 0.3], [0.05, y_handle + 0.008, 0.45]),
+    ]
+
+
+def door_motion(angle_rad: float, hinge_left: bool):
+    """Rotation and hinge of a door opening by `angle_rad` (the free edge comes toward +x)."""
+    hinge = np.array([0.0, -0.3 if hinge_left else 0.3, 0.0])
+    direction = np.array([0, 0, -1.0 if hinge_left else 1.0])
+    return Rotation.from_rotvec(direction * angle_rad), hinge, direction
+
+
+def make_window(kind, values, seed=0, pose=None, noise_m=1e-3, hinge_left=True, resample=True):
+    """Observations of the moving part over openings (m, drawer) or angles (rad, door), base frame.
+
+    `pose` = (R, t) maps the cabinet frame to the base frame. Returns the window and the true axis
+    (direction, point). With resample=False the same surface samples move rigidly (no sensor noise).
+    """
+    rng = np.random.default_rng(seed)
+    rotation, translation = pose if pose is not None else (np.eye(3), np.zeros(3))
+    box = Box(rotation @ ((BODY_LO + BODY_HI) / 2) + translation, rotation, BODY_HI - BODY_LO)
+    fixed = sample_faces(drawer(0.0)[0] if kind == "drawer" else door_faces(hinge_left), rng)
+    window = []
+    for k, value in enumerate(values):
+        if kind == "drawer":
+            faces, (direction, point) = drawer(value)
+            points, normals = sample_faces(faces, rng) if resample else (fixed[0] + [value, 0, 0], fixed[1])
+        else:
+            turn, point, direction = door_motion(value, hinge_left)
+            points, normals = sample_faces(door_faces(hinge_left), rng) if resample else fixed
+            points, normals = turn.apply(points - point) + point, turn.apply(normals)
+        points = camera_view(points, normals, rng, noise_m) if resample else points[
+            np.einsum("ij,ij->i", normals, CAMERA - points) > 0]
+        outside = ~np.all((points >= BODY_LO - MARGIN_M) & (points <= BODY_HI + MARGIN_M), axis=1)
+        window.append(Observation(k, 0.1 * k, points[outside] @ rotation.T + translation, box))
+    return window, rotation @ direction, rotation @ point + translation
+
+
+POSES = {  # cabinet frame -> base frame; the camera moves with the cabinet
+    name: (Rotation.from_euler("xyz", angles, degrees=True).as_matrix(), np.array(t))
+    for name, angles, t in [
+        ("upright", [0, 0, 20], [0.6, -0.1, 0.05]),
+        ("tilted", [25, -30, 110], [0.5, 0.2, 0.3]),
+        ("on its back", [0, -90, 0], [0.7, 0.0, 0.1]),
+    ]
+}
+
+
+def angle_deg(a, b) -> float:
+    return float(np.degrees(np.arccos(np.clip(np.dot(a, b) / np.linalg.norm(a) / np.linalg.norm(b), -1, 1))))
+
+
+def distance_to_line(point, origin, direction) -> float:
+    d = np.asarray(point) - origin
+    return float(np.linalg.norm(d - (d @ direction) * direction))
+
+
+DRAWER_10CM = 0.03 + np.linspace(0, 0.1, 10)
+DOOR_20DEG = np.radians(5 + np.linspace(0, 20, 10))
+
+
+@pytest.mark.parametrize("pose", POSES.values(), ids=POSES.keys())
+def test_noisy_drawer_is_classified_and_recovered(pose):
+    window, direction, _ = make_window("drawer", DRAWER_10CM, seed=1, pose=pose)
+    axis = ScrewEstimator().estimate(window)
+    assert isinstance(axis, Axis) and axis.joint_type is JointType.PRISMATIC
+    assert angle_deg(axis.direction, direction) < 1.5  # sign included: along the opening
+    assert np.linalg.norm(axis.origin - window[0].moving.mean(axis=0)) < 0.03
+    assert axis.residual_m < 0.003 and 0.3 < axis.confidence <= 1.0
+
+
+@pytest.mark.parametrize("pose", POSES.values(), ids=POSES.keys())
+@pytest.mark.parametrize("hinge_left", [True, False], ids=["hinge-left", "hinge-right"])
+def test_noisy_door_is_classified_and_recovered(pose, hinge_left):
+    window, direction, hinge = make_window("door", DOOR_20DEG, seed=2, pose=pose, hinge_left=hinge_left)
+    axis = ScrewEstimator().estimate(window)
+    assert isinstance(axis, Axis) and axis.joint_type is JointType.REVOLUTE
+    assert angle_deg(axis.direction, direction) < 2.0  # sign included: opening is a positive rotation
+    assert distance_to_line(axis.origin, hinge, direction) < 0.015
+    centroid = window[-1].moving.mean(axis=0)
+    assert axis.radius_m == pytest.approx(distance_to_line(centroid, hinge, direction), abs=0.015)
+    assert axis.residual_m < 0.003 and 0.3 < axis.confidence <= 1.0
+
+
+@pytest.mark.parametrize("kind, values", [("drawer", DRAWER_10CM), ("door", DOOR_20DEG)])
+def test_noise_free_motion_is_recovered_exactly(kind, values):
+    window, direction, point = make_window(kind, values, pose=POSES["tilted"], resample=False)
+    axis = ScrewEstimator().estimate(window)
+    assert angle_deg(axis.direction, direction) < 0.05
+    if kind == "door":
+        assert axis.joint_type is JointType.REVOLUTE
+        assert distance_to_line(axis.origin, point, direction) < 1e-3
+    else:
+        assert axis.joint_type is JointType.PRISMATIC
+    assert axis.residual_m < 5e-4
+
+
+@pytest.mark.parametrize("kind, values", [("drawer", DRAWER_10CM), ("door", DOOR_20DEG)])
+def test_closing_motion_flips_the_direction(kind, values):
+    window, direction, _ = make_window(kind, values[::-1], seed=3, pose=POSES["upright"], hinge_left=False)
+    axis = ScrewEstimator().estimate(window)
+    assert angle_deg(axis.direction, -direction) < 2.0
+
+
+def test_fast_drawer_and_early_door():
+    """2 cm per frame; a door from 0 deg, whose first frames have almost no moving part."""
+    window, direction, _ = make_window("drawer", 0.02 + np.linspace(0, 0.2, 10), seed=4, pose=POSES["tilted"])
+    assert angle_deg(ScrewEstimator().estimate(window).direction, direction) < 1.5
+    angles = np.radians(np.linspace(0, 25, 12))
+    window, direction, hinge = make_window("door", angles, seed=5, hinge_left=False)
+    assert len(window[0].moving) < 0.05 * len(window[-1].moving)  # noise that left the box
+    axis = ScrewEstimator().estimate(window)
+    assert axis.joint_type is JointType.REVOLUTE and angle_deg(axis.direction, direction) < 2.0
+    assert distance_to_line(axis.origin, hinge, direction) < 0.015 and axis.confidence > 0.3
+
+
+def test_forced_joint_types():
+    window, direction, _ = make_window("door", DOOR_20DEG, seed=6)
+    assert ScrewEstimator().estimate(window, JointType.PRISMATIC).joint_type is JointType.PRISMATIC
+    window, direction, _ = make_window("drawer", DRAWER_10CM, seed=6)
+    forced = ScrewEstimator().estimate(window, JointType.REVOLUTE)
+    assert isinstance(forced, NoAxis) and "too straight" in forced.reason
+
+
+def test_one_registration_per_new_frame():
+    window, direction, _ = make_window("door", np.radians(5 + np.linspace(0, 24, 12)), seed=7)
+    estimator = ScrewEstimator()
+    first = estimator.estimate(window[:10])
+    assert estimator.registrations == 9
+    second = estimator.estimate(window[1:11])
+    assert estimator.registrations == 10
+    estimator.estimate(window[1:11])
+    assert estimator.registrations == 10
+    estimator.estimate(window[2:12])
+    assert estimator.registrations == 11
+    assert angle_deg(first.direction, direction) < 2.0 and angle_deg(second.direction, direction) < 2.0
+
+    fresh = ScrewEstimator().estimate(window[1:11])
+    assert angle_deg(fresh.direction, second.direction) < 1.0
+
+
+def test_a_reused_frame_index_starts_over():
+    door, _, _ = make_window("door", DOOR_20DEG, seed=8)
+    drawer_window, direction, _ = make_window("drawer", DRAWER_10CM, seed=8)
+    drawer_window = [Observation(o.index + 5, o.t, o.moving, o.body_box) for o in drawer_window]
+    estimator = ScrewEstimator()
+    estimator.estimate(door)
+    axis = estimator.estimate(drawer_window)  # frames 5..14: 5..9 now hold other points
+    assert estimator.registrations == 18
+    assert axis.joint_type is JointType.PRISMATIC and angle_deg(axis.direction, direction) < 1.5
+
+
+def test_degenerate_windows_give_no_axis_with_a_reason():
+    window, _, _ = make_window("drawer", DRAWER_10CM, seed=9)
+    empty = [Observation(o.index, o.t, np.zeros((0, 3)), o.body_box) for o in window]
+    sparse = [Observation(o.index, o.t, o.moving[:30], o.body_box) for o in window]
+    still, _, _ = make_window("drawer", np.full(8, 0.05) + np.linspace(0, 0.004, 8), seed=9)
+    cases = {
+        "one frame": ScrewEstimator().estimate(window[:1]),
+        "no frames": ScrewEstimator().estimate([]),
+        "empty clouds": ScrewEstimator().estimate(empty),
+        "too few points": ScrewEstimator().estimate(sparse),
+        "no motion": ScrewEstimator().estimate(still),
+    }
+    for name, result in cases.items():
+        assert isinstance(result, NoAxis), name
+    assert "too few moving-part points" in cases["empty clouds"].reason
+    assert "too few moving-part points" in cases["too few points"].reason
+    assert "not enough motion" in cases["no motion"].reason
+
+
+def test_a_frame_that_does_not_match_fails_registration_and_is_skipped_later():
+    window, direction, _ = make_window("drawer", 0.03 + np.linspace(0, 0.12, 12), seed=10)
+    elsewhere = np.random.default_rng(0).uniform(1.0, 1.3, (3000, 3))
+    window[8] = Observation(8, 0.8, elsewhere, window[0].body_box)
+    estimator = ScrewEstimator()
+    result = estimator.estimate(window[:9])
+    assert isinstance(result, NoAxis) and "registration of frame 8 failed" in result.reason
+    axis = estimator.estimate(window[2:11])  # a one-frame glitch is skipped
+    assert isinstance(axis, Axis) and angle_deg(axis.direction, direction) < 1.5
+
+
+def test_nan_rows_are_ignored():
+    window, direction, _ = make_window("drawer", DRAWER_10CM, seed=11)
+    dirty = []
+    for o in window:
+        moving = o.moving.copy()
+        moving[::50] = np.nan
+        dirty.append(Observation(o.index, o.t, moving, o.body_box))
+    axis = ScrewEstimator().estimate(dirty)
+    assert angle_deg(axis.direction, direction) < 1.5
+    assert np.all(np.isfinite(np.r_[axis.origin, axis.direction, axis.confidence, axis.residual_m]))
+
+
+def test_degenerate_shapes_never_give_nan():
+    box = Box(np.zeros(3), np.eye(3), np.full(3, 0.1))
+    line = np.outer(np.linspace(0, 0.6, 600), [1.0, 0, 0]) + [0, 0.5, 0]
+    plate = np.c_[np.random.default_rng(0).uniform(0, 0.4, (3000, 2)), np.zeros(3000)] + [0.3, 0.3, 0.5]
+    for frames in (
+        [line + [0.01 * k, 0, 0] for k in range(8)],  # slides along itself: no motion to see
+        [line + [0, 0.01 * k, 0] for k in range(8)],
+        [plate + [0.01 * k, 0, 0] for k in range(8)],
+        [np.full((300, 3), np.inf) for _ in range(8)],
+    ):
+        for joint in (None, JointType.REVOLUTE):
+            window = [Observation(i, 0.1 * i, f, box) for i, f in enumerate(frames)]
+            result = ScrewEstimator().estimate(window, joint)
+            if isinstance(result, Axis):
+                values = np.r_[result.origin, result.direction, result.confidence, result.residual_m]
+                assert np.all(np.isfinite(values)) and 0.0 <= result.confidence <= 1.0
+            else:
+                assert result.reason
