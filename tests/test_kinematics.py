@@ -1,4 +1,5 @@
-"""Kinematics: FK against PyBullet, Jacobian against finite differences, IK round trips and failures."""
+"""Kinematics: FK against PyBullet, Jacobian against finite differences, IK round trips and failures,
+the rest-posture pull in the null space and per-tick tracking near singularities."""
 
 import numpy as np
 import pinocchio as pin
@@ -8,6 +9,10 @@ import pytest
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.robots import panda
 from drivers.errors import ArmError
+
+# A configuration 0.4 rad from the ready pose where the tool Jacobian loses rank (smallest singular value
+# ~5e-5), found by minimising that singular value from the ready pose.
+Q_SINGULAR = np.array([-0.446, -0.787, 0.443, -2.363, np.pi / 2, 3.346, -0.66])
 
 
 @pytest.fixture(scope="module")
@@ -159,3 +164,65 @@ def test_bad_models_raise_actionable_errors(tmp_path):
         Kinematics.from_urdf(tmp_path / "missing.urdf", robot.tool_frame)
     with pytest.raises(ArmError, match="joints to lock"):
         Kinematics.from_urdf(robot.urdf, robot.tool_frame, ["finger_typo"])
+
+
+def _null_direction(kin: Kinematics, q: np.ndarray) -> np.ndarray:
+    """The Panda's one self-motion direction at q (unit joint vector that leaves the tool pose unchanged)."""
+    return np.linalg.svd(kin.jacobian(q))[2][-1]
+
+
+def test_ik_prefers_solutions_toward_the_rest_posture(kin):
+    q0 = panda().q_ready
+    n = _null_direction(kin, q0)
+    T = kin.fk(q0)
+    T[0, 3] += 0.02
+    q_plus = kin.ik(T, q0, q_rest=q0 + 0.8 * n)
+    q_minus = kin.ik(T, q0, q_rest=q0 - 0.8 * n)
+    for q in (q_plus, q_minus):
+        assert np.linalg.norm(kin.fk(q)[:3, 3] - T[:3, 3]) <= 1e-4
+    assert (q_plus - q_minus) @ n > 0.04  # same pose, redundancy pulled apart along the self-motion
+
+
+def test_solve_path_around_closed_loops_does_not_drift(kin):
+    q0 = panda().q_ready
+    T0 = kin.fk(q0)
+    loop = [_pose(T0[:3, 3] + 0.1 * np.array([np.cos(a) - 1, 0.0, np.sin(a)]), T0[:3, :3])
+            for a in np.linspace(0.0, 6 * np.pi, 121)]  # three 0.1 m circles in the x-z plane
+    qs = kin.solve_path(loop, q0)
+    after_loop = [np.abs(qs[i] - q0).max() for i in (40, 80, 120)]
+    assert max(after_loop) < 0.25  # pure least squares drifts ~0.19 rad more every loop
+    assert after_loop[2] - after_loop[0] < 0.03
+
+
+def test_track_moves_within_the_step_limit_or_says_why(kin):
+    q0 = panda().q_ready
+    max_step = kin.v_max * 0.002  # one 2 ms tick at the velocity limits
+    T = kin.fk(q0)
+    T[:3, 3] += [-2e-4, 1e-4, 0.0]
+    q = kin.track(T, q0, max_step, q0, posture_gain=0.002)
+    assert np.all(np.abs(q - q0) < max_step)
+    assert np.linalg.norm(kin.fk(q)[:3, 3] - T[:3, 3]) <= 1e-6
+    T[:3, 3] += [-0.05, 0.0, 0.0]  # 5 cm in one tick: would need a jump the safety layer rejects
+    with pytest.raises(ArmError, match=r"^ik: the tool pose needs joint panda_joint\d at its velocity limit"):
+        kin.track(T, q0, max_step, q0, posture_gain=0.002)
+
+
+def test_near_singular_targets_give_finite_bounded_steps(kin):
+    sigma = np.linalg.svd(kin.jacobian(Q_SINGULAR), compute_uv=False)
+    assert sigma[-1] < 1e-3 * sigma[0]
+    T_singular = kin.fk(Q_SINGULAR)
+    q = kin.ik(T_singular, panda().q_ready)  # reached, from a configuration away from the singularity
+    assert np.all(np.isfinite(q)) and np.linalg.norm(kin.fk(q)[:3, 3] - T_singular[:3, 3]) <= 1e-4
+
+    U = np.linalg.svd(kin.jacobian(Q_SINGULAR))[0]
+    lost = U[:3, -1] / np.linalg.norm(U[:3, -1])  # the tool direction the arm cannot move in
+    T = T_singular.copy()
+    T[:3, 3] += 2e-4 * lost
+    max_step = kin.v_max * 0.002
+    with pytest.raises(ArmError, match=r"^ik: the tool pose (is not reached|needs joint)"):  # no spinning
+        kin.track(T, Q_SINGULAR, max_step, Q_SINGULAR, posture_gain=0.002)
+    for direction in (lost, -lost):
+        T = T_singular.copy()
+        T[:3, 3] += 0.01 * direction
+        q = kin.ik(T, Q_SINGULAR, restarts=0)
+        assert np.all(np.isfinite(q)) and np.abs(q - Q_SINGULAR).max() < 0.5

@@ -1,4 +1,5 @@
-"""Motion code on the ideal arm: joint moves, Cartesian lines and arcs, stopping, blocking, safety."""
+"""Motion code on the ideal arm: joint moves, Cartesian lines and arcs, stopping, blocking, safety, and door
+arcs / drawer lines from the ready pose that stay clear of joint limits without drifting."""
 
 import numpy as np
 import pinocchio as pin
@@ -20,6 +21,10 @@ from drivers.errors import ArmError
 
 LINE_LIMITS = MotionLimits(0.1, 0.5, 5.0)  # m/s, m/s^2, m/s^3
 ARC_LIMITS = MotionLimits(0.4, 1.0, 10.0)  # rad/s, rad/s^2, rad/s^3
+DRAWER_LIMITS, DOOR_LIMITS = MotionLimits(0.1, 0.3, 3.0), MotionLimits(0.25, 0.6, 6.0)  # opening speeds
+LIMIT_MARGIN_RAD = 0.05
+# 0.4 rad from the ready pose, where the tool Jacobian loses rank (see test_kinematics.py).
+Q_SINGULAR = np.array([-0.446, -0.787, 0.443, -2.363, np.pi / 2, 3.346, -0.66])
 
 
 class EndStopArm(IdealArm):
@@ -67,7 +72,7 @@ def test_line_keeps_the_tool_on_the_line():
         assert np.linalg.norm(offset - along * u) < 1e-3
         assert _rotation_error(T[:3, :3], T0[:3, :3]) < 1e-3
     assert np.allclose(kin.fk(arm.state().q)[:3, 3], T0[:3, 3] + 0.2 * u, atol=1e-5)
-    assert np.allclose(arm.state().dq, 0.0, atol=1e-6)
+    assert np.allclose(arm.state().dq, 0.0, atol=1e-5)
     assert len(result.t) == len(result.s) == len(result.planned) == len(result.measured)
     assert len(result.t) == pytest.approx(len(states) / 10, abs=1.5)
     assert result.t[-1] == pytest.approx(states[-1].t) and result.max_tracking_error_m < 1e-4
@@ -137,8 +142,12 @@ def test_unsolvable_paths_raise_before_any_motion():
     kin = arm.kin
     T0 = kin.fk(arm.state().q)
     q0 = arm.state().q
-    with pytest.raises(ArmError, match=r"path waypoint \d+ of \d+ (is not reachable|needs joint)"):
+    lost = r"^ik: lost the Cartesian path at s = 0\.\d+ of 1\.0000: the tool pose"
+    with pytest.raises(ArmError, match=lost):
         follow_cartesian_path(arm, kin, line_path(T0, [1, 0, 0]), 1.0, LINE_LIMITS)
+    assert arm.state().t == 0.0 and np.array_equal(arm.state().q, q0)
+    with pytest.raises(ArmError, match=r"^ik: .* needs joint panda_joint\d at its velocity limit"):
+        follow_cartesian_path(arm, kin, line_path(T0, [0, 0, -1]), 0.3, MotionLimits(3.0, 30.0, 300.0))
     assert arm.state().t == 0.0 and np.array_equal(arm.state().q, q0)
     far = T0.copy()
     far[2, 3] += 0.05
@@ -219,3 +228,93 @@ def test_ideal_gripper_moves_to_its_command():
     assert arm.state().gripper_width_m == pytest.approx(0.1 * arm.control_period_s)
     with pytest.raises(ArmError, match="not finite"):
         arm.set_gripper(float("nan"))
+
+
+def _follow(arm: IdealArm, path, length: float, limits: MotionLimits, **kwargs) -> tuple:
+    """follow_cartesian_path recording every tick: (result, joint positions (N, 7), joint velocities)."""
+    states: list[ArmState] = []
+    result = follow_cartesian_path(arm, arm.kin, path, length, limits, on_tick=_record(states), **kwargs)
+    return result, np.array([s.q for s in states]), np.array([s.dq for s in states])
+
+
+def _assert_clear_of_limits(arm: IdealArm, qs: np.ndarray, dqs: np.ndarray) -> None:
+    kin = arm.kin
+    assert np.all(np.abs(dqs) <= kin.v_max)
+    assert np.all(qs > kin.q_min + LIMIT_MARGIN_RAD) and np.all(qs < kin.q_max - LIMIT_MARGIN_RAD)
+
+
+def _assert_joints_1_and_3_bounded(qs: np.ndarray, q_rest: np.ndarray) -> None:
+    """Joints 1 and 3 turn with the task (up to ~1.7 rad for a quarter door) but never spin."""
+    for j in (0, 2):
+        assert np.abs(qs[:, j] - q_rest[j]).max() < 2.0
+        assert np.abs(np.diff(qs[:, j])).sum() < 2.5  # total travel
+
+
+@pytest.mark.parametrize(
+    ("hinge_y", "degrees"), [(0.3, 90), (0.4, 90), (-0.3, 90), (-0.4, 90), (0.5, 70), (-0.5, 70)]
+)
+def test_door_arcs_from_the_ready_pose_stay_clear_of_the_limits(hinge_y, degrees):
+    arm = IdealArm.panda()
+    T0 = arm.kin.fk(arm.state().q)
+    hinge, up = T0[:3, 3] + [0.0, hinge_y, 0.0], np.array([0.0, 0.0, 1.0])
+    angle = -np.sign(hinge_y) * np.radians(degrees)  # the handle swings toward the robot
+    result, qs, dqs = _follow(arm, arc_path(T0, hinge, np.sign(angle) * up), abs(angle), DOOR_LIMITS)
+    assert result.reason == "completed" and result.s_reached == pytest.approx(abs(angle))
+    _assert_clear_of_limits(arm, qs, dqs)
+    _assert_joints_1_and_3_bounded(qs, panda().q_ready)
+    T_end = arm.kin.fk(arm.state().q)
+    R = pin.exp3(angle * up)
+    assert np.allclose(T_end[:3, 3], hinge + R @ (T0[:3, 3] - hinge), atol=1e-5)
+    assert _rotation_error(T_end[:3, :3], R @ T0[:3, :3]) < 1e-4
+
+
+@pytest.mark.parametrize(
+    ("direction", "length"), [((-1, 1, 0), 0.45), ((-1, -1, 0), 0.45), ((-1, 0, 0), 0.25)]
+)
+def test_drawer_lines_from_the_ready_pose_stay_clear_of_the_limits(direction, length):
+    arm = IdealArm.panda()
+    T0 = arm.kin.fk(arm.state().q)
+    result, qs, dqs = _follow(arm, line_path(T0, direction), length, DRAWER_LIMITS)
+    assert result.reason == "completed"
+    _assert_clear_of_limits(arm, qs, dqs)
+    _assert_joints_1_and_3_bounded(qs, panda().q_ready)
+    u = np.array(direction) / np.linalg.norm(direction)
+    assert np.allclose(arm.kin.fk(arm.state().q)[:3, 3], T0[:3, 3] + length * u, atol=1e-5)
+
+
+def test_closed_loops_bring_the_arm_back_to_its_posture():
+    arm = IdealArm.panda()
+    q0 = arm.state().q
+    T0 = arm.kin.fk(q0)
+
+    def circle(s: float) -> np.ndarray:  # 0.1 m radius in the x-z plane, back at the start every 2 pi
+        T = T0.copy()
+        T[[0, 2], 3] += 0.1 * np.array([np.cos(s) - 1.0, np.sin(s)])
+        return T
+
+    for _ in range(3):
+        result, qs, dqs = _follow(arm, circle, 2 * np.pi, MotionLimits(1.5, 3.0, 30.0))
+        assert result.reason == "completed"
+        _assert_clear_of_limits(arm, qs, dqs)
+    assert np.abs(arm.state().q - q0).max() < 0.05  # least squares alone drifts ~0.25 rad per loop
+
+
+def test_paths_near_a_singularity_pass_or_stop_before_moving():
+    arm = IdealArm.panda()
+    kin = arm.kin
+    M0, M1 = pin.SE3(kin.fk(arm.state().q)), pin.SE3(kin.fk(Q_SINGULAR))
+    twist = pin.log6(M0.actInv(M1))
+
+    def through_the_singularity(s: float) -> np.ndarray:  # the singular pose at s = 1, then as far again
+        return (M0 * pin.exp6(s * twist)).homogeneous
+
+    result, qs, dqs = _follow(arm, through_the_singularity, 2.0, MotionLimits(0.5, 1.0, 10.0))
+    assert result.reason == "completed" and np.all(np.isfinite(qs))
+    _assert_clear_of_limits(arm, qs, dqs)
+
+    arm = IdealArm.panda(Q_SINGULAR)
+    U = np.linalg.svd(kin.jacobian(Q_SINGULAR))[0]
+    lost = U[:3, -1] / np.linalg.norm(U[:3, -1])  # the tool direction the arm cannot move in
+    with pytest.raises(ArmError, match=r"^ik: lost the Cartesian path at s = 0\.0000 of 0\.1000"):
+        follow_cartesian_path(arm, kin, line_path(kin.fk(Q_SINGULAR), lost), 0.1, LINE_LIMITS)
+    assert arm.state().t == 0.0 and np.array_equal(arm.state().q, Q_SINGULAR)  # never moved

@@ -12,7 +12,12 @@ from drivers.arm.robots import RobotSpec, panda
 from drivers.errors import ArmError
 
 IK_STEP_LIMIT = 1.0  # rad: largest joint change per iteration, keeps early steps from overshooting
-IK_DAMPING = 1e-6  # damped least squares: J^T (J J^T + lambda I)^-1
+IK_DAMPING = 1e-6  # damped least squares J^T (J J^T + lambda I)^-1: lambda away from singularities ...
+IK_SINGULAR_VALUE, IK_SINGULAR_DAMPING = 0.05, 1e-4  # ... growing to this as J's smallest singular value -> 0
+IK_POSTURE_GAIN = 0.05  # ik(): share of the way to the rest posture per iteration, in the null space, ...
+IK_POSTURE_UNTIL = 10.0  # ... while the pose error is above this many tolerances (then converge fast)
+LIMIT_BAND_RAD, LIMIT_WEIGHT = 1.0, 20.0  # track(): joints this near a limit also head to mid-range, weighted
+TRACK_POSTURE_SHARE = 0.5  # track(): the posture step saturates at this share of a joint's step limit
 IK_STALL_WINDOW, IK_STALL_RATIO = 20, 0.9  # give up when 20 iterations shrink the error < 10 %
 PATH_MAX_JOINT_STEP_RAD = 0.5  # a larger jump between path waypoints means IK switched branch
 
@@ -102,44 +107,116 @@ class Kinematics:
         max_iter: int = 200,
         restarts: int = 8,
         rng: np.random.Generator | None = None,
+        q_rest: np.ndarray | None = None,
     ) -> np.ndarray:
         """Joint positions reaching tool pose `T_target` (tolerances in m and rad), nearest `q_seed` first.
 
-        Damped least squares on log6(oMcurrent^-1 * oMdesired), clamped to the joint limits; when the
-        seed does not converge, up to `restarts` random seeds within the limits are tried (from `rng`,
-        default a fixed seed, so equal inputs give equal answers). Raises ArmError when none converges.
+        Damped least squares on log6(oMcurrent^-1 * oMdesired), clamped to the joint limits, with damping
+        that grows near singularities and, in the null space of the pose, a pull of the arm's redundancy
+        toward `q_rest` (default: the seed). When the seed does not converge, up to `restarts` random
+        seeds within the limits are tried without that pull (from `rng`, default a fixed seed, so equal
+        inputs give equal answers). Raises ArmError when none converges.
         """
-        T_target = np.asarray(T_target, float)
-        if not _is_pose(T_target):
-            raise ArmError("IK target must be a finite 4x4 pose with a rotation matrix: check the planner")
-        oMdes = pin.SE3(T_target[:3, :3], T_target[:3, 3])
+        oMdes = self._target(T_target)
         q = np.clip(np.asarray(q_seed, float), self.q_min, self.q_max)
+        q_rest = q.copy() if q_rest is None else np.asarray(q_rest, float)
         rng = np.random.default_rng(0) if rng is None else rng
         best_pos_err, best_rot_err = np.inf, np.inf
         for attempt in range(restarts + 1):
+            gain = IK_POSTURE_GAIN
             if attempt > 0:
-                q = rng.uniform(self.q_min, self.q_max)
-            q, pos_err, rot_err = self._solve(oMdes, q, tol_pos, tol_rot, max_iter)
+                q, gain = rng.uniform(self.q_min, self.q_max), 0.0
+            q, pos_err, rot_err = self._solve(oMdes, q, tol_pos, tol_rot, max_iter, q_rest, gain)
             if pos_err <= tol_pos and rot_err <= tol_rot:
                 return q
             if pos_err < best_pos_err:
                 best_pos_err, best_rot_err = pos_err, rot_err
-        p = T_target[:3, 3]
+        p = oMdes.translation
         raise ArmError(
             f"target pose unreachable: tool at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m in the base frame "
             f"(position error {best_pos_err * 1e3:.1f} mm, rotation error {np.degrees(best_rot_err):.1f} deg "
             f"after {restarts + 1} attempts); move the object closer or change the grasp orientation"
         )
 
+    def track(
+        self,
+        T_target: np.ndarray,
+        q_prev: np.ndarray,
+        max_step: np.ndarray,
+        q_rest: np.ndarray,
+        posture_gain: float,
+        posture_scale: float = 1.0,
+        tol_pos: float = 1e-6,
+        tol_rot: float = 1e-5,
+        max_iter: int = 20,
+    ) -> np.ndarray:
+        """One control tick of Cartesian tracking: joints reaching `T_target` (tolerances in m and rad)
+        with no joint moving more than `max_step` (rad, per joint) from `q_prev`.
+
+        First a step in the null space of the pose toward `q_rest` and, with a weight growing to
+        LIMIT_WEIGHT, toward mid-range for joints within LIMIT_BAND_RAD of a limit: `posture_gain` of the
+        way, saturating smoothly at TRACK_POSTURE_SHARE of max_step, times `posture_scale` (e.g. the path
+        speed relative to its limit, so that this step starts and stops with the motion). This keeps the
+        redundancy from drifting tick after tick. Then damped least squares within the limits and the step
+        box. Raises ArmError starting with "ik:" when the pose is not reached, or only with a joint moving
+        onto a position limit or at its step limit.
+        """
+        oMdes = self._target(T_target)
+        q_prev = np.asarray(q_prev, float)
+        q_min, q_max = self.model.lowerPositionLimit, self.model.upperPositionLimit
+        lower, upper = np.maximum(q_min, q_prev - max_step), np.minimum(q_max, q_prev + max_step)
+        margin = np.minimum(q_prev - q_min, q_max - q_prev)
+        weight = LIMIT_WEIGHT * np.clip(1.0 - margin / LIMIT_BAND_RAD, 0.0, 1.0) ** 2
+        posture = (q_rest - q_prev) + weight * ((q_min + q_max) / 2 - q_prev)
+        J = pin.computeFrameJacobian(self.model, self.data, q_prev, self._frame_id, pin.LOCAL)
+        step = _dls_step(J, None, posture_gain * posture)
+        ratio = float(np.max(np.abs(step) / (TRACK_POSTURE_SHARE * max_step)))
+        step *= np.tanh(ratio) / ratio if ratio > 1e-9 else 1.0  # smooth saturation at the share
+        q = np.clip(q_prev + posture_scale * step, lower, upper)
+        q, pos_err, rot_err = self._solve(oMdes, q, tol_pos, tol_rot, max_iter, q_rest, 0.0, lower, upper)
+        at_limit = ((q <= q_min) & (q < q_prev)) | ((q >= q_max) & (q > q_prev))
+        at_step = np.abs(q - q_prev) >= max_step * (1.0 - 1e-9)
+        if at_limit.any() or at_step.any():
+            j = int(np.argmax(at_limit | at_step))
+            bound = "position" if at_limit[j] else "velocity"
+            why = f"needs joint {self.joint_names[j]} at its {bound} limit"
+        elif pos_err > tol_pos or rot_err > tol_rot:
+            why = (f"is not reached (position error {pos_err * 1e3:.4f} mm, rotation error "
+                   f"{np.degrees(rot_err):.4f} deg left)")
+        else:
+            return q
+        raise ArmError(
+            f"ik: the tool pose {why}: the path passes near a singularity or a joint limit; slow the motion "
+            "down, start from another arm configuration or shorten the path"
+        )
+
+    def _target(self, T_target: np.ndarray) -> pin.SE3:
+        T_target = np.asarray(T_target, float)
+        if not _is_pose(T_target):
+            raise ArmError("IK target must be a finite 4x4 pose with a rotation matrix: check the planner")
+        return pin.SE3(T_target[:3, :3], T_target[:3, 3])
+
     def _solve(
-        self, oMdes: pin.SE3, q: np.ndarray, tol_pos: float, tol_rot: float, max_iter: int
+        self,
+        oMdes: pin.SE3,
+        q: np.ndarray,
+        tol_pos: float,
+        tol_rot: float,
+        max_iter: int,
+        q_rest: np.ndarray,
+        posture_gain: float,
+        lower: np.ndarray | None = None,
+        upper: np.ndarray | None = None,
     ) -> tuple[np.ndarray, float, float]:
-        """One damped-least-squares descent from q: (q, position error m, rotation error rad).
+        """One damped-least-squares descent from q within [lower, upper] (default: the joint limits), plus
+        posture_gain (q_rest - q) in the pose's null space while the error is above IK_POSTURE_UNTIL
+        tolerances: (q, position error m, rotation error rad).
 
         Gives up early when the error has not shrunk by IK_STALL_RATIO over IK_STALL_WINDOW iterations
         (stuck against joint limits), so that a restart gets the time instead.
         """
-        q_min, q_max = self.model.lowerPositionLimit, self.model.upperPositionLimit
+        lower = self.model.lowerPositionLimit if lower is None else lower
+        upper = self.model.upperPositionLimit if upper is None else upper
         history: list[float] = []
         for i in range(max_iter + 1):
             oMcur = self._placement(q)
@@ -154,27 +231,26 @@ class Kinematics:
             J = -pin.Jlog6(cMd.inverse()) @ pin.computeFrameJacobian(
                 self.model, self.data, q, self._frame_id, pin.LOCAL
             )
-            dq = self._dls_step(J, err)
-            blocked = ((q <= q_min) & (dq < 0)) | ((q >= q_max) & (dq > 0))
-            if blocked.any():  # joints at a limit drop out, the others make up for them
-                dq = self._dls_step(J * ~blocked, err)
+            far = pos_err > IK_POSTURE_UNTIL * tol_pos or rot_err > IK_POSTURE_UNTIL * tol_rot
+            posture = posture_gain * (q_rest - q) if posture_gain and far else None
+            dq = _dls_step(J, err, posture)
+            blocked = ((q <= lower) & (dq < 0)) | ((q >= upper) & (dq > 0))
+            if blocked.any():  # joints at a bound drop out, the others make up for them
+                dq = _dls_step(J * ~blocked, err, None if posture is None else posture * ~blocked)
             dq *= min(1.0, IK_STEP_LIMIT / max(float(np.abs(dq).max()), 1e-12))
-            q = np.clip(pin.integrate(self.model, q, dq), q_min, q_max)
+            q = np.clip(pin.integrate(self.model, q, dq), lower, upper)
         return q, pos_err, rot_err
-
-    @staticmethod
-    def _dls_step(J: np.ndarray, err: np.ndarray) -> np.ndarray:
-        return -J.T @ np.linalg.solve(J @ J.T + IK_DAMPING * np.eye(6), err)
 
     def solve_path(self, poses: Sequence[np.ndarray], q_seed: np.ndarray, **ik_options) -> np.ndarray:
         """Joint positions (N, dof) along a Cartesian path, each IK warm-started from the previous one.
 
-        Only the first waypoint may use random restarts; later ones must follow continuously, so a
-        waypoint that does not converge or that needs a jump of more than PATH_MAX_JOINT_STEP_RAD
-        raises ArmError naming it.
+        The redundancy is pulled toward q_seed all along (or `q_rest` in ik_options). Only the first
+        waypoint may use random restarts; later ones must follow continuously, so a waypoint that does
+        not converge or that needs a jump of more than PATH_MAX_JOINT_STEP_RAD raises ArmError naming it.
         """
         qs = np.empty((len(poses), self.dof))
         q = np.asarray(q_seed, float)
+        ik_options = {"q_rest": q, **ik_options}
         for i, pose in enumerate(poses):
             options = ik_options if i == 0 else {**ik_options, "restarts": 0}
             try:
@@ -193,9 +269,28 @@ class Kinematics:
         return qs
 
 
+def _dls_step(J: np.ndarray, err: np.ndarray | None, posture: np.ndarray | None = None) -> np.ndarray:
+    """Joint step -J^+ err + (I - J^+ J) posture with damped pseudo-inverses J^T (J J^T + lambda I)^-1.
+
+    For the pose, lambda grows as the smallest singular value of J drops below IK_SINGULAR_VALUE
+    (adaptive damping); the null-space projector keeps lambda = IK_DAMPING, so that the posture only
+    moves the arm where that leaves the pose unchanged.
+    """
+    s_sq, W = np.linalg.eigh(J @ J.T)  # J J^T = W diag(s^2) W^T
+    s_sq = np.maximum(s_sq, 0.0)
+    y = np.zeros(len(s_sq))
+    if err is not None:
+        damping = IK_DAMPING + IK_SINGULAR_DAMPING * max(0.0, 1.0 - s_sq[0] / IK_SINGULAR_VALUE**2)
+        y += (W.T @ err) / (s_sq + damping)
+    if posture is None:
+        return -J.T @ (W @ y)
+    y += (W.T @ (J @ posture)) / (s_sq + IK_DAMPING)
+    return posture - J.T @ (W @ y)
+
+
 def _is_pose(T: np.ndarray) -> bool:
     """A finite 4x4 transform whose rotation block is a proper rotation."""
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
         return False
     R = T[:3, :3]
-    return bool(np.allclose(R.T @ R, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0)
+    return bool(np.abs(R.T @ R - np.eye(3)).max() <= 1e-5 and np.linalg.det(R) > 0)

@@ -25,6 +25,7 @@ PathFn = Callable[[float], np.ndarray]
 
 START_TOLERANCE_M = 0.01  # a Cartesian path must start this close to the measured tool position
 TRACKING_TOL_POS_M, TRACKING_TOL_ROT_RAD = 1e-6, 1e-5  # per-tick IK: tight, so commands stay smooth
+POSTURE_GAIN_PER_S = 1.0  # per-tick IK: null-space pull toward the rest posture, 1/s at the path's top speed
 
 
 @dataclass(frozen=True)
@@ -122,13 +123,17 @@ def follow_cartesian_path(
     on_tick: OnTick | None = None,
     max_tracking_error_m: float = 0.02,
     sample_every: int = 10,
+    q_rest: np.ndarray | None = None,
 ) -> PathResult:
     """Move the tool along path_fn(s), s in [0, length], with a jerk-limited profile of s and IK every tick.
 
-    `profile_limits` are scalar limits on s (m or rad per s^n). Before moving, the path must start at the
-    measured tool position and be solvable continuously (checked every `sample_every` ticks): ArmError
-    otherwise, with the arm untouched. A tracking error (commanded vs measured tool position) above
-    `max_tracking_error_m` means the arm is blocked: the motion brakes and reports reason "blocked: ...".
+    `profile_limits` are scalar limits on s (m or rad per s^n). Each tick's IK (`Kinematics.track`) moves
+    no joint faster than its velocity limit and, in proportion to the path speed, pulls the arm's
+    redundancy toward `q_rest` (default: the start configuration) and away from joint limits. Before
+    moving, the path must start at the measured tool position and every tick of it must be solvable that
+    way: ArmError otherwise ("ik: ..." naming where), with the arm untouched. A tracking error (commanded
+    vs measured tool position) above `max_tracking_error_m` means the arm is blocked: the motion brakes
+    along the path and reports reason "blocked: ...". `sample_every` ticks go into the PathResult.
     """
     dt = arm.control_period_s
     profile = PathProfile(length, *(float(x[0]) for x in profile_limits.arrays(1)))
@@ -139,44 +144,44 @@ def follow_cartesian_path(
             f"Cartesian path starts {gap * 1e3:.0f} mm from the tool (limit {START_TOLERANCE_M * 1e3:.0f} "
             "mm): move the tool to its start first (move_to_pose)"
         )
-    n_check = max(2, int(np.ceil(profile.duration / (dt * sample_every))) + 1)
-    q = kin.solve_path([path_fn(s) for s in np.linspace(0.0, length, n_check)], q, restarts=0)[0]
+    q_rest = q.copy() if q_rest is None else np.asarray(q_rest, float)
+    track = _Tracker(kin, path_fn, length, q_rest, kin.v_max * dt, POSTURE_GAIN_PER_S * dt,
+                     float(profile.limits.v_max) * dt)
+    plan_s, plan_q = track.plan(profile, dt, q)
 
     samples: list[tuple[float, float, np.ndarray, np.ndarray]] = []
-    active, t_active, stopping, reason, max_error = profile, 0.0, False, "completed", 0.0
-    k = 0
+    braking: PathProfile | None = None
+    t_brake, s, reason, max_error = 0.0, 0.0, "completed", 0.0
+    k, done = 0, len(plan_s) == 0
     try:
-        while active.duration > 0:
+        while not done:
             k += 1
             t = k * dt
-            tau = min(t - t_active, active.duration)
-            s, _ = active.at(tau)
-            T = path_fn(s)
-            try:
-                q_next = kin.ik(T, q, TRACKING_TOL_POS_M, TRACKING_TOL_ROT_RAD, restarts=0)
-            except ArmError as exc:
-                raise ArmError(f"lost the Cartesian path at s = {s:.4f} of {length:.4f}: {exc}") from exc
+            if braking is None:  # the planned ticks
+                s, q_next = plan_s[k - 1], plan_q[k - 1]
+                done = k == len(plan_s)
+            else:
+                tau = min(t - t_brake, braking.duration)
+                s_prev, s = s, braking.at(tau)[0]
+                q_next = track(q, s_prev, s)
+                done = tau >= braking.duration
             arm.command(q_next, (q_next - q) / dt)
             arm.sync()
             q = q_next
             state = arm.state()
+            T = path_fn(s)
             T_measured = kin.fk(state.q)
             error = float(np.linalg.norm(T[:3, 3] - T_measured[:3, 3]))
             max_error = max(max_error, error)
             keep_going = on_tick is None or on_tick(state, t) is not False
-            done = False
-            if not stopping and (error > max_tracking_error_m or not keep_going):
+            if braking is None and (error > max_tracking_error_m or not keep_going):
                 reason = "stopped by on_tick" if not keep_going else (
                     f"blocked: tracking error {error * 1e3:.1f} mm > {max_tracking_error_m * 1e3:.1f} mm "
                     f"at s = {s:.4f}"
                 )
-                active, t_active, stopping = active.stopping(tau), t, True
-            else:
-                done = tau >= active.duration
+                braking, t_brake, done = profile.stopping(t), t, False
             if done or k % sample_every == 0:
                 samples.append((t, s, T, T_measured))
-            if done:
-                break
     except BaseException:
         arm.stop()
         raise
@@ -184,7 +189,40 @@ def follow_cartesian_path(
         T = path_fn(0.0)
         samples.append((0.0, 0.0, T, kin.fk(arm.state().q)))
     t_s, s_s, planned, measured = (np.array(x) for x in zip(*samples, strict=True))
-    return PathResult(t_s, s_s, planned, measured, stopping, reason, max_error, float(s_s[-1]))
+    return PathResult(t_s, s_s, planned, measured, braking is not None, reason, max_error, float(s_s[-1]))
+
+
+@dataclass(frozen=True)
+class _Tracker:
+    """Per-tick IK along one path: joint steps within `max_step` (rad), the posture taking `posture_gain`
+    per tick at the path's top speed `s_step` (s per tick), proportionally less when slower."""
+
+    kin: Kinematics
+    path_fn: PathFn
+    length: float
+    q_rest: np.ndarray
+    max_step: np.ndarray
+    posture_gain: float
+    s_step: float
+
+    def __call__(self, q: np.ndarray, s_prev: float, s: float) -> np.ndarray:
+        """Joints at path_fn(s), one tick after joints q at s_prev; ArmError "ik: ..." if out of reach."""
+        speed = min(1.0, abs(s - s_prev) / self.s_step)
+        try:
+            return self.kin.track(self.path_fn(s), q, self.max_step, self.q_rest, self.posture_gain, speed,
+                                  TRACKING_TOL_POS_M, TRACKING_TOL_ROT_RAD)
+        except ArmError as exc:
+            where = f"ik: lost the Cartesian path at s = {s:.4f} of {self.length:.4f}"
+            raise ArmError(f"{where}: {str(exc).removeprefix('ik: ')}") from exc
+
+    def plan(self, profile: PathProfile, dt: float, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(s, joints) at every control tick of `profile` (t = dt, 2 dt, ... up to its end), from joints q."""
+        n = int(np.ceil(profile.duration / dt - 1e-9))
+        s = np.array([profile.at(tau)[0] for tau in np.append(np.arange(1, n) * dt, profile.duration)[:n]])
+        qs = np.empty((n, len(q)))
+        for k in range(n):
+            qs[k] = q = self(q, s[k - 1] if k else 0.0, s[k])
+        return s, qs
 
 
 def _pose(T: np.ndarray) -> np.ndarray:
