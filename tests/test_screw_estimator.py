@@ -134,7 +134,7 @@ def test_noisy_drawer_is_classified_and_recovered(pose):
     axis = ScrewEstimator().estimate(window)
     assert isinstance(axis, Axis) and axis.joint_type is JointType.PRISMATIC
     assert angle_deg(axis.direction, direction) < 1.5  # sign included: along the opening
-    assert np.linalg.norm(axis.origin - window[0].moving.mean(axis=0)) < 0.03
+    assert np.linalg.norm(axis.origin - window[0].moving.mean(axis=0)) < 0.05  # the keyframe part, at the start
     assert axis.residual_m < 0.003 and 0.3 < axis.confidence <= 1.0
 
 
@@ -279,3 +279,14 @@ def test_degenerate_shapes_never_give_nan():
                 assert np.all(np.isfinite(values)) and 0.0 <= result.confidence <= 1.0
             else:
                 assert result.reason
+
+
+def test_a_drawer_from_its_first_centimetre_is_fitted_on_the_large_parts():
+    """The first frames hold half the later part: they are registered again onto the newest keyframe
+    (not chained through their own small clouds) and left out of the fit."""
+    window, direction, _ = make_window("drawer", np.linspace(0, 0.1, 11)[1:], seed=22, pose=POSES["tilted"])
+    assert len(window[0].moving) < 0.6 * len(window[-1].moving)
+    estimator = ScrewEstimator()
+    axis = estimator.estimate(window)
+    assert estimator.rekey_registrations > 0
+    assert axis.joint_type is JointType.PRISMATIC and angle_deg(axis.direction, direction) < 0.8

@@ -18,6 +18,7 @@ from drivers.camera.depth_noise import DepthNoise
 
 DRAWER_TRAVEL_M = 0.10
 DOOR_TRAVEL_RAD = np.radians(20.0)
+GRIPPER_NOISE_M = 0.001  # forward kinematics is sub-millimetre; the grasp itself gives a little
 
 
 @dataclass(frozen=True)
@@ -66,13 +67,16 @@ def run_sequence(seq: SyntheticSequence, name: str, config: Config) -> SequenceR
 
 
 def make_sequences(n_per_kind: int, seed: int, noise: DepthNoise | None = None) -> list[SyntheticSequence]:
-    """`n_per_kind` drawers (10 cm travel) and doors (20 deg), varied sizes and poses, D415 noise."""
+    """`n_per_kind` drawers (10 cm travel) and doors (20 deg), varied sizes and poses, D415 noise, 1 mm noise
+    on the gripper positions."""
     noise = DepthNoise.d415() if noise is None else noise
     rng = np.random.default_rng(seed)
     seqs = []
     for _ in range(n_per_kind):
-        seqs.append(synthetic_sequence("drawer", rng, travel=DRAWER_TRAVEL_M, n_frames=11, noise=noise))
-        seqs.append(synthetic_sequence("door", rng, travel=DOOR_TRAVEL_RAD, n_frames=11, noise=noise))
+        seqs.append(synthetic_sequence("drawer", rng, travel=DRAWER_TRAVEL_M, n_frames=11, noise=noise,
+                                        gripper_noise_m=GRIPPER_NOISE_M))
+        seqs.append(synthetic_sequence("door", rng, travel=DOOR_TRAVEL_RAD, n_frames=11, noise=noise,
+                                        gripper_noise_m=GRIPPER_NOISE_M))
     return seqs
 
 

@@ -1,11 +1,12 @@
 """Screw-axis estimator: register the moving part's frames rigidly, then fit one joint to all the motions.
 
-Each new frame costs one registration: its moving part (sparse source) onto the current keyframe (dense
-target with normals, computed once per keyframe), by Open3D point-to-plane ICP with a Tukey kernel.
-Registering to a keyframe rather than frame to frame keeps the pose errors from adding up; a frame
-becomes the next keyframe when the keyframe no longer covers most of it (the part grows as the object
-opens). Registrations are cached by (keyframe index, frame index). The poses relative to the window
-start are fitted jointly by a prismatic and a revolute model (see `ScrewEstimator.estimate`).
+Each new frame costs one registration: its moving part (sparse source) onto the keyframe (dense
+target with normals), by Open3D point-to-plane ICP with a Tukey kernel. The part grows as the object
+opens, so when the keyframe no longer covers most of the new frame, the new frame becomes the
+keyframe and the window's earlier frames are registered onto it directly (each is mostly a subset of
+the newer part): the motions never chain through the small, poorly constrained clouds of the first
+frames, and those frames are left out of the joint fit. The motions relative to the window start are
+fitted jointly by a prismatic and a revolute model (see `ScrewEstimator.estimate`).
 """
 
 from __future__ import annotations
@@ -57,11 +58,14 @@ class ScrewEstimator(AxisEstimator):
     voxel_m: downsampling voxel; max_source / max_target: points used per registration (random,
     fixed seed; time); min_points: points a frame needs after downsampling; min_fitness: share of
     a frame's source that must match the keyframe; keyframe_coverage: a frame becomes the next
-    keyframe when the keyframe saw less than this share of it; overlap_margin_m: how far outside the
-    body box a point must have been to count as seen (at least the margin used to cut the moving part);
+    keyframe when the keyframe saw less than this share of it; min_share: frames with fewer points
+    than this share of the keyframe's are left out of the joint fit; overlap_margin_m: how far outside
+    the body box a point must have been to count as seen (at least the margin used to cut the moving
+    part);
     min_travel_m / min_rotation_deg: motion below both gives NoAxis; noise_floor_m: registration
     noise (sigma0 of the BIC); max_radius_m: a revolute fit whose axis lies farther than this from
-    the moving part counts as prismatic (a drawer that wobbles).
+    the moving part counts as prismatic (a drawer that wobbles). `registrations` counts the new frames
+    registered (one each), `rekey_registrations` the earlier frames registered again onto a new keyframe.
     """
 
     name = "screw"
@@ -79,6 +83,7 @@ class ScrewEstimator(AxisEstimator):
         min_rotation_deg: float = 2.0,
         noise_floor_m: float = 0.001,
         max_radius_m: float = 3.0,
+        min_share: float = 0.5,
     ) -> None:
         self.voxel_m = voxel_m
         self.max_source = max_source
@@ -91,14 +96,16 @@ class ScrewEstimator(AxisEstimator):
         self.min_rotation_deg = min_rotation_deg
         self.noise_floor_m = noise_floor_m
         self.max_radius_m = max_radius_m
-        self.registrations = 0  # frames registered so far (cache misses): one per new frame
+        self.min_share = min_share
+        self.registrations = 0
+        self.rekey_registrations = 0
         self.reset()
 
     def reset(self) -> None:
-        """Forget cached clouds, poses and keyframes (done automatically when a frame index is reused)."""
+        """Forget cached clouds, motions and the keyframe (done automatically when a frame index is reused)."""
         self._clouds: dict[int, _Cloud] = {}
-        self._pairs: dict[tuple[int, int], _Registration] = {}
-        self._poses: dict[int, np.ndarray] = {}  # motion of each frame's part from the first keyframe's
+        self._motions: dict[int, _Registration] = {}  # keyframe -> frame, for the frames that matched
+        self._seen: set[int] = set()  # frames registered (or tried) since the last reset
         self._keyframe: int | None = None
         self._keyframe_target = o3d.geometry.PointCloud()
         self._keyframe_centre = np.zeros(3)
@@ -107,15 +114,18 @@ class ScrewEstimator(AxisEstimator):
     def estimate(self, window: Sequence[Observation], joint: JointType | None = None) -> AxisResult:
         """The joint axis from the moving part's motion over the window.
 
+        Only frames whose part has at least min_share of the keyframe's points take part (the first
+        frames of a pull hold little more than the handle, whose registration can slide). Their
+        motions are taken relative to the oldest of them; the model points are the keyframe's.
         Prismatic: direction = dominant direction of the translations (along the motion), origin =
-        centroid of the window-start moving part. Revolute: direction from least squares over
+        centroid of the model points at the window start. Revolute: direction from least squares over
         R_k w = w (signed so the observed motion is a positive rotation), axis point from stacking
-        (I - R_k) a = t_k. When the window-start part is a plate (a door panel), w is projected onto
-        its plane: a hinge lies in its door's plane, and the rotation about a plate's normal is what
-        registration measures worst. Origin = the axis point nearest the latest moving-part centroid,
-        radius_m = distance from that centroid to the axis. residual_m = RMS distance between the
-        registered and the joint model's positions of the window-start points; confidence = fitness
-        (1 from 90 %) x motion (1 from 5 cm or 10 deg) x 1 / (1 + (residual / 2 mm)^2).
+        (I - R_k) a = t_k. When the part is a plate (a door panel), w is projected onto its plane: a
+        hinge lies in its door's plane, and the rotation about a plate's normal is what registration
+        measures worst. Origin = the axis point nearest the latest moving-part centroid, radius_m =
+        distance from that centroid to the axis. residual_m = RMS distance between the registered and
+        the joint model's positions of the model points; confidence = fitness (1 from 90 %) x motion
+        (1 from 5 cm or 10 deg) x 1 / (1 + (residual / 2 mm)^2).
 
         Joint type when `joint` is None: BIC = n ln(rms^2 + sigma0^2) + k ln n with n = 6 per pose
         (what a registration measures), k = poses + 2 (prismatic) or poses + 4 (revolute); the lower
@@ -136,25 +146,25 @@ class ScrewEstimator(AxisEstimator):
                 f"downsampling, need {self.min_points} in at least 2 frames",
                 {"points": counts},
             )
-        if not any(i in self._poses for i in usable):
-            self._keyframe = None  # a new stretch of frames: the first becomes the keyframe
-        registrations = {i: self._register(i, clouds) for i in usable}
-        latest = registrations[usable[-1]]
-        if latest is not None and latest.fitness < self.min_fitness:
+        for index in usable:
+            if index not in self._seen and index > max(self._seen, default=-1):
+                self._add(index, clouds)
+        latest = self._motions.get(usable[-1])
+        if latest is None:
             return NoAxis(
-                f"registration of frame {usable[-1]} failed: only {latest.fitness:.0%} of its moving part "
-                f"matches the keyframe (need {self.min_fitness:.0%}); the part changed too much or too "
-                "fast, or the segmentation jumped",
-                {"fitness": latest.fitness, "frame": usable[-1]},
+                f"registration of frame {usable[-1]} failed: less than {self.min_fitness:.0%} of its moving "
+                "part matches the keyframe; the part changed too much or too fast, or the segmentation jumped",
+                {"frame": usable[-1]},
             )
-        registered = [i for i in usable if i in self._poses]  # earlier failures are skipped
-        if len(registered) < 2:
-            return NoAxis(f"only {len(registered)} frame of the window registered; waiting for more")
-        start = self._poses[registered[0]]
-        poses = np.array([self._poses[i] @ np.linalg.inv(start) for i in registered[1:]])
-        matched = [r.fitness for r in registrations.values() if r and r.fitness >= self.min_fitness]
-        fitness = min(matched + [0.9]) / 0.9
-        return self._fit(poses, clouds[registered[0]].points, clouds[registered[-1]].points, fitness, joint)
+        enough = self.min_share * len(clouds[self._keyframe].raw) if self._keyframe in clouds else 0.0
+        used = [i for i in usable if i in self._motions and len(clouds[i].raw) >= enough]
+        if len(used) < 2:
+            return NoAxis(f"only {len(used)} frame of the window registered with enough points; waiting for more")
+        start = self._motions[used[0]].motion
+        poses = np.array([self._motions[i].motion @ np.linalg.inv(start) for i in used[1:]])
+        model = self._keyframe_points @ start[:3, :3].T + start[:3, 3]
+        fitness = min([self._motions[i].fitness for i in used] + [0.9]) / 0.9
+        return self._fit(poses, model, clouds[usable[-1]].points, fitness, joint)
 
     def _cloud(self, observation: Observation) -> _Cloud:
         """The frame's cloud, cached by frame index."""
@@ -175,11 +185,10 @@ class ScrewEstimator(AxisEstimator):
     def _forget_all_but(self, clouds: dict[int, _Cloud]) -> None:
         keep = set(clouds) | {self._keyframe}
         self._clouds = {i: c for i, c in self._clouds.items() if i in keep}
-        self._poses = {i: p for i, p in self._poses.items() if i in keep}
-        self._pairs = {p: r for p, r in self._pairs.items() if p[1] in keep}
+        self._motions = {i: m for i, m in self._motions.items() if i in keep}
 
     def _make_keyframe(self, index: int) -> None:
-        """The frame's dense cloud with normals becomes the target of the next registrations."""
+        """The frame's dense cloud with normals becomes the target of the registrations."""
         target = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(self._clouds[index].raw))
         target = target.voxel_down_sample(self.voxel_m)
         if len(target.points) > self.max_target:
@@ -187,31 +196,29 @@ class ScrewEstimator(AxisEstimator):
             target = target.select_by_index(np.sort(keep))
         target.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(10))
         self._keyframe, self._keyframe_target = index, target
-        self._keyframe_centre = self._clouds[index].points.mean(axis=0)
+        self._keyframe_points = self._clouds[index].points
+        self._keyframe_centre = self._keyframe_points.mean(axis=0)
 
-    def _register(self, index: int, clouds: dict[int, _Cloud]) -> _Registration | None:
-        """Register a new frame onto the keyframe (None for the first keyframe itself).
+    def _start_chain(self, index: int) -> None:
+        self._make_keyframe(index)
+        self._motions = {index: _Registration(np.eye(4), 1.0)}
+        self._failures = 0
+
+    def _add(self, index: int, clouds: dict[int, _Cloud]) -> None:
+        """Register a new frame onto the keyframe; rekey when the keyframe saw too little of it.
 
         The source is the part of the frame the keyframe saw: its points that, moved back to the
         keyframe, lie outside the body box grown by overlap_margin_m (the rest came out of the box
-        later and would pull the fit). The start is the previous frame's pose (extrapolating would
-        also extrapolate its errors in the directions a plate barely constrains); when the match is
-        worse than the last frame's, a search as wide as the last step runs too. The frame becomes
-        the next keyframe when the keyframe saw less than keyframe_coverage of it. A frame that fails
+        later and would pull the fit). The start is the previous frame's motion; when the match is
+        worse than the last frame's, a search as wide as the last step runs too. A frame that fails
         is skipped; a second failure in a row starts a new chain at that frame (a bad keyframe).
         """
-        if index in self._poses:
-            return self._pairs.get((self._keyframe_of(index), index))
-        if (self._keyframe, index) in self._pairs:  # failed before
-            return self._pairs[(self._keyframe, index)]
-        if self._keyframe is None or self._keyframe not in self._poses:
-            self._poses = {index: np.eye(4)}
-            self._pairs = {}
-            self._make_keyframe(index)
-            return None
-        key_pose = self._poses[self._keyframe]
-        previous = [i for i in sorted(self._poses) if i < index][-2:] or [self._keyframe]
-        guess = self._poses[previous[-1]] @ np.linalg.inv(key_pose)  # keyframe -> frame
+        self._seen.add(index)
+        if self._keyframe is None or not self._motions:
+            self._start_chain(index)
+            return
+        previous = [i for i in sorted(self._motions) if i < index][-2:]
+        guess = self._motions[previous[-1]].motion
         cloud = clouds[index]
         back = (cloud.points - guess[:3, 3]) @ guess[:3, :3]
         seen = ~cloud.box.contains(back, self.overlap_margin_m)
@@ -222,28 +229,38 @@ class ScrewEstimator(AxisEstimator):
         # ICP finds the transform taking the frame's points onto the keyframe's: the inverse motion.
         fine_m = 2 * self.voxel_m
         result = self._icp(source, np.linalg.inv(guess), (fine_m,))
-        last = self._pairs.get((self._keyframe, previous[-1]))
-        if result.fitness < 0.9 * (last.fitness if last is not None else 1.0):
+        if result.fitness < 0.9 * self._motions[previous[-1]].fitness:
             centre = guess @ np.append(self._keyframe_centre, 1.0)
-            step = guess @ np.linalg.inv(self._poses[previous[0]] @ np.linalg.inv(key_pose)) @ centre - centre
+            step = guess @ np.linalg.inv(self._motions[previous[0]].motion) @ centre - centre
             reach_m = max(5 * self.voxel_m, 1.5 * float(np.linalg.norm(step)))
             wide = self._icp(source, np.linalg.inv(guess), (reach_m, fine_m))
             result = max(result, wide, key=lambda r: r.fitness)
         self.registrations += 1
-        registration = _Registration(np.linalg.inv(result.transformation), float(result.fitness))
-        self._pairs[(self._keyframe, index)] = registration
-        if registration.fitness >= self.min_fitness:
+        if result.fitness >= self.min_fitness:
             self._failures = 0
-            self._poses[index] = registration.motion @ key_pose
+            self._motions[index] = _Registration(np.linalg.inv(result.transformation), float(result.fitness))
             if coverage < self.keyframe_coverage:
-                self._make_keyframe(index)
+                self._rekey(index, clouds)
         else:  # skip the frame; after two failures in a row, suspect the keyframe and start over here
             self._failures += 1
             if self._failures >= 2:
-                self._failures = 0
-                self._poses = {index: np.eye(4)}
-                self._make_keyframe(index)
-        return registration
+                self._start_chain(index)
+
+    def _rekey(self, index: int, clouds: dict[int, _Cloud]) -> None:
+        """Make the frame the keyframe and register the earlier frames onto it directly (each is
+        mostly a subset of the newer, larger part), starting from their motions via the old keyframe."""
+        old = self._motions
+        to_old = np.linalg.inv(old[index].motion)
+        self._make_keyframe(index)
+        self._motions = {index: _Registration(np.eye(4), 1.0)}
+        for j, registration in old.items():
+            if j == index or j not in clouds:
+                continue
+            guess = registration.motion @ to_old
+            result = self._icp(clouds[j].source, np.linalg.inv(guess), (2 * self.voxel_m,))
+            self.rekey_registrations += 1
+            if result.fitness >= self.min_fitness:
+                self._motions[j] = _Registration(np.linalg.inv(result.transformation), float(result.fitness))
 
     def _icp(self, source: o3d.geometry.PointCloud, transform: np.ndarray, distances_m: tuple[float, ...]):
         """Point-to-plane ICP onto the keyframe with a Tukey kernel, once per correspondence distance."""
@@ -255,9 +272,6 @@ class ScrewEstimator(AxisEstimator):
             )
             transform = result.transformation
         return result
-
-    def _keyframe_of(self, index: int) -> int | None:
-        return next((a for a, b in self._pairs if b == index), None)
 
     def _fit(
         self, poses: np.ndarray, start: np.ndarray, latest: np.ndarray, fitness: float,
@@ -329,14 +343,26 @@ class ScrewEstimator(AxisEstimator):
             w = -w
         anchor = w @ sample.mean(axis=0)
         a = np.linalg.lstsq(np.vstack([-m.reshape(-1, 3), w]), np.append(translations, anchor), rcond=None)[0]
-        # Each pose's best angle about the axis (2D Procrustes in the plane normal to w).
-        x = (sample - a) - np.outer((sample - a) @ w, w)
-        y = moved - a
-        angles = np.arctan2(np.einsum("mi,kmi->k", np.cross(w, x), y), np.einsum("mi,kmi->k", x, y))
-        turns = Rotation.from_rotvec(np.outer(angles, w)).as_matrix()
+        centre, shifted = sample.mean(axis=0), moved.mean(axis=1)
+        for _ in range(3):
+            # (I - R_k) a = c_k - R_k c with R_k the pure turn about w: the centroids' motion, which
+            # registration measures well, instead of t_k, which also carries the rotation errors
+            # about the other axes times the lever arm.
+            turns = self._turns(w, a, sample, moved)
+            lhs = np.vstack([(np.eye(3) - turns).reshape(-1, 3), w])
+            a = np.linalg.lstsq(lhs, np.append(shifted - turns @ centre, anchor), rcond=None)[0]
+        turns = self._turns(w, a, sample, moved)
         predicted = np.einsum("kij,mj->kmi", turns, sample - a) + a
         rms = float(np.sqrt(np.mean(np.sum((moved - predicted) ** 2, axis=2))))
         return _JointFit(w, a, rms, self._bic(rms, n, len(moved) + 4))
+
+    @staticmethod
+    def _turns(w: np.ndarray, a: np.ndarray, sample: np.ndarray, moved: np.ndarray) -> np.ndarray:
+        """Each pose's best rotation about the line (w, a) (2D Procrustes in the plane normal to w)."""
+        x = (sample - a) - np.outer((sample - a) @ w, w)
+        y = moved - a
+        angles = np.arctan2(np.einsum("mi,kmi->k", np.cross(w, x), y), np.einsum("mi,kmi->k", x, y))
+        return Rotation.from_rotvec(np.outer(angles, w)).as_matrix()
 
 
 def _fingerprint(observation: Observation) -> tuple[int, bytes]:
