@@ -1,0 +1,168 @@
+"""Handle and grasp geometry from the first frame's cloud (pure functions, base frame, metres, z up)."""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+import open3d as o3d
+
+from deploy.geometry.boxes import front_direction
+from deploy.geometry.types import Axis, Box, JointType
+from drivers.arm.kinematics import Kinematics
+from drivers.errors import ArmError
+
+UP = np.array([0.0, 0.0, 1.0])
+GRASP_DEPTH_M = 0.01  # tool frame this far past the grip centre: the bar sits inside the finger pads
+GRASP_PITCH_RAD = 0.25  # approach tilted down: keeps the Panda's wrist (joint 6) off its upper limit
+BAR_HALF_THICKNESS_M = 0.008  # the grip centre lies this far behind the bar's front surface
+BAR_ELONGATION = 2.0  # principal spread ratio above which the handle is a bar with a direction
+MIN_HANDLE_POINTS = 5
+LIMIT_MARGIN_RAD = 0.1  # planned configurations stay this far inside the joint limits
+FRONT_RADIUS_M = 0.15  # the front face is fitted to object points this close to the handle
+MIN_FRONT_POINTS = 30
+PLANE_TOLERANCE_M = 0.004  # RANSAC inlier distance of the front plane
+FACE_BAND_M = 0.01  # points this close to the front plane belong to the front face
+
+
+@dataclass(frozen=True)
+class Handle:
+    """A handle seen on the first frame: grip centre, outward front normal, bar direction (unit)."""
+
+    center: np.ndarray
+    normal: np.ndarray
+    bar: np.ndarray
+    points: int
+
+
+def front_normal(
+    object_points: np.ndarray, near: np.ndarray, body_box: Box, viewpoint: np.ndarray
+) -> np.ndarray:
+    """Unit horizontal normal of the front face around `near` (the handle), facing `viewpoint`: the
+    dominant plane (RANSAC) of the object points within FRONT_RADIUS_M; the body box's front face when
+    that plane is missing or not vertical."""
+    pts = np.asarray(object_points, float).reshape(-1, 3)
+    local = pts[np.linalg.norm(pts - near, axis=1) < FRONT_RADIUS_M]
+    normal = np.zeros(3)
+    if len(local) >= MIN_FRONT_POINTS:
+        o3d.utility.random.seed(0)
+        cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(local))
+        plane, _ = cloud.segment_plane(PLANE_TOLERANCE_M, 3, 200)
+        normal = np.array([plane[0], plane[1], 0.0])
+    if np.linalg.norm(normal) < np.cos(np.radians(30)):  # missing, or a top / side face
+        normal = front_direction(body_box, viewpoint)
+    normal /= np.linalg.norm(normal)
+    return normal if (np.asarray(viewpoint, float) - near) @ normal >= 0 else -normal
+
+
+def find_handle(
+    handle_points: np.ndarray, object_points: np.ndarray, body_box: Box, viewpoint: np.ndarray,
+    vertical_default: bool,
+) -> Handle | None:
+    """The handle from its points: centre behind the bar's front surface (normal from `front_normal`), bar
+    along the principal axis (or vertical / horizontal by `vertical_default` for knobs). None with fewer
+    than MIN_HANDLE_POINTS."""
+    pts = np.asarray(handle_points, float).reshape(-1, 3)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    if len(pts) < MIN_HANDLE_POINTS:
+        return None
+    normal = front_normal(object_points, pts.mean(axis=0), body_box, viewpoint)
+    depth = pts @ normal
+    center = np.median(pts, axis=0)
+    center += (np.percentile(depth, 90) - BAR_HALF_THICKNESS_M - center @ normal) * normal
+    across = pts - pts.mean(axis=0)
+    across -= np.outer(across @ normal, normal)  # spread in the front plane
+    _, s, vt = np.linalg.svd(across, full_matrices=False)
+    if len(s) > 1 and s[0] > BAR_ELONGATION * max(s[1], 1e-9):
+        bar = vt[0]
+    else:
+        bar = UP - normal * (normal @ UP) if vertical_default else np.cross(normal, UP)
+    return Handle(center, normal, bar / np.linalg.norm(bar), len(pts))
+
+
+def grasp_pose(handle: Handle, depth_m: float = GRASP_DEPTH_M, pitch_rad: float = GRASP_PITCH_RAD) -> np.ndarray:
+    """Tool pose (4x4) grasping the handle from the front: approach (tool z) into the front tilted down by
+    `pitch_rad`, fingers (tool y) across the bar, tool x along it (up for a vertical bar, to the tool's
+    left-hand side for a horizontal one, which keeps the Panda's last joint mid-range)."""
+    z = -np.cos(pitch_rad) * handle.normal - np.sin(pitch_rad) * UP
+    x = handle.bar - z * (z @ handle.bar)
+    if np.linalg.norm(x) < 1e-6:  # bar along the approach: any finger direction across it
+        x = np.cross(z, UP)
+    x /= np.linalg.norm(x)
+    reference = UP if abs(handle.bar @ UP) > np.sqrt(0.5) else np.cross(z, UP)
+    if x @ reference < 0:
+        x = -x
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    T[:3, 3] = handle.center + depth_m * z
+    return T
+
+
+def pregrasp_pose(T_grasp: np.ndarray, distance_m: float) -> np.ndarray:
+    """The grasp pose backed off `distance_m` along the approach axis."""
+    T = np.array(T_grasp, float)
+    T[:3, 3] -= distance_m * T[:3, 2]
+    return T
+
+
+def pregrasp_configuration(
+    kin: Kinematics, q_start: np.ndarray, T_grasp: np.ndarray, pull: np.ndarray, approach_m: float
+) -> np.ndarray:
+    """Joints at the pre-grasp pose from which the approach and a straight pull by `pull` (3-vector, m)
+    stay farthest from singularities (largest smallest singular value of the Jacobian along them) and
+    inside the joint limits; the Panda is redundant, so a few elbow seeds facing the handle are tried.
+    Raises ArmError when none works."""
+    T_pre = pregrasp_pose(T_grasp, approach_m)
+    pulls = [T_grasp.copy() for _ in range(6)]
+    for k, T in enumerate(pulls, start=1):
+        T[:3, 3] += pull * k / len(pulls)
+    poses = [T_pre, T_grasp, *pulls]
+    best, best_score = None, -np.inf
+    for q2, q4 in itertools.product((-0.6, 0.0, 0.6), (-2.6, -1.9)):
+        seed = np.array(q_start, float)
+        seed[:4] = np.arctan2(T_pre[1, 3], T_pre[0, 3]), q2, 0.0, q4
+        try:
+            qs = kin.solve_path(poses, seed, restarts=0)
+        except ArmError:
+            continue
+        if np.any(qs < kin.q_min + LIMIT_MARGIN_RAD) or np.any(qs > kin.q_max - LIMIT_MARGIN_RAD):
+            continue
+        score = min(np.linalg.svd(kin.jacobian(q), compute_uv=False)[-1] for q in qs)
+        if score > best_score:
+            best, best_score = qs[0], score
+    if best is None:
+        p = T_grasp[:3, 3]
+        raise ArmError(
+            f"handle at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m is out of reach: no arm configuration reaches "
+            "it and pulls it clear of joint limits and singularities; move the cabinet or the robot closer"
+        )
+    return best
+
+
+def hinge_prior(handle: Handle, object_points: np.ndarray, body_box: Box) -> Axis:
+    """A door's likely hinge before any motion: the vertical edge of the front face farthest from the
+    handle (handles sit near the free edge), at the handle's height; opening pulls the handle outward.
+
+    The front face is the object points within FACE_BAND_M of the front plane (its depth the median of
+    the points near the handle); its edges are the 2nd and 98th lateral percentiles. With too few face
+    points the body box's front edges are used instead.
+    """
+    side = np.cross(UP, handle.normal)
+    pts = np.asarray(object_points, float).reshape(-1, 3)
+    depth = pts @ handle.normal
+    near = np.linalg.norm(pts - handle.center, axis=1) < FRONT_RADIUS_M
+    enough = near.sum() >= MIN_FRONT_POINTS
+    face = pts[np.abs(depth - np.median(depth[near])) < FACE_BAND_M] if enough else pts[:0]
+    if len(face) >= MIN_FRONT_POINTS:
+        lateral = np.percentile(face @ side, [2, 98])
+        plane = float(np.median(face @ handle.normal))
+    else:
+        corners = body_box.corners()
+        lateral = np.array([(corners @ side).min(), (corners @ side).max()])
+        plane = float((corners @ handle.normal).max())
+    handle_lateral = handle.center @ side
+    edge = lateral[0] if abs(lateral[0] - handle_lateral) > abs(lateral[1] - handle_lateral) else lateral[1]
+    origin = handle.center + (edge - handle_lateral) * side + (plane - handle.center @ handle.normal) * handle.normal
+    direction = UP if np.cross(UP, handle.center - origin) @ handle.normal >= 0 else -UP
+    return Axis(JointType.REVOLUTE, origin, direction.copy(), confidence=0.0)

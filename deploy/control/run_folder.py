@@ -1,0 +1,117 @@
+"""The run folder of one episode: what the camera saw (frames directory), steps.json and report.png.
+
+    RUN/frames/      frames-directory recording (colour, depth, segmenter mask, ee_pose, joint_positions);
+                     replays through `deploy axis estimate RUN/frames`
+    RUN/steps.json   result, axis estimate per step, commanded and measured gripper poses per motion
+    RUN/report.png   axis estimates over the first colour frame, opening vs time, axis error per step
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from deploy.geometry.types import Axis, JointType
+from drivers.arm.motion import PathResult
+from drivers.camera.base import Frame
+from drivers.camera.frames_dir import FramesWriter
+
+if TYPE_CHECKING:
+    from deploy.control.episode import EpisodeResult
+
+AXIS_HALF_LENGTH_M = 0.4  # drawn axis segments reach this far either side of the origin
+
+
+class RunFolder:
+    """Writes one episode's run folder as it goes; `finish` adds steps.json and the PNG report."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self.path.mkdir(parents=True, exist_ok=True)
+        self._writer: FramesWriter | None = None
+        self.motions: list[dict] = []
+
+    def write_frame(self, frame: Frame, mask: np.ndarray, q: np.ndarray, ee_pose: np.ndarray) -> None:
+        if self._writer is None:
+            self._writer = FramesWriter(self.path / "frames", frame.intrinsics, T_base_camera=frame.T_base_camera)
+        self._writer.write(frame, mask=mask, joint_positions=q, ee_pose=ee_pose)
+
+    def add_motion(self, label: str, result: PathResult) -> None:
+        self.motions.append({"label": label, "reason": result.reason, "t": result.t.tolist(),
+                             "commanded": result.planned.tolist(), "measured": result.measured.tolist()})
+
+    def finish(
+        self, result: EpisodeResult, first_frame: Frame | None,
+        axis_error: Callable[[Axis], tuple[float, float]] | None = None,
+    ) -> None:
+        """Close the recording and write steps.json and report.png (errors only with `axis_error`)."""
+        if self._writer is not None:
+            self._writer.close()
+        errors = [None if e["axis"] is None or axis_error is None else axis_error(_axis(e["axis"]))
+                  for e in result.estimates]
+        steps = [{**e, "axis_angle_error_deg": None if err is None else err[0],
+                  "axis_position_error_m": None if err is None else err[1]}
+                 for e, err in zip(result.estimates, errors, strict=True)]
+        (self.path / "steps.json").write_text(json.dumps(
+            {"result": result.to_dict(), "steps": steps, "motions": self.motions}, indent=1) + "\n")
+        write_report(self.path / "report.png", result, first_frame, errors)
+
+
+def _axis(d: dict) -> Axis:
+    return Axis(JointType(d["joint_type"]), np.array(d["origin"]), np.array(d["direction"]))
+
+
+def project(points: np.ndarray, frame: Frame) -> np.ndarray:
+    """Pixel coordinates (N,2) of base-frame points (camera frame when the frame has no pose); NaN behind."""
+    T = np.eye(4) if frame.T_base_camera is None else np.linalg.inv(frame.T_base_camera)
+    cam = np.asarray(points, float) @ T[:3, :3].T + T[:3, 3]
+    z = np.where(cam[:, 2] > 1e-6, cam[:, 2], np.nan)
+    uv = (cam[:, :2] / z[:, None]) * [frame.intrinsics.fx, frame.intrinsics.fy]
+    return uv + [frame.intrinsics.cx, frame.intrinsics.cy]
+
+
+def write_report(
+    path: Path, result: EpisodeResult, first_frame: Frame | None, errors: list[tuple[float, float] | None]
+) -> None:
+    """Three panels: axis per step over the first frame, opening vs time, axis error per step."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax_img, ax_open, ax_err) = plt.subplots(1, 3, figsize=(15, 4.2))
+    axes = [(e["step"], e["axis"]) for e in result.estimates if e["axis"] is not None]
+    if first_frame is not None:
+        ax_img.imshow(first_frame.color)
+        colours = plt.cm.viridis(np.linspace(0, 1, max(len(axes), 1)))
+        for (step, axis), colour in zip(axes, colours, strict=False):
+            o, d = np.array(axis["origin"]), np.array(axis["direction"])
+            uv = project(np.array([o - AXIS_HALF_LENGTH_M * d, o + AXIS_HALF_LENGTH_M * d]), first_frame)
+            ax_img.plot(uv[:, 0], uv[:, 1], color=colour, lw=1.5, label=f"step {step}")
+        h, w = first_frame.color.shape[:2]
+        ax_img.set_xlim(0, w)
+        ax_img.set_ylim(h, 0)
+        if axes:
+            ax_img.legend(fontsize=6, loc="lower right")
+    ax_img.set_title(f"axis estimates ({result.stop_reason})")
+    ax_img.axis("off")
+    if result.opening_curve:
+        t, opened = np.array(result.opening_curve).T
+        ax_open.plot(t, opened, "o-")
+    ax_open.axhline(result.target, color="k", ls="--", lw=1)
+    unit = "deg" if result.joint_type == "revolute" else "m"
+    ax_open.set(xlabel="arm time (s)", ylabel=f"estimated opening ({unit})", title="opening vs time")
+    rows = [(e["step"], err) for e, err in zip(result.estimates, errors, strict=True) if err is not None]
+    if rows:
+        steps = [s for s, _ in rows]
+        ax_err.plot(steps, [err[0] for _, err in rows], "o-", label="angle (deg)")
+        ax_err.plot(steps, [err[1] * 100 for _, err in rows], "s-", label="position (cm)")
+        ax_err.legend()
+    ax_err.set(xlabel="step", title="axis error per step" if rows else "axis error (no truth)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)

@@ -1,0 +1,100 @@
+"""Pure decisions of the opening policy: handle, grasp pose, hinge prior, axis choice and opening."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from deploy.control.grasp import Handle, find_handle, grasp_pose, hinge_prior
+from deploy.control.policy import OpenConfig, choose_axis, opening, orient_axis
+from deploy.geometry.types import Axis, Box, JointType, NoAxis
+
+# a cabinet whose front faces -x (toward a robot at the origin), front face at x = 0.5
+BODY = Box(np.array([0.7, 0.0, 0.5]), np.eye(3), np.array([0.4, 0.6, 0.6]))
+VIEW = np.array([0.0, 0.3, 1.0])
+
+
+def _bar(vertical: bool, n: int = 200, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    along = rng.uniform(-0.06, 0.06, n)
+    pts = np.zeros((n, 3))
+    pts[:, 0] = 0.47 + rng.normal(0, 0.002, n)  # 3 cm in front of the face
+    pts[:, 2 if vertical else 1] = along
+    pts[:, 1 if vertical else 2] += rng.normal(0, 0.003, n)
+    return pts + [0, 0.2, 0.6]
+
+
+def _front(n: int = 2000) -> np.ndarray:
+    """The front face (x = 0.5) and the top (z = 0.8) of the cabinet, noisy."""
+    rng = np.random.default_rng(2)
+    face = np.column_stack([0.5 + rng.normal(0, 0.001, n), rng.uniform(-0.3, 0.3, n), rng.uniform(0.2, 0.8, n)])
+    top = np.column_stack([rng.uniform(0.5, 0.9, n // 2), rng.uniform(-0.3, 0.3, n // 2), np.full(n // 2, 0.8)])
+    return np.vstack([face, top])
+
+
+@pytest.mark.parametrize("vertical", [True, False])
+def test_handle_and_grasp_pose(vertical):
+    # the box is turned 20 deg: the front plane fitted near the handle wins
+    turned = Box(BODY.center, Rotation.from_euler("z", 20, degrees=True).as_matrix(), BODY.extent)
+    handle = find_handle(_bar(vertical), _front(), turned, VIEW, vertical_default=not vertical)
+    np.testing.assert_allclose(handle.normal, [-1, 0, 0], atol=0.01)
+    assert abs(abs(handle.bar[2 if vertical else 1]) - 1) < 0.01
+    assert abs(handle.center[0] - (0.47 - 0.002 * 1.3 + 0.008)) < 0.002  # behind the front surface
+    T = grasp_pose(handle)
+    np.testing.assert_allclose(T[:3, :3].T @ T[:3, :3], np.eye(3), atol=1e-9)
+    assert T[0, 2] > 0.9 and T[2, 2] < 0  # approach into the front, tilted down
+    assert abs(T[:3, 1] @ handle.bar) < 1e-6  # fingers across the bar
+
+
+def test_knob_and_empty_handle():
+    knob = np.random.default_rng(1).normal([0.47, 0.2, 0.6], 0.005, (50, 3))
+    handle = find_handle(knob, np.zeros((0, 3)), BODY, VIEW, vertical_default=True)  # no front: the box's
+    np.testing.assert_allclose(handle.normal, [-1, 0, 0], atol=1e-9)
+    assert abs(handle.bar[2]) > 0.99
+    assert find_handle(np.zeros((2, 3)), _front(), BODY, VIEW, True) is None
+
+
+def test_hinge_prior_is_the_far_edge_and_opens_outward():
+    handle = Handle(np.array([0.47, 0.25, 0.6]), np.array([-1.0, 0, 0]), np.array([0, 0, 1.0]), 100)
+    from_face = hinge_prior(handle, _front(), BODY)  # the face's far edge
+    np.testing.assert_allclose(from_face.origin, [0.5, -0.3, 0.6], atol=0.015)
+    from_box = hinge_prior(handle, np.zeros((0, 3)), BODY)  # no face points: the box's
+    np.testing.assert_allclose(from_box.origin, [0.5, -0.3, 0.6], atol=1e-9)
+    for prior in (from_face, from_box):  # a small positive rotation moves the handle out of the front (-x)
+        assert np.cross(prior.direction, handle.center - prior.origin)[0] < 0
+
+
+def test_opening_and_orientation():
+    drawer = Axis(JointType.PRISMATIC, np.zeros(3), np.array([0.0, 1, 0]))
+    assert opening(drawer, np.zeros(3), np.array([0.3, 0.2, 0.0])) == pytest.approx(0.2)
+    assert orient_axis(drawer, np.array([0, -1.0, 0]), np.zeros(3)).direction[1] == -1
+    door = Axis(JointType.REVOLUTE, np.zeros(3), np.array([0, 0, 1.0]))
+    start = np.array([0.4, 0, 0.2])
+    c, s = np.cos(0.5), np.sin(0.5)
+    assert opening(door, start, np.array([0.4 * c, 0.4 * s, 0.7])) == pytest.approx(0.5)
+    flipped = orient_axis(door, np.array([0, -1.0, 0]), start)
+    assert flipped.direction[2] == -1
+    assert opening(door, start, start) == 0.0 and opening(door, np.zeros(3), start) == 0.0
+
+
+def test_choose_axis_rule():
+    cfg = OpenConfig(task="door", fusion="fused")
+    vision = Axis(JointType.REVOLUTE, np.zeros(3), np.array([0, 0, 1.0]), confidence=0.5)
+    traj = Axis(JointType.REVOLUTE, np.ones(3), np.array([0, 0, 1.0]), confidence=0.9)
+    assert choose_axis(vision, traj, JointType.REVOLUTE, 5.0, cfg)[1] == "vision"  # too little travel
+    assert choose_axis(vision, traj, JointType.REVOLUTE, 20.0, cfg)[1] == "trajectory"
+    vision_only = cfg.model_copy(update={"fusion": "vision"})
+    assert choose_axis(vision, traj, JointType.REVOLUTE, 20.0, vision_only)[1] == "vision"
+    weak = Axis(JointType.REVOLUTE, np.zeros(3), np.array([0, 0, 1.0]), confidence=0.01)
+    result, source = choose_axis(weak, NoAxis("x"), JointType.REVOLUTE, 20.0, cfg)
+    assert source == "none" and "confidence 0.01" in result.reason
+    wrong = Axis(JointType.PRISMATIC, np.zeros(3), np.array([1.0, 0, 0]), confidence=0.9)
+    assert choose_axis(wrong, NoAxis("x"), JointType.REVOLUTE, 20.0, cfg)[1] == "none"
+
+
+def test_config_targets_and_paper_schedule():
+    cfg = OpenConfig(task="door", target_angle_deg=45, policy="paper")
+    assert cfg.target == pytest.approx(np.radians(45))
+    assert [cfg.step_for(JointType.PRISMATIC, k) for k in (0, 1, 5)] == pytest.approx([0.10, 0.12, 0.16])
+    assert cfg.step_for(JointType.REVOLUTE, 10) == pytest.approx(0.15)
+    with pytest.raises(ValueError):
+        OpenConfig(policy="sometimes")
