@@ -5,8 +5,10 @@ import open3d as o3d
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 
+from deploy.geometry import radius_filter as radius_filter_module
 from deploy.geometry.radius_filter import FILTER_PROFILES, FilterProfile, radius_filter, radius_outlier_mask
 
 
@@ -142,3 +144,119 @@ def test_profiles_carry_units():
         FilterProfile(1.3, 1, "inch")
     with pytest.raises(ValueError, match="eps"):
         FilterProfile(1.3, 0, "cm")
+
+
+def scan_cloud(seed: int, step_m: float = 0.0025) -> np.ndarray:
+    """Three faces of a 0.2 x 0.15 x 0.25 m box on a jittered grid with depth noise, flying pixels between
+    the faces and the camera, and far outliers: the shape of a masked depth-camera object cloud."""
+    rng = np.random.default_rng(seed)
+    size = np.array([0.2, 0.15, 0.25])
+    faces = []
+    for axis in range(3):
+        u, v = [a for a in range(3) if a != axis]
+        gu, gv = np.meshgrid(np.arange(0, size[u], step_m), np.arange(0, size[v], step_m), indexing="ij")
+        face = np.zeros((gu.size, 3))
+        face[:, u], face[:, v] = gu.ravel(), gv.ravel()
+        face += rng.normal(0, 0.2 * step_m, face.shape)
+        face[:, axis] += rng.normal(0, 0.0015, len(face))
+        faces.append(face)
+    surface = np.concatenate(faces)
+    camera = np.array([0.6, 0.5, 0.7])
+    edge = surface[rng.choice(len(surface), 300)]
+    flying = edge + rng.uniform(0.0, 0.3, (300, 1)) * (camera - edge)
+    far = rng.uniform(-1.0, 1.5, (100, 3))
+    return rng.permutation(np.concatenate([surface, flying, far]))
+
+
+def exact_counts(points: np.ndarray, radius: float) -> np.ndarray:
+    """Other points within radius (inclusive), by one tree over the whole cloud."""
+    return cKDTree(points).query_ball_point(points, radius, return_length=True) - 1
+
+
+def reference_mask(points: np.ndarray, radius: float, eps: int) -> np.ndarray:
+    return exact_counts(points, radius) >= eps
+
+
+@pytest.mark.parametrize("decimate", [1, 3, 9])
+@pytest.mark.parametrize(("radius", "eps"), [(0.05, 100), (0.013, 1), (0.02, 30)])
+def test_scan_cloud_matches_exact_count(radius, eps, decimate):
+    points = scan_cloud(3)[::decimate]  # dense surfaces to sparse ones whose counts sit near eps
+    mask = radius_outlier_mask(points, radius, eps)
+    assert np.array_equal(mask, reference_mask(points, radius, eps))
+    assert 0 < mask.sum() < len(points)
+
+
+@pytest.mark.parametrize(("radius", "eps"), [(0.05, 100), (0.013, 1)])
+def test_far_apart_clusters_use_sorted_keys_and_stay_exact(radius, eps):
+    # a second object 40 m away makes the grid's box far too big for dense counts
+    points = scan_cloud(4)[::2]
+    points = np.concatenate([points, points[::3] + [40.0, -25.0, 3.0]])
+    mask = radius_outlier_mask(points, radius, eps)
+    assert np.array_equal(mask, reference_mask(points, radius, eps))
+    assert 0 < mask.sum() < len(points)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    cells=st.lists(st.tuples(*[st.integers(0, 14)] * 3), min_size=2, max_size=300),
+    radius_units=st.integers(1, 7),
+    eps=st.integers(1, 40),
+)
+def test_ties_stay_exact_when_the_grid_is_sparse(cells, radius_units, eps):
+    # half the lattice moved 2^14 units away along x: sorted-key grids, with pairs at exactly r
+    ijk = np.array(cells, dtype=np.int64)
+    ijk[::2, 0] += 2**14
+    d2 = ((ijk[:, None, :] - ijk[None, :, :]) ** 2).sum(axis=2)
+    expected = (d2 <= radius_units**2).sum(axis=1) - 1 >= eps
+    mask = radius_outlier_mask(ijk * 2.0**-8, radius_units * 2.0**-8, eps)
+    assert np.array_equal(mask, expected)
+
+
+def test_dense_surfaces_are_decided_by_the_grids(monkeypatch):
+    # the fast path's point: almost no point of a dense scan is counted exactly
+    queries = []
+    counted = radius_filter_module._exact_counts
+
+    def counting(xyz, which, radius_m):
+        queries.append(len(which))
+        return counted(xyz, which, radius_m)
+
+    monkeypatch.setattr(radius_filter_module, "_exact_counts", counting)
+    points = scan_cloud(5)
+    for radius, eps in [(0.05, 100), (0.013, 1)]:
+        queries.clear()
+        assert np.array_equal(radius_outlier_mask(points, radius, eps), reference_mask(points, radius, eps))
+        assert sum(queries) < 0.03 * len(points)
+
+
+@pytest.mark.parametrize("far", [False, True])
+@pytest.mark.parametrize("radius", [0.05, 0.013])
+def test_points_near_the_radius_are_decided_exactly(radius, far):
+    # around each centre a few points within r / 2 and a shell of 400 points either across r (0.97 r to
+    # 1.03 r) or just beyond it (1.01 r to 1.1 r); eps at a centre's count and one above tests every bound
+    # where it is tightest (far: a copy 40 m away makes the grids sparse)
+    rng = np.random.default_rng(11)
+    parts = []
+    for i, centre in enumerate(np.stack(np.meshgrid(*[[0.0, 3 * radius]] * 3), axis=-1).reshape(-1, 3)):
+        shell = rng.normal(size=(400, 3))
+        shell /= np.linalg.norm(shell, axis=1, keepdims=True)
+        shell *= rng.uniform(*((0.97, 1.03) if i % 2 else (1.01, 1.1)), (400, 1)) * radius
+        parts += [centre[None], centre + shell, centre + rng.uniform(-0.25, 0.25, (40, 3)) * radius]
+    centres = np.cumsum([0] + [len(part) for part in parts])[:-1:3]
+    points = np.concatenate(parts)
+    if far:
+        points = np.concatenate([points, points[::2] + [40.0, -25.0, 3.0]])
+    counts = exact_counts(points, radius)
+    for eps in sorted({int(c) + d for c in counts[centres] for d in (0, 1)}):
+        assert np.array_equal(radius_outlier_mask(points, radius, eps), counts >= eps)
+
+
+def test_neighbours_of_a_lone_point_beyond_half_a_radius_are_counted():
+    # only the lone point is undecided; its neighbours sit 0.6 r to r away in a dense blob
+    rng = np.random.default_rng(12)
+    blob = rng.uniform(0.0, 0.02, (3000, 3))
+    lone = np.array([[0.02 + 0.6 * 0.05, 0.01, 0.01]])
+    points = np.concatenate([blob, lone])
+    counts = exact_counts(points, 0.05)
+    for eps in (int(counts[-1]), int(counts[-1]) + 1):
+        assert np.array_equal(radius_outlier_mask(points, 0.05, eps), counts >= eps)
