@@ -7,7 +7,6 @@ the simulation; the policy must only ever see the camera and the arm.
 
 from __future__ import annotations
 
-import itertools
 import json
 import logging
 import time
@@ -17,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from drivers.arm.base import ArmState
-from drivers.arm.kinematics import Kinematics
+from drivers.arm.kinematics import Kinematics, well_conditioned_start
 from drivers.arm.motion import (
     OnTick,
     PathFn,
@@ -88,19 +87,7 @@ def pregrasp_configuration(
     T_pre = T_grasp.copy()
     T_pre[:3, 3] -= PREGRASP_M * T_grasp[:3, 2]
     poses = [T_pre, T_grasp, *(opening(s) for s in np.linspace(0.0, length, 12)[1:])]
-    best, best_score = None, -np.inf
-    for q2, q4 in itertools.product((-0.6, 0.0, 0.6), (-2.6, -1.9)):
-        seed = Q_START.copy()
-        seed[:4] = np.arctan2(T_pre[1, 3], T_pre[0, 3]), q2, 0.0, q4  # face the handle
-        try:
-            qs = kin.solve_path(poses, seed, restarts=0)
-        except ArmError:
-            continue
-        if np.any(qs < kin.q_min + LIMIT_MARGIN_RAD) or np.any(qs > kin.q_max - LIMIT_MARGIN_RAD):
-            continue
-        score = min(np.linalg.svd(kin.jacobian(q), compute_uv=False)[-1] for q in qs)
-        if score > best_score:
-            best, best_score = qs[0], score
+    best = well_conditioned_start(kin, poses, Q_START, LIMIT_MARGIN_RAD)
     if best is None:
         raise ArmError(f"scripted grasp: no arm configuration reaches the handle and follows the opening "
                        f"by {length:.3f} (m or rad) clear of joint limits and singularities; try another "

@@ -18,7 +18,7 @@ from drivers.camera.depth_noise import DepthNoise
 
 DRAWER_TRAVEL_M = 0.10
 DOOR_TRAVEL_RAD = np.radians(20.0)
-GRIPPER_NOISE_M = 0.001  # forward kinematics is sub-millimetre; the grasp itself gives a little
+GRIPPER_NOISE_M, GRIPPER_NOISE_DEG = 0.001, 0.3  # FK is sub-millimetre; the grasp itself gives a little
 
 
 @dataclass(frozen=True)
@@ -68,15 +68,15 @@ def run_sequence(seq: SyntheticSequence, name: str, config: Config) -> SequenceR
 
 def make_sequences(n_per_kind: int, seed: int, noise: DepthNoise | None = None) -> list[SyntheticSequence]:
     """`n_per_kind` drawers (10 cm travel) and doors (20 deg), varied sizes and poses, D415 noise, 1 mm noise
-    on the gripper positions."""
+    on the gripper positions and 0.3 deg on their orientations."""
     noise = DepthNoise.d415() if noise is None else noise
     rng = np.random.default_rng(seed)
     seqs = []
     for _ in range(n_per_kind):
         seqs.append(synthetic_sequence("drawer", rng, travel=DRAWER_TRAVEL_M, n_frames=11, noise=noise,
-                                        gripper_noise_m=GRIPPER_NOISE_M))
+                                        gripper_noise_m=GRIPPER_NOISE_M, gripper_noise_deg=GRIPPER_NOISE_DEG))
         seqs.append(synthetic_sequence("door", rng, travel=DOOR_TRAVEL_RAD, n_frames=11, noise=noise,
-                                        gripper_noise_m=GRIPPER_NOISE_M))
+                                        gripper_noise_m=GRIPPER_NOISE_M, gripper_noise_deg=GRIPPER_NOISE_DEG))
     return seqs
 
 

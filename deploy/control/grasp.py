@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -10,7 +9,7 @@ import open3d as o3d
 
 from deploy.geometry.boxes import front_direction
 from deploy.geometry.types import Axis, Box, JointType
-from drivers.arm.kinematics import Kinematics
+from drivers.arm.kinematics import Kinematics, well_conditioned_start
 from drivers.errors import ArmError
 
 UP = np.array([0.0, 0.0, 1.0])
@@ -118,19 +117,7 @@ def pregrasp_configuration(
     for k, T in enumerate(pulls, start=1):
         T[:3, 3] += pull * k / len(pulls)
     poses = [T_pre, T_grasp, *pulls]
-    best, best_score = None, -np.inf
-    for q2, q4 in itertools.product((-0.6, 0.0, 0.6), (-2.6, -1.9)):
-        seed = np.array(q_start, float)
-        seed[:4] = np.arctan2(T_pre[1, 3], T_pre[0, 3]), q2, 0.0, q4
-        try:
-            qs = kin.solve_path(poses, seed, restarts=0)
-        except ArmError:
-            continue
-        if np.any(qs < kin.q_min + LIMIT_MARGIN_RAD) or np.any(qs > kin.q_max - LIMIT_MARGIN_RAD):
-            continue
-        score = min(np.linalg.svd(kin.jacobian(q), compute_uv=False)[-1] for q in qs)
-        if score > best_score:
-            best, best_score = qs[0], score
+    best = well_conditioned_start(kin, poses, q_start, LIMIT_MARGIN_RAD)
     if best is None:
         p = T_grasp[:3, 3]
         raise ArmError(

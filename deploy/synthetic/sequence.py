@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from deploy.geometry.types import Axis, Box
 from deploy.synthetic.cabinet import Kind, SyntheticCabinet
@@ -104,10 +105,12 @@ def synthetic_sequence(
     fps: float = 10.0,
     gripper_noise_m: float = 0.0,
     cabinet: SyntheticCabinet | None = None,
+    gripper_noise_deg: float = 0.0,
 ) -> SyntheticSequence:
     """Render a cabinet (random unless given) opening from q = 0 to `travel` (m or rad) in `n_frames`
     evenly spaced steps, seen by a random tripod camera, with `noise` (default `DepthNoise.d415()`)
-    on the depth and Gaussian noise of `gripper_noise_m` on the gripper positions."""
+    on the depth, Gaussian noise of `gripper_noise_m` on the gripper positions and rotations of
+    `gripper_noise_deg` (per axis, standard deviation) on their orientations."""
     if n_frames < 1:
         raise ValueError(f"n_frames must be at least 1, got {n_frames}")
     noise = DepthNoise.d415() if noise is None else noise
@@ -133,6 +136,9 @@ def synthetic_sequence(
         pose = cabinet.handle_pose(q)
         if gripper_noise_m > 0:
             pose[:3, 3] += rng.normal(0.0, gripper_noise_m, 3)
+        if gripper_noise_deg > 0:
+            rotvec = np.radians(rng.normal(0.0, gripper_noise_deg, 3))
+            pose[:3, :3] = Rotation.from_rotvec(rotvec).as_matrix() @ pose[:3, :3]
         poses.append(pose)
     return SyntheticSequence(frames, poses, cabinet, cabinet.true_axis(), joint_values, T_base_camera)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -286,6 +287,30 @@ def _dls_step(J: np.ndarray, err: np.ndarray | None, posture: np.ndarray | None 
         return -J.T @ (W @ y)
     y += (W.T @ (J @ posture)) / (s_sq + IK_DAMPING)
     return posture - J.T @ (W @ y)
+
+
+def well_conditioned_start(
+    kin: Kinematics, poses: Sequence[np.ndarray], q_template: np.ndarray, margin_rad: float = 0.1
+) -> np.ndarray | None:
+    """Joints at poses[0] from which every pose of the sequence is reached continuously, clear of the joint
+    limits by `margin_rad`, choosing among a few elbow seeds facing poses[0] the one whose path stays
+    farthest from singularities (largest smallest singular value of the Jacobian). A redundant arm needs
+    this: per-tick IK started near a singularity turns joints 1 and 3 fast. None when no seed works."""
+    best, best_score = None, -np.inf
+    first = poses[0][:3, 3]
+    for q2, q4 in itertools.product((-0.6, 0.0, 0.6), (-2.6, -1.9)):
+        seed = np.array(q_template, float)
+        seed[:4] = np.arctan2(first[1], first[0]), q2, 0.0, q4
+        try:
+            qs = kin.solve_path(poses, seed, restarts=0)
+        except ArmError:
+            continue
+        if np.any(qs < kin.q_min + margin_rad) or np.any(qs > kin.q_max - margin_rad):
+            continue
+        score = min(np.linalg.svd(kin.jacobian(q), compute_uv=False)[-1] for q in qs)
+        if score > best_score:
+            best, best_score = qs[0], score
+    return best
 
 
 def _is_pose(T: np.ndarray) -> bool:
