@@ -175,6 +175,87 @@ def axis_demo(seed: Annotated[int, typer.Option(help="Random seed of the synthet
     console.print(table)
 
 
+# --- open -------------------------------------------------------------------------------------------------
+
+
+class CameraChoice(str, Enum):
+    sim = "sim"
+
+
+class PolicyChoice(str, Enum):
+    closed = "closed"
+    open = "open"
+    paper = "paper"
+
+
+def _run_dir(task: str, run_dir: Path | None) -> Path:
+    from datetime import datetime
+
+    return run_dir or Path("runs") / f"{task}-{datetime.now():%Y%m%d-%H%M%S}"
+
+
+def _print_episode(data: dict, json_out: bool) -> None:
+    if json_out:
+        _print_json(data)
+        return
+    table = Table(title=f"{data['task']} episode (seed {data['seed']}, {data['policy']} loop)", show_header=False)
+    for key in ("success", "opened", "target", "true_opened", "steps", "stop_reason", "message", "axis_angle_error_deg",
+                "axis_position_error_m", "run_dir"):
+        value = data.get(key)
+        table.add_row(key, f"{value:.3f}" if isinstance(value, float) else str(value))
+    console.print(table)
+
+
+def _open(task: str, target: float, camera: CameraChoice, seed: int, split: Split, policy: PolicyChoice,
+          run_dir: Path | None, json_out: bool) -> None:
+    from deploy.bench.open import simulate_episode
+
+    data = simulate_episode(task, seed, split.value, target, policy.value, run_dir=_run_dir(task, run_dir))
+    _print_episode(data, json_out)
+    if not data["success"]:
+        raise typer.Exit(1)
+
+
+SeedOpt = Annotated[int, typer.Option(help="Simulated scenario seed.")]
+CameraOpt = Annotated[CameraChoice, typer.Option(help="Camera: sim (PyBullet; the real D415 comes with its driver).")]
+PolicyOpt = Annotated[PolicyChoice, typer.Option(help="closed (re-estimate every step), open or paper.")]
+RunDirOpt = Annotated[Path | None, typer.Option(help="Run folder [default: runs/TASK-TIME].")]
+
+
+@app.command("open-drawer")
+def open_drawer(
+    distance: Annotated[float, typer.Option(help="Target opening (m).")] = 0.30,
+    camera: CameraOpt = CameraChoice.sim,
+    seed: SeedOpt = 0,
+    split: Annotated[Split, typer.Option(help="Object family.")] = Split.train,
+    policy: PolicyOpt = PolicyChoice.closed,
+    run_dir: RunDirOpt = None,
+    json_out: JsonOpt = False,
+) -> None:
+    """Open a drawer to the target, re-estimating its axis after every step.
+
+    Example: deploy open-drawer --distance 0.30 --seed 3 --json
+    """
+    _open("drawer", distance, camera, seed, split, policy, run_dir, json_out)
+
+
+@app.command("open-door")
+def open_door(
+    angle: Annotated[float, typer.Option(help="Target opening (deg).")] = 45.0,
+    camera: CameraOpt = CameraChoice.sim,
+    seed: SeedOpt = 0,
+    split: Annotated[Split, typer.Option(help="Object family.")] = Split.train,
+    policy: PolicyOpt = PolicyChoice.closed,
+    run_dir: RunDirOpt = None,
+    json_out: JsonOpt = False,
+) -> None:
+    """Open a door to the target angle along arcs about its estimated hinge axis.
+
+    Example: deploy open-door --angle 45 --seed 2 --json
+    """
+    _open("door", angle, camera, seed, split, policy, run_dir, json_out)
+
+
 # --- sim --------------------------------------------------------------------------------------------------
 
 
@@ -250,6 +331,38 @@ def bench_axis_cmd(
         )
     console.print(table)
     console.print(f"full geometry step ({data['step_estimator']}), median: {_fmt(data['step_ms_median'], digits=1)} ms")
+
+
+@bench_app.command("open")
+def bench_open_cmd(
+    task: Annotated[Task, typer.Option(help="drawer or door.")] = Task.drawer,
+    target: Annotated[float, typer.Option(help="Target opening: m (drawer) or deg (door).")] = 0.30,
+    episodes: Annotated[int, typer.Option(help="Episodes (consecutive scenario seeds).")] = 10,
+    split: Annotated[Split, typer.Option(help="Object family.")] = Split.test,
+    policy: PolicyOpt = PolicyChoice.closed,
+    seed: Annotated[int, typer.Option(help="First scenario seed.")] = 0,
+    workers: Annotated[int, typer.Option(help="Local worker processes.")] = 1,
+    json_out: JsonOpt = False,
+) -> None:
+    """Success rate of simulated openings (success = the true joint value exceeds the target, like the paper).
+
+    Example: deploy bench open --task door --target 45 --episodes 20 --workers 2 --json
+    """
+    from rich.progress import Progress
+
+    from deploy.bench.open import bench_open
+
+    with Progress(console=err_console, transient=True) as bar:
+        job = bar.add_task(f"bench open {task.value}", total=episodes)
+        data = bench_open(task.value, target, episodes, split.value, policy.value, seed, workers,
+                          progress=lambda _result: bar.advance(job))
+    if json_out:
+        _print_json(data)
+        return
+    table = Table(title=f"{task.value} to {target} ({split.value}, {policy.value} loop)", show_header=False)
+    for key, value in data.items():
+        table.add_row(key, f"{value:.3f}" if isinstance(value, float) else str(value))
+    console.print(table)
 
 
 @bench_app.command("sim")

@@ -27,6 +27,7 @@ def test_help_lists_every_group(capsys):
 @pytest.mark.parametrize(
     "command",
     [("axis", "fit-trajectory"), ("axis", "estimate"), ("axis", "demo"), ("sim", "show"), ("sim", "record"),
+     ("open-drawer",), ("open-door",), ("bench", "open"),
      ("bench", "axis"), ("bench", "sim")],
 )
 def test_every_command_has_help_with_an_example(capsys, command):
@@ -97,3 +98,32 @@ def test_axis_demo_prints_every_estimator(capsys):
     assert code == 0
     for name in ("paper-obb", "screw", "trajectory"):
         assert name in out
+
+
+def test_open_drawer_in_simulation_json(capsys, tmp_path):
+    code, out, _ = run(capsys, "open-drawer", "--seed", "1", "--distance", "0.15", "--run-dir", str(tmp_path / "run"),
+                       "--json")
+    data = json.loads(out)
+    assert code == 0 and data["success"] and data["true_opened"] >= 0.15
+    assert {"success", "opened", "target", "steps", "axis", "stop_reason", "run_dir", "axis_angle_error_deg",
+            "axis_position_error_m", "true_opened"} <= set(data)
+    assert data["axis"]["joint_type"] == "prismatic"
+    assert (tmp_path / "run" / "report.png").is_file()
+
+
+def test_open_door_that_falls_short_exits_non_zero(capsys, tmp_path):
+    code, out, _ = run(capsys, "open-door", "--seed", "0", "--angle", "20", "--run-dir", str(tmp_path / "run"),
+                       "--json")
+    data = json.loads(out)
+    assert code == (0 if data["success"] else 1)
+    assert data["axis"]["joint_type"] == "revolute"
+
+
+def test_bench_open_json_keys(capsys):
+    code, out, _ = run(capsys, "bench", "open", "--task", "drawer", "--target", "0.1", "--episodes", "1",
+                       "--split", "train", "--seed", "1", "--json")
+    data = json.loads(out)
+    assert code == 0
+    assert set(data) >= {"task", "target", "split", "policy", "episodes", "success_rate", "mean_opened",
+                         "axis_angle_error_deg_median", "seconds_per_episode", "failures"}
+    assert data["episodes"] == 1 and 0.0 <= data["success_rate"] <= 1.0
