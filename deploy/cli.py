@@ -220,6 +220,7 @@ SeedOpt = Annotated[int, typer.Option(help="Simulated scenario seed.")]
 CameraOpt = Annotated[CameraChoice, typer.Option(help="Camera: sim (PyBullet; the real D415 comes with its driver).")]
 PolicyOpt = Annotated[PolicyChoice, typer.Option(help="closed (re-estimate every step), open or paper.")]
 RunDirOpt = Annotated[Path | None, typer.Option(help="Run folder [default: runs/TASK-TIME].")]
+SplitOpt = Annotated[Split, typer.Option(help="Object family.")]
 
 
 @app.command("open-drawer")
@@ -227,7 +228,7 @@ def open_drawer(
     distance: Annotated[float, typer.Option(help="Target opening (m).")] = 0.30,
     camera: CameraOpt = CameraChoice.sim,
     seed: SeedOpt = 0,
-    split: Annotated[Split, typer.Option(help="Object family.")] = Split.train,
+    split: SplitOpt = Split.train,
     policy: PolicyOpt = PolicyChoice.closed,
     run_dir: RunDirOpt = None,
     json_out: JsonOpt = False,
@@ -244,7 +245,7 @@ def open_door(
     angle: Annotated[float, typer.Option(help="Target opening (deg).")] = 45.0,
     camera: CameraOpt = CameraChoice.sim,
     seed: SeedOpt = 0,
-    split: Annotated[Split, typer.Option(help="Object family.")] = Split.train,
+    split: SplitOpt = Split.train,
     policy: PolicyOpt = PolicyChoice.closed,
     run_dir: RunDirOpt = None,
     json_out: JsonOpt = False,
