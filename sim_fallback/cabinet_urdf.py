@@ -163,12 +163,14 @@ def cabinet_urdf(spec: CabinetSpec) -> str:
     panels = [((d, w, t), (0, 0, t / 2)), ((d, w, t), (0, 0, h - t / 2)),
               ((d, t, h), (0, w / 2 - t / 2, h / 2)), ((d, t, h), (0, -w / 2 + t / 2, h / 2)),
               ((t, w, h), (-d / 2 + t / 2, 0, h / 2))]
+    visuals = None
     if spec.kind == "drawer":
         below = h - 2 * t - spec.front_height_m  # fixed front panel under the drawer opening
         if below > 0.005:
-            panels.append(((t, w - 2 * t, below), (d / 2 - t / 2, 0, t + below / 2)))
-            panels.append(((d - t, w - 2 * t, t), (t / 2, 0, t + below + t / 2)))
-    body = _link("body", "body_colour", panels, mass=20.0)
+            shelf = ((d - t, w - 2 * t, t), (t / 2, 0, t + below + t / 2))
+            panels += [((t, w - 2 * t, below), (d / 2 - t / 2, 0, t + below / 2)), shelf]
+            visuals = _closed_bottom_visuals(spec, [shelf])
+    body = _link("body", "body_colour", panels, mass=20.0, visuals=visuals)
     moving = _drawer_link(spec) if spec.kind == "drawer" else _door_link(spec)
     handle = _link("handle", "handle_colour", _handle_boxes(spec), mass=0.1, friction=0.3)
     jx, jy, jz = spec.joint_origin_cabinet
@@ -205,6 +207,19 @@ def write_cabinet_urdf(spec: CabinetSpec, directory: Path) -> Path:
 
 
 Boxes = list[tuple[tuple[float, float, float], tuple[float, float, float]]]  # (size, centre) pairs
+
+
+def _closed_bottom_visuals(spec: CabinetSpec, shelf: Boxes) -> Boxes:
+    """What a drawer body with a closed compartment under the drawer looks like from outside: that
+    compartment as one solid box under the `shelf` it keeps, then top, sides and back above it. Same
+    surfaces seen from outside as the panels, but TinyRenderer shades fewer hidden pixels (about 6 ms
+    a 640x480 frame)."""
+    w, d, h, t = spec.width_m, spec.depth_m, spec.height_m, spec.wall_m
+    bottom_h = h - t - spec.front_height_m  # the bottom panel and the fixed front under the drawer
+    upper, z = h - bottom_h, (h + bottom_h) / 2
+    return [((d, w, bottom_h), (0, 0, bottom_h / 2)), *shelf, ((d, w, t), (0, 0, h - t / 2)),
+            ((d, t, upper), (0, w / 2 - t / 2, z)), ((d, t, upper), (0, -w / 2 + t / 2, z)),
+            ((t, w, upper), (-d / 2 + t / 2, 0, z))]
 
 
 def _drawer_link(spec: CabinetSpec) -> str:
@@ -245,19 +260,18 @@ def _handle_boxes(spec: CabinetSpec) -> Boxes:
     return [((b, length, b), (0, 0, 0)), *((post_size, (post_x, e, 0)) for e in (-ends, ends))]
 
 
-def _link(name: str, material: str, boxes: Boxes, mass: float, friction: float | None = None) -> str:
-    """A link made of boxes; inertia of the boxes' bounding box with the origin at the link frame."""
+def _link(name: str, material: str, boxes: Boxes, mass: float, friction: float | None = None,
+          visuals: Boxes | None = None) -> str:
+    """A link made of boxes (drawn as `visuals` when given); inertia of the boxes' bounding box with the
+    origin at the link frame."""
     lo = np.min([np.subtract(c, np.divide(s, 2)) for s, c in boxes], axis=0)
     hi = np.max([np.add(c, np.divide(s, 2)) for s, c in boxes], axis=0)
     com = (lo + hi) / 2
     sx, sy, sz = hi - lo
     ixx, iyy, izz = (mass / 12 * (a * a + b * b) for a, b in ((sy, sz), (sx, sz), (sx, sy)))
-    shapes = []
-    for (bx, by, bz), (cx, cy, cz) in boxes:
-        origin = f'<origin xyz="{cx:.6f} {cy:.6f} {cz:.6f}" rpy="0 0 0"/>'
-        geometry = f'<geometry><box size="{bx:.6f} {by:.6f} {bz:.6f}"/></geometry>'
-        shapes.append(f'<visual>{origin}{geometry}<material name="{material}"/></visual>')
-        shapes.append(f"<collision>{origin}{geometry}</collision>")
+    shapes = [f'<visual>{_box(size, centre)}<material name="{material}"/></visual>'
+              for size, centre in (boxes if visuals is None else visuals)]
+    shapes += [f"<collision>{_box(size, centre)}</collision>" for size, centre in boxes]
     contact = "" if friction is None else f'<contact><lateral_friction value="{friction}"/></contact>'
     cx, cy, cz = com
     return f"""<link name="{name}">
@@ -265,6 +279,12 @@ def _link(name: str, material: str, boxes: Boxes, mass: float, friction: float |
       <inertia ixx="{ixx:.6g}" ixy="0" ixz="0" iyy="{iyy:.6g}" iyz="0" izz="{izz:.6g}"/></inertial>
     {"".join(shapes)}{contact}
   </link>"""
+
+
+def _box(size: tuple[float, float, float], centre: tuple[float, float, float]) -> str:
+    (bx, by, bz), (cx, cy, cz) = size, centre
+    return (f'<origin xyz="{cx:.6f} {cy:.6f} {cz:.6f}" rpy="0 0 0"/>'
+            f'<geometry><box size="{bx:.6f} {by:.6f} {bz:.6f}"/></geometry>')
 
 
 def _material(name: str, rgba: Rgba) -> str:

@@ -11,9 +11,11 @@ import re
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 
 import numpy as np
+import open3d as o3d
 import pybullet as pb
 
 from deploy.geometry.types import Axis, JointType
@@ -22,6 +24,7 @@ from sim_fallback.cabinet_urdf import write_cabinet_urdf
 from sim_fallback.scenario import Scenario
 
 PHYSICS_HZ = 240
+VISUAL_TRIANGLE_FRACTION = 0.25  # robot visuals: decimated collision meshes (0.1 drops the IoU to 0.9)
 FLOOR_SIZE_M = 4.0  # a floor box: about +15 ms a 640x480 frame (pybullet_data's plane doubles the time)
 
 
@@ -164,13 +167,42 @@ class SimWorld:
 
 
 def _low_poly_copy(urdf: Path, directory: Path) -> Path:
-    """A copy of the robot URDF drawn with its collision meshes: same kinematics, dynamics and collisions,
-    but TinyRenderer draws the frame ~30 ms faster (the Panda's visual meshes are 1-2 MB each)."""
+    """A copy of the robot URDF drawn with its collision meshes decimated to a quarter of their triangles:
+    same kinematics, dynamics and collisions, but TinyRenderer draws the frame ~30 ms faster than with
+    the visual meshes (1-2 MB each) and ~6 ms faster than with whole collision meshes, whose surfaces
+    the decimated ones keep within ~1 mm (median; 99% within 7 mm): arm silhouette IoU ~0.98."""
     meshes = urdf.parent / "meshes"
-    text = re.sub(r"package://meshes/visual/(\w+)\.obj", rf"{meshes}/collision/\1.obj", urdf.read_text())
+
+    def low_poly(match: re.Match) -> str:
+        return str(_decimated(meshes / "collision" / f"{match.group(1)}.obj"))
+
+    def visual(block: re.Match) -> str:
+        return re.sub(r"package://meshes/(?:visual|collision)/(\w+)\.obj", low_poly, block.group(0))
+
+    text = re.sub(r"<visual>.*?</visual>", visual, urdf.read_text(), flags=re.S)
     copy = directory / urdf.name
     copy.write_text(text.replace("package://meshes/", f"{meshes}/"))
     return copy
+
+
+@cache
+def _decimated(mesh_path: Path) -> Path:
+    """`mesh_path` simplified (quadric error) to VISUAL_TRIANGLE_FRACTION of its triangles (kept whole
+    under 100, like the fingers), written once per process into a temporary directory removed at exit."""
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        mesh = o3d.io.read_triangle_mesh(str(mesh_path))
+        mesh.remove_duplicated_vertices()
+        n = len(mesh.triangles)
+        low = mesh if n < 100 else mesh.simplify_quadric_decimation(round(n * VISUAL_TRIANGLE_FRACTION))
+        low.compute_vertex_normals()
+        out = Path(_mesh_directory().name) / f"{mesh_path.stem}_low.obj"
+        o3d.io.write_triangle_mesh(str(out), low, write_triangle_uvs=False)
+    return out
+
+
+@cache
+def _mesh_directory() -> tempfile.TemporaryDirectory:
+    return tempfile.TemporaryDirectory(prefix="axisloop_meshes_")
 
 
 def _static_box(client: int, half: list[float], pos: list[float], quat, rgba: tuple) -> int:

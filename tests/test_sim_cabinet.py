@@ -1,6 +1,7 @@
 """Procedural cabinets and scenarios: URDF loads, limits, physics of the joint, reachability, determinism."""
 
 import dataclasses
+import re
 
 import numpy as np
 import pybullet as pb
@@ -147,3 +148,37 @@ def test_worlds_coexist_and_close():
     a.close()  # idempotent
     assert not pb.isConnected(a.client) and pb.isConnected(b.client)
     b.close()
+
+
+def _render_depth(urdf: str, tmp_path, opening: float, eye: list[float]) -> np.ndarray:
+    path = tmp_path / "cabinet.urdf"
+    path.write_text(urdf)
+    client = pb.connect(pb.DIRECT)
+    try:
+        body = pb.loadURDF(str(path), useFixedBase=True, physicsClientId=client)
+        pb.resetJointState(body, 0, opening, physicsClientId=client)
+        view = pb.computeViewMatrix(eye, [0.0, 0.0, 0.25], [0.0, 0.0, 1.0])
+        proj = pb.computeProjectionMatrixFOV(60.0, 4 / 3, 0.1, 5.0)
+        _, _, _, depth, _ = pb.getCameraImage(320, 240, view, proj, renderer=pb.ER_TINY_RENDERER,
+                                              physicsClientId=client)
+        return np.asarray(depth, np.float32)
+    finally:
+        pb.disconnect(client)
+
+
+@pytest.mark.parametrize("split", ["train", "test"])
+def test_drawer_body_looks_like_its_panels(split, tmp_path):
+    spec = random_cabinet("drawer", 0, split)
+    urdf = cabinet_urdf(spec)
+    body = re.search(r'<link name="body">.*?</link>', urdf, re.S).group(0)
+    collisions = re.findall(r"<collision>(.*?)</collision>", body)
+    assert body.count("<visual>") < len(collisions)  # drawn with fewer, larger boxes than it is built of
+    panels = "".join(f'<visual>{c}<material name="body_colour"/></visual>' for c in collisions)
+    drawn_as_built = re.sub(r"<visual>.*?</visual>", "", body).replace("<collision>", panels + "<collision>", 1)
+    as_built = urdf.replace(body, drawn_as_built)
+    for opening in (0.0, 0.3):
+        for eye in ([1.3, 0.6, 1.0], [-1.0, -0.8, 1.1], [1.2, -0.3, 0.1]):
+            drawn = _render_depth(urdf, tmp_path, opening, eye)
+            built = _render_depth(as_built, tmp_path, opening, eye)
+            assert (drawn < 1.0).mean() > 0.05  # the cabinet is in view
+            assert np.mean(np.abs(drawn - built) > 1e-5) < 0.002

@@ -1,6 +1,7 @@
 """The simulated D415: geometry of depth against ray casting, segmentation, noise, timestamps."""
 
 import numpy as np
+import open3d as o3d
 import pybullet as pb
 import pytest
 
@@ -141,3 +142,24 @@ def test_optional_floor_is_background_with_depth():
     assert np.mean(frame.depth_m[background] > 0) > 0.5
     points = _points(frame)[background]
     assert np.median(np.abs(points[:, 2])) < 0.01  # mostly the floor at z = 0
+
+
+def test_robot_is_drawn_close_to_its_collision_meshes(world):
+    """The arm is drawn with decimated collision meshes: a quarter of the triangles, surfaces within mm."""
+    c, robot = world.client, world.robot_id
+    o3d.utility.random.seed(0)
+    for link in range(-1, pb.getNumJoints(robot, physicsClientId=c)):
+        drawn = [v[4].decode() for v in pb.getVisualShapeData(robot, physicsClientId=c) if v[1] == link]
+        built = [s[4].decode() for s in pb.getCollisionShapeData(robot, link, physicsClientId=c)
+                 if s[2] == pb.GEOM_MESH]
+        if not built:
+            continue
+        low, full = (o3d.io.read_triangle_mesh(paths[0]) for paths in (drawn, built))
+        full.remove_duplicated_vertices()
+        assert len(low.triangles) <= 0.3 * len(full.triangles) or len(low.triangles) == len(full.triangles) < 100
+        for a, b in ((low, full), (full, low)):  # both ways: nothing added, nothing lost
+            scene = o3d.t.geometry.RaycastingScene()
+            scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(b))
+            points = np.asarray(a.sample_points_uniformly(2000).points, np.float32)
+            distance = scene.compute_distance(points).numpy()
+            assert np.median(distance) < 0.0015 and np.quantile(distance, 0.99) < 0.008, drawn[0]
