@@ -206,8 +206,9 @@ def _print_episode(data: dict, json_out: bool) -> None:
     console.print(table)
 
 
-def _open(task: str, target: float, camera: CameraChoice, seed: int, split: Split, policy: PolicyChoice,
-          run_dir: Path | None, json_out: bool) -> None:
+def _open(task: str, target: float, seed: int, split: Split, policy: PolicyChoice, run_dir: Path | None,
+          json_out: bool) -> None:
+    """One episode on the simulated camera and arm (the only `--camera` until the D415 driver lands)."""
     from deploy.bench.open import simulate_episode
 
     data = simulate_episode(task, seed, split.value, target, policy.value, run_dir=_run_dir(task, run_dir))
@@ -237,7 +238,7 @@ def open_drawer(
 
     Example: deploy open-drawer --distance 0.30 --seed 3 --json
     """
-    _open("drawer", distance, camera, seed, split, policy, run_dir, json_out)
+    _open("drawer", distance, seed, split, policy, run_dir, json_out)
 
 
 @app.command("open-door")
@@ -254,7 +255,7 @@ def open_door(
 
     Example: deploy open-door --angle 45 --seed 2 --json
     """
-    _open("door", angle, camera, seed, split, policy, run_dir, json_out)
+    _open("door", angle, seed, split, policy, run_dir, json_out)
 
 
 # --- sim --------------------------------------------------------------------------------------------------
