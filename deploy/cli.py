@@ -178,84 +178,133 @@ def axis_demo(seed: Annotated[int, typer.Option(help="Random seed of the synthet
 # --- open -------------------------------------------------------------------------------------------------
 
 
-class CameraChoice(str, Enum):
-    sim = "sim"
-
-
 class PolicyChoice(str, Enum):
     closed = "closed"
     open = "open"
     paper = "paper"
 
 
-def _run_dir(task: str, run_dir: Path | None) -> Path:
-    from datetime import datetime
-
-    return run_dir or Path("runs") / f"{task}-{datetime.now():%Y%m%d-%H%M%S}"
-
-
 def _print_episode(data: dict, json_out: bool) -> None:
     if json_out:
         _print_json(data)
         return
-    table = Table(title=f"{data['task']} episode (seed {data['seed']}, {data['policy']} loop)", show_header=False)
+    where = f"seed {data['seed']}" if "seed" in data else data.get("camera", "")
+    table = Table(title=f"{data['task']} episode ({where}, {data['policy']} loop)", show_header=False)
     for key in ("success", "opened", "target", "true_opened", "steps", "stop_reason", "message", "axis_angle_error_deg",
                 "axis_position_error_m", "run_dir"):
-        value = data.get(key)
-        table.add_row(key, f"{value:.3f}" if isinstance(value, float) else str(value))
+        if key in data:
+            value = data[key]
+            table.add_row(key, f"{value:.3f}" if isinstance(value, float) else str(value))
     console.print(table)
 
 
-def _open(task: str, target: float, seed: int, split: Split, policy: PolicyChoice, run_dir: Path | None,
-          json_out: bool) -> None:
-    """One episode on the simulated camera and arm (the only `--camera` until the D415 driver lands)."""
-    from deploy.bench.open import simulate_episode
+def _open(request_fields: dict, json_out: bool) -> None:
+    from deploy.control.session import OpenRequest, open_object
 
-    data = simulate_episode(task, seed, split.value, target, policy.value, run_dir=_run_dir(task, run_dir))
+    data = open_object(OpenRequest(**request_fields))
     _print_episode(data, json_out)
-    if not data["success"]:
+    if not (data["success"] or data["stop_reason"] == "dry run"):
         raise typer.Exit(1)
 
 
-SeedOpt = Annotated[int, typer.Option(help="Simulated scenario seed.")]
-CameraOpt = Annotated[CameraChoice, typer.Option(help="Camera: sim (PyBullet; the real D415 comes with its driver).")]
+SeedOpt = Annotated[int, typer.Option(help="Simulated scenario seed (--camera sim).")]
+CameraOpt = Annotated[str, typer.Option(help="sim | d415 | d415:SERIAL | replay:PATH (frames dir, .bag, .db3).")]
+ArmOpt = Annotated[str, typer.Option(help="sim | sim-can (simulated motors over a virtual CAN bus) | can.")]
+RobotOpt = Annotated[Path | None, typer.Option(help="Robot config TOML for --arm can (see docs/arm.md).")]
+CalibrationOpt = Annotated[Path | None, typer.Option(
+    help="Hand-eye calibration file [default: the one saved for this camera and robot].")]
+SegmenterOpt = Annotated[str | None, typer.Option(
+    help="oracle | gdino-sam2 | classical [default: oracle in simulation, gdino-sam2 otherwise].")]
 PolicyOpt = Annotated[PolicyChoice, typer.Option(help="closed (re-estimate every step), open or paper.")]
 RunDirOpt = Annotated[Path | None, typer.Option(help="Run folder [default: runs/TASK-TIME].")]
-SplitOpt = Annotated[Split, typer.Option(help="Object family.")]
+SplitOpt = Annotated[Split, typer.Option(help="Object family (--camera sim).")]
+DryRunOpt = Annotated[bool, typer.Option("--dry-run", help="Perceive and plan the grasp; move nothing.")]
+YesOpt = Annotated[bool, typer.Option("--yes", help="Skip the confirmation before a real arm's first motion.")]
+ViewOpt = Annotated[bool, typer.Option("--view", help="Stream frames, clouds and axes to a rerun viewer.")]
 
 
 @app.command("open-drawer")
 def open_drawer(
     distance: Annotated[float, typer.Option(help="Target opening (m).")] = 0.30,
-    camera: CameraOpt = CameraChoice.sim,
+    camera: CameraOpt = "sim",
+    arm: ArmOpt = "sim",
+    robot: RobotOpt = None,
+    calibration: CalibrationOpt = None,
+    segmenter: SegmenterOpt = None,
     seed: SeedOpt = 0,
     split: SplitOpt = Split.train,
     policy: PolicyOpt = PolicyChoice.closed,
     run_dir: RunDirOpt = None,
+    dry_run: DryRunOpt = False,
+    yes: YesOpt = False,
+    view: ViewOpt = False,
     json_out: JsonOpt = False,
 ) -> None:
     """Open a drawer to the target, re-estimating its axis after every step.
 
     Example: deploy open-drawer --distance 0.30 --seed 3 --json
+    Example: deploy open-drawer --camera d415 --arm can --robot configs/robots/damiao_6dof.toml --dry-run
     """
-    _open("drawer", distance, seed, split, policy, run_dir, json_out)
+    _open(dict(task="drawer", scene="drawer", distance_m=distance, camera=camera, arm=arm, robot=robot,
+               calibration=calibration, segmenter=segmenter, seed=seed, split=split.value, policy=policy.value,
+               run_dir=run_dir, dry_run=dry_run, yes=yes, view=view), json_out)
 
 
 @app.command("open-door")
 def open_door(
     angle: Annotated[float, typer.Option(help="Target opening (deg).")] = 45.0,
-    camera: CameraOpt = CameraChoice.sim,
+    camera: CameraOpt = "sim",
+    arm: ArmOpt = "sim",
+    robot: RobotOpt = None,
+    calibration: CalibrationOpt = None,
+    segmenter: SegmenterOpt = None,
     seed: SeedOpt = 0,
     split: SplitOpt = Split.train,
     policy: PolicyOpt = PolicyChoice.closed,
     run_dir: RunDirOpt = None,
+    dry_run: DryRunOpt = False,
+    yes: YesOpt = False,
+    view: ViewOpt = False,
     json_out: JsonOpt = False,
 ) -> None:
     """Open a door to the target angle along arcs about its estimated hinge axis.
 
     Example: deploy open-door --angle 45 --seed 2 --json
     """
-    _open("door", angle, seed, split, policy, run_dir, json_out)
+    _open(dict(task="door", scene="door", angle_deg=angle, camera=camera, arm=arm, robot=robot,
+               calibration=calibration, segmenter=segmenter, seed=seed, split=split.value, policy=policy.value,
+               run_dir=run_dir, dry_run=dry_run, yes=yes, view=view), json_out)
+
+
+@app.command("open")
+def open_any(
+    joint: Annotated[JointChoice, typer.Option(
+        help="auto: drawer or door from a 2.5 cm probe pull (how the front turns); or say which.")] = JointChoice.auto,
+    distance: Annotated[float, typer.Option(help="Target if it is a drawer (m).")] = 0.30,
+    angle: Annotated[float, typer.Option(help="Target if it is a door (deg).")] = 45.0,
+    scene: Annotated[Task, typer.Option(help="Simulated object (--camera sim).")] = Task.drawer,
+    camera: CameraOpt = "sim",
+    arm: ArmOpt = "sim",
+    robot: RobotOpt = None,
+    calibration: CalibrationOpt = None,
+    segmenter: SegmenterOpt = None,
+    seed: SeedOpt = 0,
+    split: SplitOpt = Split.train,
+    policy: PolicyOpt = PolicyChoice.closed,
+    run_dir: RunDirOpt = None,
+    dry_run: DryRunOpt = False,
+    yes: YesOpt = False,
+    view: ViewOpt = False,
+    json_out: JsonOpt = False,
+) -> None:
+    """Open whatever is in front of the arm: a drawer to --distance or a door to --angle.
+
+    Example: deploy open --joint auto --scene door --seed 4 --json
+    """
+    task = {"auto": "auto", "prismatic": "drawer", "revolute": "door"}[joint.value]
+    _open(dict(task=task, scene=scene.value, distance_m=distance, angle_deg=angle, camera=camera, arm=arm,
+               robot=robot, calibration=calibration, segmenter=segmenter, seed=seed, split=split.value,
+               policy=policy.value, run_dir=run_dir, dry_run=dry_run, yes=yes, view=view), json_out)
 
 
 # --- sim --------------------------------------------------------------------------------------------------
@@ -344,11 +393,17 @@ def bench_open_cmd(
     policy: PolicyOpt = PolicyChoice.closed,
     seed: Annotated[int, typer.Option(help="First scenario seed.")] = 0,
     workers: Annotated[int, typer.Option(help="Local worker processes.")] = 1,
+    ray: Annotated[str | None, typer.Option(
+        "--ray", metavar="ADDRESS", help="Run episodes on a Ray cluster: local, auto, ray://HOST:10001 or "
+        "HOST:6379 (needs the cluster extra); --workers is then unused.")] = None,
+    auto_joint: Annotated[bool, typer.Option(
+        "--auto-joint", help="The policy is not told the task: it classifies from its probe pull.")] = False,
     json_out: JsonOpt = False,
 ) -> None:
     """Success rate of simulated openings (success = the true joint value exceeds the target, like the paper).
 
     Example: deploy bench open --task door --target 45 --episodes 20 --workers 2 --json
+    Example: deploy bench open --task drawer --target 0.30 --episodes 1000 --ray ray://head:10001 --json
     """
     from rich.progress import Progress
 
@@ -357,7 +412,8 @@ def bench_open_cmd(
     with Progress(console=err_console, transient=True) as bar:
         job = bar.add_task(f"bench open {task.value}", total=episodes)
         data = bench_open(task.value, target, episodes, split.value, policy.value, seed, workers,
-                          progress=lambda _result: bar.advance(job))
+                          progress=lambda _result: bar.advance(job), ray_address=ray,
+                          auto_joint=auto_joint)
     if json_out:
         _print_json(data)
         return
@@ -385,6 +441,12 @@ def bench_sim_cmd(json_out: JsonOpt = False) -> None:
     console.print(table)
 
 
+from deploy.commands import arm, calibrate, cameras, perception  # noqa: E402  (they add to the apps above)
+
+for _area in (perception, cameras, arm, calibrate):
+    _area.register(app, bench_app)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `deploy` script; returns the exit code. User errors become one red line (code 2)."""
     try:
@@ -392,7 +454,7 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:  # typer's standalone mode always ends here: usage errors, --help, Exit
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     except USER_ERRORS as exc:
-        err_console.print(f"[bold red]error:[/] {exc}", highlight=False)
+        err_console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
         return 2
     return 0
 

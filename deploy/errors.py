@@ -1,6 +1,6 @@
 """One exception family per kind of failure; every message names the thing, the cause and the fix."""
 
-from drivers.errors import ArmError, CameraError, DriverError, RecordingError
+from drivers.errors import ArmError, CalibrationError, CameraError, CanBusError, DriverError, RecordingError
 
 
 class AxisloopError(Exception):
@@ -15,13 +15,19 @@ class PerceptionError(AxisloopError):
     """Segmentation or tracking failed, or a model is missing."""
 
 
-class CalibrationError(AxisloopError):
-    """A calibration that cannot be computed, loaded or trusted."""
+class ModelError(PerceptionError):
+    """A model checkpoint that is missing, incomplete or does not load."""
+
+
+class JobError(AxisloopError):
+    """A job of a benchmark executor failed; `job` holds its arguments, the original error is `__cause__`."""
+
+    job: dict | None = None
 
 
 USER_ERRORS = (AxisloopError, DriverError)
 
 __all__ = [
-    "AxisloopError", "ConfigError", "PerceptionError", "CalibrationError",
-    "ArmError", "CameraError", "DriverError", "RecordingError", "USER_ERRORS",
+    "AxisloopError", "ConfigError", "PerceptionError", "ModelError", "JobError", "CalibrationError",
+    "ArmError", "CanBusError", "CameraError", "DriverError", "RecordingError", "USER_ERRORS",
 ]

@@ -15,3 +15,11 @@ class RecordingError(DriverError):
 
 class ArmError(DriverError):
     """An arm or CAN bus fault; the arm has been stopped when this is raised."""
+
+
+class CalibrationError(DriverError):
+    """A calibration that cannot be computed, loaded or trusted: board, views, pose set, solve or file."""
+
+
+class CanBusError(ArmError):
+    """The CAN bus itself failed (bus-off, error-passive, full transmit queue, adapter gone)."""

@@ -24,5 +24,5 @@ fi
 .venv/bin/python -m pip install -q --upgrade pip
 # torch/torchvision first, pinned to the builds that match each other (see docs/quickstart.md).
 .venv/bin/python -m pip install -q "torch==2.14.1" "torchvision==0.29.1"
-.venv/bin/python -m pip install -q -e ".[dev]"
+.venv/bin/python -m pip install -q -e ".[dev,viewer,cluster]"  # the tests cover --view and --ray too
 echo "axisloop installed: .venv/bin/deploy"

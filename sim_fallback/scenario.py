@@ -15,10 +15,14 @@ from sim_fallback.cabinet_urdf import KINDS, SPLITS, CabinetSpec, Split, random_
 
 Task = Literal["drawer", "door"]
 
-CABINET_DISTANCE_M = (0.4, 0.7)  # robot base to the centre of the cabinet's front face, horizontal
+# Robot base to the centre of the cabinet's front face (horizontal) and grip centre above the robot base
+# (a pedestal lifts the cabinet), per task. A drawer is pulled toward the robot: its ranges keep a 45 cm
+# pull in the Panda's dexterous workspace (nearer or lower handles put joint 2 on its limit before the
+# end, farther ones start near full stretch), measured with `well_conditioned_start` over the pull.
+CABINET_DISTANCE_M = {"drawer": (0.55, 0.68), "door": (0.4, 0.7)}
+HANDLE_HEIGHT_M = {"drawer": (0.72, 0.86), "door": (0.62, 0.78)}
 CABINET_BEARING_RAD = 0.4  # the cabinet lies within +-this of the robot's x axis
 CABINET_YAW_RAD = 0.2  # the cabinet's front turns up to +-this away from facing the robot
-HANDLE_HEIGHT_M = (0.62, 0.78)  # grip centre above the robot base (a pedestal lifts the cabinet)
 MIN_PEDESTAL_M = (0.01, 0.05)  # RGBManip's base-height range, used when the cabinet is tall enough
 # Start: the hand retracted 0.3 m in front of the base at 0.75 m height, approach along +x (the ready
 # pose's orientation), clear of any cabinet front; jittered per scenario.
@@ -58,10 +62,10 @@ class Scenario:
         """A random scenario, deterministic from (task, seed, split); `camera` overrides the random one."""
         cabinet = random_cabinet(task, seed, split)
         rng = np.random.default_rng([SPLITS.index(split), KINDS.index(task), seed, 1])  # not the cabinet's
-        distance = rng.uniform(*CABINET_DISTANCE_M)
+        distance = rng.uniform(*CABINET_DISTANCE_M[task])
         bearing = rng.uniform(-CABINET_BEARING_RAD, CABINET_BEARING_RAD)
         yaw = bearing + np.pi + rng.uniform(-CABINET_YAW_RAD, CABINET_YAW_RAD)  # front faces the robot
-        handle_height = rng.uniform(*HANDLE_HEIGHT_M)
+        handle_height = rng.uniform(*HANDLE_HEIGHT_M[task])
         pedestal = max(handle_height - cabinet.handle_cabinet[2], rng.uniform(*MIN_PEDESTAL_M))
         random_camera = CameraPlacement(
             distance_m=float(rng.uniform(0.65, 1.0)),

@@ -27,7 +27,7 @@ def test_help_lists_every_group(capsys):
 @pytest.mark.parametrize(
     "command",
     [("axis", "fit-trajectory"), ("axis", "estimate"), ("axis", "demo"), ("sim", "show"), ("sim", "record"),
-     ("open-drawer",), ("open-door",), ("bench", "open"),
+     ("open-drawer",), ("open-door",), ("open",), ("bench", "open"),
      ("bench", "axis"), ("bench", "sim")],
 )
 def test_every_command_has_help_with_an_example(capsys, command):

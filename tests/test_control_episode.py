@@ -2,6 +2,7 @@
 read the world's truth to judge the outcome and, for stop conditions, change the world first."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pybullet as pb
@@ -62,10 +63,10 @@ class _LosingSegmenter(OracleSegmenter):
         return np.zeros_like(super().track(frame))
 
 
-def _episode(setup, target=0.15, segmenter=None):
-    """run_episode on drawer seed 0 after `setup(world, arm)`; returns the result and whether the arm
-    stays still afterwards."""
-    with SimWorld(Scenario.make("drawer", 0, "train")) as world:
+def _episode(setup, target=0.15, segmenter=None, scenario=None):
+    """run_episode on `scenario` (default drawer seed 0) after `setup(world, arm)`; returns the result and
+    whether the arm stays still afterwards."""
+    with SimWorld(scenario or Scenario.make("drawer", 0, "train")) as world:
         arm = SimArm(world)
         camera = SimCamera(world, intrinsics=d415_intrinsics(320, 240), fps=5.0)
         setup(world, arm)
@@ -107,9 +108,11 @@ def test_lost_tracking_stops_safely():
 
 
 def test_unreachable_handle_is_refused_before_moving():
-    result = simulate_episode("drawer", 2, "test", target=0.30)  # the handle is 0.38 m from the base
-    assert result["stop_reason"] == "ik infeasible" and "out of reach" in result["message"]
-    assert result["true_opened"] < 0.005 and result["steps"] == 0
+    scenario = Scenario.make("drawer", 0, "train")
+    far = replace(scenario, cabinet_xy=tuple(1.6 * np.array(scenario.cabinet_xy)))  # the handle ~1 m away
+    result, still = _episode(lambda world, arm: None, target=0.30, scenario=far)
+    assert result.stop_reason == "ik infeasible" and "out of reach" in result.message
+    assert result.steps == 0 and still
 
 
 def test_bench_open_reports_the_issue_keys():

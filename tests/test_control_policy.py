@@ -80,10 +80,13 @@ def test_choose_axis_rule():
     cfg = OpenConfig(task="door", fusion="fused")
     vision = Axis(JointType.REVOLUTE, np.zeros(3), np.array([0, 0, 1.0]), confidence=0.5)
     traj = Axis(JointType.REVOLUTE, np.ones(3), np.array([0, 0, 1.0]), confidence=0.9)
-    assert choose_axis(vision, traj, JointType.REVOLUTE, 5.0, cfg)[1] == "vision"  # too little travel
+    assert choose_axis(vision, traj, JointType.REVOLUTE, 5.0, cfg)[1] == "none"  # too little travel for both
     assert choose_axis(vision, traj, JointType.REVOLUTE, 20.0, cfg)[1] == "trajectory"
     vision_only = cfg.model_copy(update={"fusion": "vision"})
     assert choose_axis(vision, traj, JointType.REVOLUTE, 20.0, vision_only)[1] == "vision"
+    assert choose_axis(vision, traj, JointType.REVOLUTE, 19.0, vision_only)[1] == "none"  # hinge still loose
+    drawer = Axis(JointType.PRISMATIC, np.zeros(3), np.array([1.0, 0, 0]), confidence=0.5)
+    assert choose_axis(drawer, NoAxis("x"), JointType.PRISMATIC, 0.01, vision_only)[1] == "vision"
     weak = Axis(JointType.REVOLUTE, np.zeros(3), np.array([0, 0, 1.0]), confidence=0.01)
     result, source = choose_axis(weak, NoAxis("x"), JointType.REVOLUTE, 20.0, cfg)
     assert source == "none" and "confidence 0.01" in result.reason

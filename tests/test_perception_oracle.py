@@ -24,5 +24,14 @@ def test_masks_from_labels():
 
 
 def test_no_segmentation_is_an_actionable_error():
-    with pytest.raises(PerceptionError, match="frame 7 .*only works in simulation"):
+    with pytest.raises(PerceptionError, match="frame 7 has no segmentation labels or stored mask.*gdino-sam2"):
         make_segmenter("oracle").track(_frame(None))
+
+
+def test_a_recordings_stored_mask_is_the_oracle_without_labels():
+    frame = _frame(None)
+    frame.mask = np.zeros(frame.depth_m.shape, bool)
+    frame.mask[2:5, 3:7] = True
+    seg = make_segmenter("oracle")
+    np.testing.assert_array_equal(seg.start(frame), frame.mask)
+    assert seg.handle_mask(frame) is None

@@ -17,9 +17,12 @@ from scipy.spatial.transform import Rotation
 
 from deploy.axis_pipeline import AxisPipeline, frame_points, viewpoint
 from deploy.config import Config, EstimatorConfig
+from deploy.control.classify import classify_joint, front_turn_deg
 from deploy.control.grasp import Handle, find_handle, grasp_pose, hinge_prior, pregrasp_configuration
 from deploy.control.policy import OpenConfig, choose_axis, opening, orient_axis
 from deploy.control.run_folder import RunFolder
+from deploy.control.viewer import RerunViewer
+from deploy.errors import PerceptionError
 from deploy.geometry.estimators.trajectory import fit_trajectory
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 from deploy.perception.base import Segmenter
@@ -35,7 +38,7 @@ GRIPPER_FORCE_N = 40.0
 CLOSE_TIME_S = 0.5
 MIN_GRASP_WIDTH_M = 0.003  # a closed gripper narrower than this holds nothing
 OPEN_MARGIN_M = 0.005  # a gripper within this of fully open did not close on anything
-OVERSHOOT = {JointType.PRISMATIC: 0.01, JointType.REVOLUTE: float(np.radians(3.0))}  # past the target
+OVERSHOOT = {JointType.PRISMATIC: 0.015, JointType.REVOLUTE: float(np.radians(5.0))}  # past the target
 SETTLE_S = 0.3  # after a motion the arm settles on its last command (a new motion starts from the
 # measured joints, and the safety layer refuses a jump from the last command to them)
 RETREAT_M = 0.05  # re-grasp: back off this far along the approach and come back
@@ -88,23 +91,28 @@ def run_episode(
     run_dir: str | Path | None = None,
     joint_limits: MotionLimits | None = None,
     axis_error: AxisError | None = None,
+    viewer: RerunViewer | None = None,
 ) -> EpisodeResult:
     """Open the object in view to `config`'s target; always leaves the arm stopped.
 
     joint_limits: free-space joint moves (default 0.3 of the Panda's limits). axis_error: EVALUATION
-    only (simulation truth), drawn in the run folder's report; never used for control.
+    only (simulation truth), drawn in the run folder's report; never used for control. viewer: `--view`.
     """
     episode = _Episode(camera, arm, kin, segmenter, config, joint_limits)
     folder = RunFolder(Path(run_dir)) if run_dir is not None else None
-    episode.folder = folder
+    episode.folder, episode.viewer = folder, viewer
     try:
         reason, message = episode.run()
     except _Stop as stop:
         reason, message = stop.reason, stop.message
     except ArmError as exc:
         reason, message = ("ik infeasible" if _is_ik(exc) else "arm error"), str(exc)
+    except PerceptionError as exc:  # the segmenter lost the object and could not find it again
+        reason, message = "tracking lost", str(exc)
     finally:
         arm.stop()
+        if viewer is not None:
+            viewer.close()
     result = episode.result(reason, message, folder)
     if folder is not None:
         folder.finish(result, episode.first_frame, axis_error)
@@ -126,7 +134,9 @@ class _Episode:
         self.pipeline = AxisPipeline(Config(estimator=EstimatorConfig(
             name=estimator, joint="auto" if self.joint is None else self.joint.value, window=config.window)))
         self.folder: RunFolder | None = None
+        self.viewer: RerunViewer | None = None
         self.first_frame: Frame | None = None
+        self.last_seen: tuple[Frame, np.ndarray] | None = None  # the latest processed frame and its mask
         self.first_points = np.zeros((0, 3))
         self.mask_pixels = 0
         self.pending: list[tuple[Frame, ArmState]] = []
@@ -141,7 +151,8 @@ class _Episode:
         self.curve: list[tuple[float, float]] = []
         self.timings: dict[str, float] = {"perceive_s": 0.0, "grasp_s": 0.0, "motion_s": 0.0, "estimate_s": 0.0}
         self.t0 = arm.time()
-        self.p_grasp = np.zeros(3)
+        self.p_grasp = np.zeros(3)  # where the opening is measured from (the grasp, or after a door's probe)
+        self.opened_before = 0.0  # opening before p_grasp (m or rad)
         self.open_width = 0.0
         self.regrasped = False
         self.estimated = False  # an estimate (not a prior) has been acted on
@@ -151,8 +162,13 @@ class _Episode:
     def run(self) -> tuple[str, str]:
         cfg = self.config
         handle = self.perceive()
+        if cfg.dry_run:
+            return self.plan(handle)
         self.grasp(handle)
         pull = handle.normal
+        if self.joint is None:  # `--joint auto`: a short straight pull, then drawer or door from the front
+            self.pull(line_path(self.tool(), pull), cfg.probe_pull_m, "probe pull")
+            self.classify(handle)
         if self.joint is JointType.REVOLUTE:
             self.axis = hinge_prior(handle, self.first_points, self.pipeline.body_box)
         if self.joint is JointType.REVOLUTE and cfg.policy != "paper":  # a small arc about the likely hinge
@@ -189,6 +205,9 @@ class _Episode:
                   else frame_points(frame, handle_mask, self.pipeline.config))
         box = self.pipeline.body_box
         self.first_points = frame_points(frame, mask, self.pipeline.config)
+        if self.viewer is not None:
+            self.viewer.cloud(self.first_points)
+            self.viewer.frame(0.0, frame, mask, self.kin.fk(state.q))
         handle = None if box is None else find_handle(
             points, self.first_points, box, viewpoint(frame), self.joint is JointType.REVOLUTE)
         self.timings["perceive_s"] += time.perf_counter() - clock
@@ -198,12 +217,49 @@ class _Episode:
         self.next_frame_t = self.arm.time()
         return handle
 
+    def plan(self, handle: Handle) -> tuple[str, str]:
+        """`--dry-run`: the grasp, approach and first pull planned and checked by IK, nothing commanded."""
+        cfg, kin = self.config, self.kin
+        T_grasp = grasp_pose(handle)
+        q_pre = pregrasp_configuration(kin, self.arm.state().q, T_grasp, self.planned_reach() * handle.normal,
+                                       cfg.approach_m)
+        self.axis = (hinge_prior(handle, self.first_points, self.pipeline.body_box)
+                     if self.joint is JointType.REVOLUTE else Axis(JointType.PRISMATIC, handle.center, handle.normal,
+                                                                   confidence=0.0))
+        T_pre = kin.fk(q_pre)
+        self.commanded.extend([T_pre, T_grasp])
+        self.estimates.append({"step": 0, "t": 0.0, "source": "plan (prior)", "axis": self.axis.to_dict(),
+                               "opened": 0.0, "vision": "dry run"})
+        p = T_grasp[:3, 3]
+        return "dry run", (f"planned: handle at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m, pre-grasp joints "
+                           f"{np.round(q_pre, 3).tolist()}, {self.joint_type().value} prior axis; nothing moved")
+
+    def planned_reach(self) -> float:
+        """How far the pre-grasp configuration must be able to pull straight (m)."""
+        if self.joint is JointType.REVOLUTE:
+            return 0.1
+        return self.config.target_distance_m + OVERSHOOT[JointType.PRISMATIC]
+
+    def classify(self, handle: Handle) -> None:
+        """Drawer or door from how the front turned during the probe pull; fixes the estimator's joint."""
+        if self.last_seen is None:
+            raise _Stop("tracking lost", "no frame was seen during the probe pull: check the camera")
+        frame, mask = self.last_seen
+        turn = front_turn_deg(handle.normal, frame_points(frame, mask, self.pipeline.config), self.tool()[:3, 3],
+                              self.pipeline.body_box, viewpoint(frame))
+        self.joint = classify_joint(turn)
+        self.pipeline.joint = self.joint
+        if self.joint is JointType.REVOLUTE:  # the straight probe slips on a door's arc: count the turn seen
+            self.p_grasp, self.opened_before = self.tool()[:3, 3], float(np.radians(turn))
+        self.estimates.append({"step": 0, "t": self.arm.time() - self.t0, "source": "probe pull", "axis": None,
+                               "classified": self.joint.value, "front_turn_deg": turn})
+
     def grasp(self, handle: Handle) -> None:
         clock = time.perf_counter()
         cfg, arm, kin = self.config, self.arm, self.kin
         T_grasp = grasp_pose(handle)
-        reach = min(cfg.target_distance_m if self.joint is not JointType.REVOLUTE else 0.1, 0.25)
-        q_pre = pregrasp_configuration(kin, arm.state().q, T_grasp, reach * handle.normal, cfg.approach_m)
+        q_pre = pregrasp_configuration(kin, arm.state().q, T_grasp, self.planned_reach() * handle.normal,
+                                       cfg.approach_m)
         arm.set_gripper(1.0)  # fully open (clipped to the gripper's width)
         move_to_joints(arm, q_pre, self.joint_limits)
         open_width = arm.state().gripper_width_m
@@ -267,7 +323,7 @@ class _Episode:
         self.next_frame_t = 0.0
         self.capture(self.arm.state())  # the settled end of the motion
         self.timings["motion_s"] += time.perf_counter() - clock
-        self.steps += label != "first pull"
+        self.steps += label.startswith("step")
         self.record(result, label)
         self.process_frames()
         if self.arm.state().gripper_width_m <= MIN_GRASP_WIDTH_M:
@@ -292,11 +348,14 @@ class _Episode:
             pose = self.kin.fk(state.q)
             if self.folder is not None:
                 self.folder.write_frame(frame, mask, state.q, pose)
+            if self.viewer is not None:
+                self.viewer.frame(state.t - self.t0, frame, mask, pose)
             if np.count_nonzero(mask) < self.config.min_mask_fraction * self.mask_pixels:
                 self.pending = []
                 raise _Stop("tracking lost", f"the object's mask shrank to {np.count_nonzero(mask)} pixels of "
                             f"{self.mask_pixels} at frame {frame.index}: the object left the view or is occluded")
             self.vision = self.pipeline.update_frame(frame, mask, pose).result
+            self.last_seen = frame, mask
         self.pending = []
         self.timings["estimate_s"] += time.perf_counter() - clock
 
@@ -322,8 +381,10 @@ class _Episode:
                                                                       confidence=0.0)
                 source = f"prior ({source})"
         self.axis = chosen
-        self.opened = opening(chosen, self.p_grasp, p_now)
+        self.opened = self.opened_before + opening(chosen, self.p_grasp, p_now)
         self.curve.append((self.arm.time() - self.t0, self.report_opened()))
+        if self.viewer is not None:
+            self.viewer.axis(self.arm.time() - self.t0, chosen, self.report_opened())
         self.estimates.append({"step": self.steps, "t": self.arm.time() - self.t0, "source": source,
                                "axis": chosen.to_dict(),
                                "opened": self.report_opened(),

@@ -18,6 +18,7 @@ GRASP_PITCH_RAD = 0.25  # approach tilted down: keeps the Panda's wrist (joint 6
 BAR_HALF_THICKNESS_M = 0.008  # the grip centre lies this far behind the bar's front surface
 BAR_ELONGATION = 2.0  # principal spread ratio above which the handle is a bar with a direction
 MIN_HANDLE_POINTS = 5
+MIN_PLANNED_PULL_M = 0.05  # the shortest pull a pre-grasp configuration is planned for
 LIMIT_MARGIN_RAD = 0.1  # planned configurations stay this far inside the joint limits
 FRONT_RADIUS_M = 0.15  # the front face is fitted to object points this close to the handle
 MIN_FRONT_POINTS = 30
@@ -111,20 +112,24 @@ def pregrasp_configuration(
     """Joints at the pre-grasp pose from which the approach and a straight pull by `pull` (3-vector, m)
     stay farthest from singularities (largest smallest singular value of the Jacobian along them) and
     inside the joint limits; the Panda is redundant, so a few elbow seeds facing the handle are tried.
+    When no seed carries the whole pull, the best for a shorter one (halved down to 5 cm) is taken.
     Raises ArmError when none works."""
     T_pre = pregrasp_pose(T_grasp, approach_m)
-    pulls = [T_grasp.copy() for _ in range(6)]
-    for k, T in enumerate(pulls, start=1):
-        T[:3, 3] += pull * k / len(pulls)
-    poses = [T_pre, T_grasp, *pulls]
-    best = well_conditioned_start(kin, poses, q_start, LIMIT_MARGIN_RAD)
-    if best is None:
-        p = T_grasp[:3, 3]
-        raise ArmError(
-            f"handle at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m is out of reach: no arm configuration reaches "
-            "it and pulls it clear of joint limits and singularities; move the cabinet or the robot closer"
-        )
-    return best
+    length = float(np.linalg.norm(pull))
+    while True:
+        pulls = [T_grasp.copy() for _ in range(max(6, int(np.ceil(length / 0.05))))]
+        for k, T in enumerate(pulls, start=1):
+            T[:3, 3] += pull * k / len(pulls)
+        best = well_conditioned_start(kin, [T_pre, T_grasp, *pulls], q_start, LIMIT_MARGIN_RAD)
+        if best is not None:
+            return best
+        if length <= MIN_PLANNED_PULL_M:
+            p = T_grasp[:3, 3]
+            raise ArmError(
+                f"handle at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m is out of reach: no arm configuration reaches "
+                "it and pulls it clear of joint limits and singularities; move the cabinet or the robot closer"
+            )
+        pull, length = pull / 2, length / 2
 
 
 def hinge_prior(handle: Handle, object_points: np.ndarray, body_box: Box) -> Axis:

@@ -109,7 +109,8 @@ def write_report(
     if rows:
         steps = [s for s, _ in rows]
         ax_err.plot(steps, [err[0] for _, err in rows], "o-", label="angle (deg)")
-        ax_err.plot(steps, [err[1] * 100 for _, err in rows], "s-", label="position (cm)")
+        if result.joint_type == "revolute":  # a line's position along itself means nothing for a drawer
+            ax_err.plot(steps, [err[1] * 100 for _, err in rows], "s-", label="position (cm)")
         ax_err.legend()
     ax_err.set(xlabel="step", title="axis error per step" if rows else "axis error (no truth)")
     fig.tight_layout()

@@ -1,4 +1,4 @@
-"""The oracle segmenter: the simulator's segmentation labels (simulation only)."""
+"""The oracle segmenter: ground-truth masks, from the simulator's labels or a recording's stored masks."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ from drivers.camera.base import Frame, SegLabel
 
 
 class OracleSegmenter(Segmenter):
-    """Masks read from `frame.segmentation`: object = OBJECT | HANDLE, handle = HANDLE."""
+    """Masks read from `frame.segmentation` (object = OBJECT | HANDLE, handle = HANDLE), or a recording's
+    `frame.mask` (object only; the handle is then found in the cloud)."""
 
     name = "oracle"
 
@@ -18,17 +19,21 @@ class OracleSegmenter(Segmenter):
         return self.track(frame)
 
     def track(self, frame: Frame) -> np.ndarray:
+        if frame.segmentation is None and frame.mask is not None:
+            return np.asarray(frame.mask, bool)
         labels = _labels(frame)
         return (labels == SegLabel.OBJECT) | (labels == SegLabel.HANDLE)
 
     def handle_mask(self, frame: Frame) -> np.ndarray | None:
+        if frame.segmentation is None and frame.mask is not None:
+            return None
         return _labels(frame) == SegLabel.HANDLE
 
 
 def _labels(frame: Frame) -> np.ndarray:
     if frame.segmentation is None:
         raise PerceptionError(
-            f"frame {frame.index} has no segmentation labels: the oracle segmenter only works in simulation "
-            "(--camera sim); with a real or recorded camera use a model-based segmenter"
+            f"frame {frame.index} has no segmentation labels or stored mask: the oracle segmenter needs the "
+            "simulation (--camera sim) or a recording with masks; otherwise use gdino-sam2 or classical"
         )
     return np.asarray(frame.segmentation)

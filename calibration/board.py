@@ -1,0 +1,87 @@
+"""ChArUco board configuration and printable rendering at true scale (PNG with its dpi, or PDF)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+from PIL import Image
+
+from drivers.errors import CalibrationError
+
+INCH_M = 0.0254
+
+
+@dataclass(frozen=True)
+class BoardConfig:
+    """A ChArUco board: `squares` (columns, rows), square and marker sides in metres, an OpenCV ArUco
+    dictionary name, and `legacy` for boards printed by OpenCV < 4.6 (chessboard pattern starting with a
+    marker on even rows; `CharucoBoard.setLegacyPattern`). The default fits an A4 / Letter sheet."""
+
+    squares: tuple[int, int] = (5, 7)
+    square_m: float = 0.038
+    marker_m: float = 0.028
+    dictionary: str = "DICT_4X4_50"
+    legacy: bool = False
+
+    def __post_init__(self) -> None:
+        cols, rows = self.squares
+        if cols < 2 or rows < 2 or cols * rows < 6:
+            raise CalibrationError(f"board of {cols}x{rows} squares is too small: use at least 3x3")
+        if not 0 < self.marker_m < self.square_m:
+            raise CalibrationError(
+                f"board marker side {self.marker_m} m must be positive and smaller than the square side "
+                f"{self.square_m} m: measure the printed board and fix the sizes"
+            )
+        if not hasattr(cv2.aruco, self.dictionary):
+            raise CalibrationError(f"unknown ArUco dictionary {self.dictionary!r}: use e.g. DICT_4X4_50, "
+                                       "DICT_5X5_100 or DICT_6X6_250")
+        markers = (cols * rows) // 2
+        if markers > cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary)).bytesList.shape[0]:
+            raise CalibrationError(f"{self.dictionary} has fewer than the {markers} markers a {cols}x{rows} "
+                                       "board needs: choose a larger dictionary")
+
+    @property
+    def size_m(self) -> tuple[float, float]:
+        """Printed (width, height) of the squares area."""
+        return self.squares[0] * self.square_m, self.squares[1] * self.square_m
+
+    @property
+    def center_m(self) -> np.ndarray:
+        """Centre of the squares area in the board frame (origin at a corner, z out of the face)."""
+        w, h = self.size_m
+        return np.array([w / 2, h / 2, 0.0])
+
+    def board(self) -> cv2.aruco.CharucoBoard:
+        dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
+        board = cv2.aruco.CharucoBoard(tuple(self.squares), self.square_m, self.marker_m, dictionary)
+        board.setLegacyPattern(self.legacy)
+        return board
+
+
+def render_board(cfg: BoardConfig, px_per_m: float, margin_m: float = 0.01) -> np.ndarray:
+    """The board as a grey uint8 image at `px_per_m`, with a white quiet zone of `margin_m` all round."""
+    w, h = cfg.size_m
+    margin = round(margin_m * px_per_m)
+    size = (round(w * px_per_m) + 2 * margin, round(h * px_per_m) + 2 * margin)
+    return cfg.board().generateImage(size, marginSize=margin, borderBits=1)
+
+
+def write_board(cfg: BoardConfig, path: str | Path, dpi: float = 300.0, margin_m: float = 0.01) -> Path:
+    """Write a printable board: PNG (dpi stored) or PDF whose page is the board at true scale.
+
+    Print at 100 % ("actual size", no fit-to-page), then measure a square: `square_m` must match it.
+    """
+    path = Path(path)
+    if path.suffix.lower() not in (".png", ".pdf"):
+        raise CalibrationError(f"board output {path} must end in .png or .pdf")
+    if not path.parent.is_dir():
+        raise CalibrationError(f"folder {path.parent} does not exist: create it or choose another --out")
+    image = Image.fromarray(render_board(cfg, dpi / INCH_M, margin_m))
+    if path.suffix.lower() == ".pdf":
+        image.save(path, "PDF", resolution=dpi)
+    else:
+        image.save(path, dpi=(dpi, dpi))
+    return path

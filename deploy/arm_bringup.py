@@ -1,0 +1,181 @@
+"""Arm bring-up operations behind `deploy arm ...`: scan, status, enable/disable/zero, and planned joint moves
+(home, jog, move to a pose) that are shown before they run.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from drivers.arm.base import Arm
+from drivers.arm.can_arm import CanArm, scan_bus
+from drivers.arm.can_bus import CanBus
+from drivers.arm.damiao import Special, special
+from drivers.arm.motion import move_to_joints
+from drivers.arm.robot_config import RobotConfig, load_robot_config
+from drivers.arm.trajectory import MotionLimits, joint_trajectory
+from drivers.errors import ArmError
+from sim_fallback.arm_factory import open_arm, sim_can_arm
+
+DEFAULT_ROBOT = Path(__file__).resolve().parents[1] / "configs" / "robots" / "panda_sim.toml"
+BRINGUP_SPEED = 0.2  # share of the velocity, acceleration and jerk limits used by bring-up moves
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A joint move, as shown to the user before it runs."""
+
+    what: str
+    q_start: np.ndarray
+    q_goal: np.ndarray
+    duration_s: float
+    tool_start: np.ndarray
+    tool_goal: np.ndarray
+
+    def to_dict(self) -> dict:
+        return {"what": self.what, "q_start": self.q_start.round(4).tolist(), "q_goal": self.q_goal.round(4).tolist(),
+                "duration_s": round(self.duration_s, 3), "tool_start_m": self.tool_start.round(4).tolist(),
+                "tool_goal_m": self.tool_goal.round(4).tolist()}
+
+
+def load(robot: Path | None) -> RobotConfig:
+    return load_robot_config(robot or DEFAULT_ROBOT)
+
+
+def make_arm(kind: str, config: RobotConfig) -> Arm:
+    """An arm of `kind` for the CLI ("sim" needs a world: not offered here)."""
+    return open_arm(kind, config)
+
+
+def scan(kind: str, config: RobotConfig, ids: range) -> list[dict]:
+    """Motors that answer on the config's bus (sim-can: the simulated motors of the config)."""
+    if kind == "sim-can":
+        arm, motors = sim_can_arm(config)
+        try:
+            return [m.to_dict() for m in scan_bus(arm.bus, ids)]
+        finally:
+            arm.bus.close()
+            motors.close()
+    if kind != "can":
+        raise ArmError(f"`deploy arm scan` needs a CAN arm (can or sim-can), not {kind!r}")
+    c = config.can
+    with CanBus(c.channel, c.interface, c.bitrate, c.fd, c.data_bitrate) as bus:
+        return [m.to_dict() for m in scan_bus(bus, ids)]
+
+
+def status(arm: Arm) -> dict:
+    """Joint positions, tool pose and, for CAN arms, each motor's status (connects: enables, then stops)."""
+    with arm:
+        state = arm.state()
+        kin = arm.kin
+        tool = kin.fk(state.q)
+        data = {"joints": dict(zip(arm.joint_names, np.round(state.q, 4).tolist(), strict=True)),
+                "tool_position_m": tool[:3, 3].round(4).tolist(),
+                "tool_rpy_deg": np.degrees(Rotation.from_matrix(tool[:3, :3]).as_euler("xyz")).round(2).tolist(),
+                "gripper_width_m": round(state.gripper_width_m, 4)}
+        if isinstance(arm, CanArm):
+            data["motors"] = arm.motor_report()
+    return data
+
+
+def disable_all(config: RobotConfig, kind: str) -> int:
+    """Send disable to every configured motor (works without connecting); returns how many."""
+    if kind == "sim-can":
+        arm, motors = sim_can_arm(config)
+        bus, close = arm.bus, motors.close
+    else:
+        c = config.can
+        bus, close = CanBus(c.channel, c.interface, c.bitrate, c.fd, c.data_bitrate), None
+    try:
+        for m in config.motors:
+            bus.send(m.can_id, special(Special.DISABLE))
+    finally:
+        bus.close()
+        if close is not None:
+            close()
+    return len(config.motors)
+
+
+def set_zero(config: RobotConfig, kind: str, joint: str) -> dict:
+    """Make motor `joint`'s current position its zero (the motor must be disabled; it stores the zero)."""
+    motors = {getattr(m, "name", "gripper"): m for m in config.motors}
+    if joint not in motors:
+        raise ArmError(f"joint {joint!r} is not in robot config {config.name!r}: joints are {', '.join(motors)}")
+    if kind == "sim-can":
+        arm, sim = sim_can_arm(config)
+        bus, close = arm.bus, sim.close
+    else:
+        c = config.can
+        bus, close = CanBus(c.channel, c.interface, c.bitrate, c.fd, c.data_bitrate), None
+    try:
+        m = motors[joint]
+        bus.send(m.can_id, special(Special.DISABLE))
+        bus.send(m.can_id, special(Special.SET_ZERO))
+    finally:
+        bus.close()
+        if close is not None:
+            close()
+    return {"joint": joint, "can_id": motors[joint].can_id, "zeroed": True}
+
+
+def plan(arm: Arm, config: RobotConfig, what: str, q_goal: np.ndarray | None = None,
+         pose: tuple[float, ...] | None = None, joint: str | None = None, delta: float | None = None) -> Plan:
+    """The move `what` ("home", "jog", "move") from the measured joints; the arm must be connected."""
+    kin = arm.kin
+    q0 = arm.state().q
+    if what == "home":
+        q_goal = np.array(config.q_ready)
+    elif what == "jog":
+        if joint not in arm.joint_names:
+            raise ArmError(f"joint {joint!r} is not one of {', '.join(arm.joint_names)}")
+        q_goal = q0.copy()
+        q_goal[arm.joint_names.index(joint)] += float(delta)
+    elif what == "move":
+        x, y, z, roll, pitch, yaw = pose
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_euler("xyz", [roll, pitch, yaw], degrees=True).as_matrix()
+        T[:3, 3] = x, y, z
+        q_goal = kin.ik(T, q0)
+    limits = arm.guard.limits if hasattr(arm, "guard") else None
+    if limits is not None:
+        bad = (q_goal < limits.q_min) | (q_goal > limits.q_max)
+        if bad.any():
+            j = int(np.argmax(bad))
+            raise ArmError(f"{what}: joint {arm.joint_names[j]} goal {q_goal[j]:.3f} rad is outside its limits "
+                           f"[{limits.q_min[j]:.3f}, {limits.q_max[j]:.3f}]: choose a smaller move")
+        tool = kin.fk(q_goal)[:3, 3]
+        if np.any(tool < limits.workspace_min) or np.any(tool > limits.workspace_max):
+            raise ArmError(f"{what}: the tool would end at {tool.round(3).tolist()} m, outside the workspace box "
+                           f"{limits.workspace_min.tolist()} .. {limits.workspace_max.tolist()}: choose another goal")
+    duration = joint_trajectory(q0, q_goal, motion_limits(arm, config)).duration
+    return Plan(what, q0, q_goal, duration, kin.fk(q0)[:3, 3], kin.fk(q_goal)[:3, 3])
+
+
+def motion_limits(arm: Arm, config: RobotConfig) -> MotionLimits:
+    return MotionLimits.for_robot(config.robot_spec(), arm.kin, BRINGUP_SPEED)
+
+
+def execute(arm: Arm, config: RobotConfig, p: Plan, hold_s: float = 0.0,
+            progress: Callable[[float], None] | None = None) -> dict:
+    """Run a planned move (the arm is connected), hold `hold_s` seconds; the final joints and tool position."""
+    limits = motion_limits(arm, config)
+
+    def on_tick(_state, t: float) -> None:
+        if progress is not None:
+            progress(min(1.0, t / max(p.duration_s, 1e-9)))
+
+    gap = np.abs(arm.state().q - p.q_start).max()
+    if gap > 0.02:
+        raise ArmError(f"the arm moved {gap:.3f} rad since the plan was made: run the command again")
+    move_to_joints(arm, p.q_goal, limits, on_tick)
+    end = time.perf_counter() + hold_s
+    while time.perf_counter() < end:
+        arm.sync()
+    q = arm.state().q
+    return {"q": q.round(4).tolist(), "tool_position_m": arm.kin.fk(q)[:3, 3].round(4).tolist(),
+            "max_joint_error_rad": float(np.abs(q - p.q_goal).max())}

@@ -1,0 +1,107 @@
+"""Hand-eye calibration in simulation, against ground truth (`deploy bench calibration`, and the sim camera and
+arm of `deploy calibrate`): the same routine as on hardware, on a PyBullet rig from sim_fallback.board."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from calibration.board import BoardConfig, render_board
+from calibration.hand_eye import METHODS, SETUPS, HandEyeSolution, calibrate, solve
+from calibration.poses import PoseConfig
+from calibration.routine import HandEyeRun, RoutineConfig, Stations, plan_around_start, run_hand_eye
+from calibration.transforms import pose_error
+from drivers.arm.trajectory import MotionLimits
+from drivers.camera.base import Intrinsics
+from drivers.camera.depth_noise import DepthNoise
+from sim_fallback.board import BoardTexture, CalibrationRig, build_rig
+
+TEXTURE_PX_PER_M = 3000.0  # about 2 texels per image pixel where the board is nearest the camera
+TEXTURE_MARGIN_M = 0.01
+SPEED_FRACTION = 0.5
+POSE_COUNTS = (5, 10, 15, 20)
+AUTO = "auto"  # the routine's choice: most consistent method, refined on reprojection error
+
+
+@dataclass(frozen=True)
+class NoiseLevel:
+    """Simulated D415 noise: depth model on or off, and Gaussian colour noise (grey levels)."""
+
+    name: str
+    depth: bool
+    color_sigma: float
+
+
+NOISE_LEVELS = (NoiseLevel("none", False, 0.0), NoiseLevel("d415", True, 0.0),
+                NoiseLevel("d415+colour4", True, 4.0), NoiseLevel("d415+colour8", True, 8.0))
+NOMINAL = NOISE_LEVELS[1]
+
+
+def sim_rig(setup: str, board: BoardConfig, resolution: tuple[int, int] = (640, 480), noise: NoiseLevel = NOMINAL,
+            seed: int = 0) -> CalibrationRig:
+    """A simulated calibration rig showing `board` (eye-to-hand: on the tool; eye-in-hand: on the table)."""
+    texture = BoardTexture(render_board(board, TEXTURE_PX_PER_M, TEXTURE_MARGIN_M), TEXTURE_PX_PER_M,
+                           (-TEXTURE_MARGIN_M, -TEXTURE_MARGIN_M))
+    return build_rig(setup, texture, board.center_m, resolution, None if noise.depth else DepthNoise.none(),
+                     noise.color_sigma, seed)
+
+
+def routine_config(rig: CalibrationRig, poses: int, board: BoardConfig, seed: int = 0) -> RoutineConfig:
+    return RoutineConfig(setup=rig.setup, poses=poses, board=board,  # type: ignore[arg-type]
+                         stations=PoseConfig(pivot_tool_m=rig.pivot_tool_m, seed=seed))
+
+
+def limits(rig: CalibrationRig, fraction: float = SPEED_FRACTION) -> MotionLimits:
+    return MotionLimits.for_robot(rig.world.robot_spec, rig.arm.kin, fraction)
+
+
+def truth_error(rig: CalibrationRig, solution: HandEyeSolution) -> tuple[float, float]:
+    """(translation mm, rotation deg) of the solved camera transform against the rig's ground truth."""
+    return pose_error(solution.T_camera, rig.true_camera)
+
+
+def simulated_hand_eye(rig: CalibrationRig, poses: int, board: BoardConfig, seed: int = 0,
+                       intrinsics: Intrinsics | None = None, distortion: np.ndarray | None = None,
+                       progress: Callable[[int, int], None] | None = None) -> tuple[HandEyeRun, tuple[float, float]]:
+    """The hand-eye routine on the rig (with the camera's factory intrinsics unless given), and its error
+    against the truth."""
+    run = run_hand_eye(rig.camera, rig.arm, rig.arm.kin, routine_config(rig, poses, board, seed), limits(rig),
+                       intrinsics, distortion, progress)
+    return run, truth_error(rig, run.best)
+
+
+def bench_calibration(setups: Sequence[str] = SETUPS, pose_counts: Sequence[int] = POSE_COUNTS,
+                      noise_levels: Sequence[NoiseLevel] = NOISE_LEVELS, board: BoardConfig | None = None,
+                      seed: int = 0, progress: Callable[[str], None] | None = None) -> dict:
+    """Error against the truth vs number of poses, noise and method, at 640x480. Per setup and noise level the
+    routine visits max(pose_counts) stations once; each count uses the first N samples. Rows name the method
+    (or "auto": the routine's pick, refined). best_at_15_poses: "auto" at 15 poses with the nominal D415 noise,
+    the worse of the setups."""
+    board = board or BoardConfig()
+    rows = []
+    for setup in setups:
+        for noise in noise_levels:
+            if progress is not None:
+                progress(f"{setup}, noise {noise.name}")
+            with sim_rig(setup, board, noise=noise, seed=seed) as rig:
+                stations = Stations(rig.camera, rig.arm, rig.arm.kin, limits(rig), board)
+                config = routine_config(rig, max(pose_counts), board, seed)
+                collection = stations.collect(plan_around_start(rig.arm.kin, rig.arm, config))
+                K = stations.intrinsics.K
+                for n in pose_counts:
+                    samples = collection.samples[:n]
+                    for method in METHODS:
+                        rows.append(_row(setup, noise, method, n, truth_error(rig, solve(samples, setup, method, K))))
+                    best, _ = calibrate(samples, setup, K)  # type: ignore[arg-type]
+                    rows.append(_row(setup, noise, AUTO, n, truth_error(rig, best)))
+    at_15 = [r for r in rows if r["method"] == AUTO and r["poses"] == 15 and r["noise"] == NOMINAL.name]
+    best = ({"translation_mm": max(r["translation_mm"] for r in at_15),
+             "rotation_deg": max(r["rotation_deg"] for r in at_15)} if at_15 else None)
+    return {"resolution": [640, 480], "seed": seed, "results": rows, "best_at_15_poses": best}
+
+
+def _row(setup: str, noise: NoiseLevel, method: str, poses: int, error: tuple[float, float]) -> dict:
+    return {"setup": setup, "noise": noise.name, "method": method, "poses": poses,
+            "translation_mm": round(error[0], 3), "rotation_deg": round(error[1], 4)}

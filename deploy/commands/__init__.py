@@ -1,0 +1,1 @@
+"""Command modules of the `deploy` CLI, one per area; each has `register(app, bench_app)`."""

@@ -1,0 +1,47 @@
+"""Perception settings: which backend, which prompts and models, and when a track counts as lost."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+DEFAULT_DETECTOR = "IDEA-Research/grounding-dino-tiny"
+DEFAULT_TRACKER = "facebook/sam2.1-hiera-tiny"
+EDGETAM_TRACKER = "yonigozlan/EdgeTAM-hf"
+
+
+class PerceptionConfig(BaseModel):
+    """Settings of every segmenter backend (each reads the fields it needs).
+
+    detector / tracker: a local directory or a Hugging Face repo id looked up in the local cache
+    (never downloaded here: fetch with `hf download REPO_ID`). box: first-frame box (x0, y0, x1, y1)
+    in pixels; with it the detector is skipped.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    object_prompt: str = "cabinet"
+    handle_prompt: str | None = "handle"
+    detector: str = DEFAULT_DETECTOR
+    tracker: str = DEFAULT_TRACKER
+    device: Literal["auto", "cuda", "mps", "cpu"] = "auto"
+    box_threshold: float = Field(default=0.25, ge=0, le=1)
+    text_threshold: float = Field(default=0.3, ge=0, le=1)
+    box: tuple[float, float, float, float] | None = None
+    min_area_ratio: float = Field(default=0.3, ge=0, le=1, description="lost below this x the first mask's area")
+    min_iou: float = Field(default=0.3, ge=0, le=1, description="lost below this IoU with the previous mask")
+    max_redetections: int = Field(default=3, ge=0, description="re-detection attempts on a lost frame before stopping")
+
+
+def perception_config(**overrides: object) -> PerceptionConfig:
+    """A PerceptionConfig from the non-None `overrides` (CLI options); invalid values are a ConfigError."""
+    from pydantic import ValidationError
+
+    from deploy.errors import ConfigError
+
+    try:
+        return PerceptionConfig(**{k: v for k, v in overrides.items() if v is not None})
+    except ValidationError as e:
+        problems = "; ".join(f"{'.'.join(map(str, err['loc']))}: {err['msg']}" for err in e.errors())
+        raise ConfigError(f"invalid perception option(s): {problems}; see `deploy track --help`") from None

@@ -1,0 +1,95 @@
+"""`deploy track`: run a segmenter over a frames recording, frame by frame, and write its masks and an overlay."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from deploy.errors import PerceptionError
+from deploy.perception.base import Segmenter
+from deploy.perception.track_health import mask_iou
+from drivers.camera.base import Frame
+from drivers.camera.frames_dir import FramesRecording, FramesWriter
+
+OVERLAY_TILES = 6
+
+
+def overlay(frame: Frame, mask: np.ndarray, width: int = 320) -> np.ndarray:
+    """The frame's colour (RGB) with the mask tinted red and outlined, scaled to `width` pixels."""
+    image = frame.color.copy()
+    image[mask] = (0.5 * image[mask] + (127, 0, 0)).astype(np.uint8)
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    cv2.drawContours(image, contours, -1, (255, 40, 40), 2)
+    cv2.putText(image, f"{frame.index}", (8, 28), cv2.FONT_HERSHEY_SIMPLEX, 0.9, (255, 255, 0), 2)
+    scale = width / image.shape[1]
+    return cv2.resize(image, (width, int(round(image.shape[0] * scale))), interpolation=cv2.INTER_AREA)
+
+
+def _write_mask(directory: Path, index: int, mask: np.ndarray) -> None:
+    if not cv2.imwrite(str(directory / f"{index:06d}.png"), np.where(mask, 255, 0).astype(np.uint8)):
+        raise PerceptionError(f"could not write {directory}/{index:06d}.png: check the disk and permissions")
+
+
+def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | None = None) -> dict:
+    """Segment every frame of the recording at `path` in order (start on the first, track on the rest).
+
+    With `out`, a copy of the recording with the new masks is written there (truth.json copied too);
+    without, the masks go into the recording's own mask/ folder, which must not exist yet. An overlay
+    PNG strip of a few evenly spaced frames is written beside. Returns a summary (timings in ms; IoU
+    against the recording's own masks when it has them).
+    """
+    recording = FramesRecording(path)
+    n = len(recording)
+    if n == 0:
+        raise PerceptionError(f"recording {path} has no frames: record again")
+    if out is not None and out.resolve() == Path(path).resolve():
+        out = None
+    if out is None and recording.has_masks:
+        raise PerceptionError(f"recording {path} already has a mask/ folder: pass --out DIR to write the new "
+                              "masks into a copy (the recorded masks are kept for comparison)")
+    target = out or Path(path)
+    writer = None
+    if out is not None:
+        writer = FramesWriter(out, recording.intrinsics, recording.depth_scale, recording.T_base_camera)
+        if (Path(path) / "truth.json").exists():
+            shutil.copyfile(Path(path) / "truth.json", out / "truth.json")
+    else:
+        (target / "mask").mkdir()
+    tiles_at = set(np.linspace(0, n - 1, min(OVERLAY_TILES, n)).round().astype(int).tolist())
+    tiles, ms, ious = [], [], []
+    try:
+        for i in range(n):
+            frame = recording.frame(i)
+            clock = time.perf_counter()
+            mask = segmenter.start(frame, prompt) if i == 0 else segmenter.track(frame)
+            ms.append((time.perf_counter() - clock) * 1e3)
+            if frame.mask is not None:
+                ious.append(mask_iou(mask, frame.mask))
+            if writer is not None:
+                record = recording.records[i]
+                pose = record.get("ee_pose")
+                writer.write(frame, mask=mask, joint_positions=record.get("joint_positions"),
+                             ee_pose=None if pose is None else np.asarray(pose))
+            else:
+                _write_mask(target / "mask", frame.index, mask)
+            if i in tiles_at:
+                tiles.append(overlay(frame, mask))
+    finally:
+        if writer is not None:
+            writer.close()
+    strip = target / "overlay.png"
+    cv2.imwrite(str(strip), cv2.cvtColor(np.hstack(tiles), cv2.COLOR_RGB2BGR))
+    summary = {
+        "recording": str(path), "segmenter": segmenter.name, "prompt": prompt, "frames": n,
+        "masks": str(target / "mask"), "overlay": str(strip), "start_ms": round(ms[0], 2),
+        "track_ms_median": round(float(np.median(ms[1:])), 2) if n > 1 else None,
+        "iou_vs_recorded_median": round(float(np.median(ious)), 4) if ious else None,
+        "redetections": getattr(segmenter, "redetections", 0),
+    }
+    (target / "track.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return summary

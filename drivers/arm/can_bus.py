@@ -1,0 +1,131 @@
+"""A python-can bus for the arm: send and receive raw frames, turn bus trouble into one clear ArmError.
+
+Detected: bus-off and error-passive (SocketCAN error frames, and `bus.state` where the interface reports it),
+a full transmit queue ("No buffer space available", ENOBUFS), and any other send or receive failure.
+"""
+
+from __future__ import annotations
+
+import errno
+import time
+from collections.abc import Callable
+
+import can
+
+from drivers.errors import CanBusError
+
+# SocketCAN error frame classes (linux/can/error.h): bits of the error frame's id, details in data[1]
+CAN_ERR_CRTL, CAN_ERR_BUSOFF, CAN_ERR_RESTARTED = 0x004, 0x040, 0x100
+CAN_ERR_CRTL_RX_PASSIVE, CAN_ERR_CRTL_TX_PASSIVE = 0x10, 0x20
+
+FIX_BUS_OFF = ("check the CAN wiring, both 120 ohm terminations and the motor power, then restart the interface "
+               "(`sudo ip link set can0 down && sudo ip link set can0 up type can bitrate 1000000 restart-ms 100`)")
+FIX_PASSIVE = "too many bus errors: check the bitrate matches the motors, the wiring and the terminations"
+FIX_NOBUFS = ("the transmit queue is full (frames are not acknowledged): check that the motors are powered and "
+              "wired, or raise the queue (`sudo ip link set can0 txqueuelen 1000`)")
+
+
+class CanBus:
+    """One CAN channel (python-can). `pump` (simulation only) runs before every receive poll so that a
+    simulated motor bus without its own thread can answer."""
+
+    def __init__(
+        self,
+        channel: str,
+        interface: str = "socketcan",
+        bitrate: int = 1_000_000,
+        fd: bool = False,
+        data_bitrate: int = 5_000_000,
+        pump: Callable[[], None] | None = None,
+    ) -> None:
+        self.channel, self.interface, self.fd = channel, interface, fd
+        self.pump = pump
+        kwargs: dict = {"interface": interface, "channel": channel}
+        if interface not in ("virtual", "socketcan"):  # socketcan's bitrate is set with `ip link`
+            kwargs["bitrate"] = bitrate
+        if fd:
+            kwargs.update(fd=True, data_bitrate=data_bitrate)
+        try:
+            self._bus = can.Bus(**kwargs)
+        except (can.CanError, OSError, ValueError, ImportError) as exc:
+            raise CanBusError(
+                f"CAN interface {interface!r} channel {channel!r} cannot be opened ({exc}): check the adapter is "
+                f"plugged in and up (`ip link show {channel}`), or pick the interface in the robot config"
+            ) from exc
+        self._closed = False
+
+    def send(self, arbitration_id: int, data: bytes) -> None:
+        """Send one standard-id frame; CanBusError naming the cause when the bus refuses it."""
+        msg = can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False, is_fd=self.fd,
+                          bitrate_switch=self.fd)
+        try:
+            self._bus.send(msg, timeout=0.001)
+        except (can.CanError, OSError) as exc:
+            raise classify_send_error(exc, self.channel, arbitration_id) from exc
+
+    def recv(self, timeout: float) -> can.Message | None:
+        """The next data frame within `timeout` s (None if none); CanBusError on an error frame or a dead bus."""
+        deadline = time.perf_counter() + timeout
+        while True:
+            if self.pump is not None:
+                self.pump()
+            remaining = max(0.0, deadline - time.perf_counter())
+            try:
+                msg = self._bus.recv(0.0 if self.pump is not None else remaining)
+            except (can.CanError, OSError) as exc:
+                raise CanBusError(f"CAN {self.channel}: receive failed ({exc}): {FIX_BUS_OFF}") from exc
+            if msg is not None and msg.is_error_frame:
+                self._raise_error_frame(msg)
+            elif msg is not None:
+                return msg
+            if remaining <= 0.0:
+                return None
+            if self.pump is not None:
+                time.sleep(min(remaining, 1e-4))
+
+    def flush(self) -> None:
+        """Let a pumped (simulated) bus handle what was sent; nothing to do on a real bus."""
+        if self.pump is not None and not self._closed:
+            self.pump()
+
+    def check_state(self) -> None:
+        """CanBusError if the interface reports error-passive or bus-off (interfaces that cannot tell say active)."""
+        try:
+            state = self._bus.state
+        except (NotImplementedError, can.CanError, OSError):
+            return
+        if state == can.BusState.ERROR:
+            raise CanBusError(f"CAN {self.channel} is bus-off: {FIX_BUS_OFF}")
+        if state == can.BusState.PASSIVE:
+            raise CanBusError(f"CAN {self.channel} is error-passive: {FIX_PASSIVE}")
+
+    def _raise_error_frame(self, msg: can.Message) -> None:
+        cls = msg.arbitration_id
+        detail = msg.data[1] if len(msg.data) > 1 else 0
+        if cls & CAN_ERR_BUSOFF:
+            raise CanBusError(f"CAN {self.channel} went bus-off (error frame): {FIX_BUS_OFF}")
+        if cls & CAN_ERR_CRTL and detail & (CAN_ERR_CRTL_RX_PASSIVE | CAN_ERR_CRTL_TX_PASSIVE):
+            raise CanBusError(f"CAN {self.channel} controller is error-passive (error frame): {FIX_PASSIVE}")
+        if cls & CAN_ERR_RESTARTED:
+            return
+        raise CanBusError(f"CAN {self.channel} reported bus errors (error class 0x{cls:03X}): {FIX_PASSIVE}")
+
+    def close(self) -> None:
+        """Release the interface (idempotent)."""
+        if not self._closed:
+            self._closed = True
+            self._bus.shutdown()
+
+    def __enter__(self) -> CanBus:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def classify_send_error(exc: Exception, channel: str, arbitration_id: int) -> CanBusError:
+    """The CanBusError for a failed send: a full transmit queue (ENOBUFS) or anything else."""
+    code = getattr(exc, "error_code", None) or getattr(exc, "errno", None)
+    if code == errno.ENOBUFS or "No buffer space" in str(exc):
+        return CanBusError(f"CAN {channel}: No buffer space available sending to 0x{arbitration_id:X}: {FIX_NOBUFS}")
+    return CanBusError(f"CAN {channel}: sending to 0x{arbitration_id:X} failed ({exc}): {FIX_BUS_OFF}")

@@ -1,0 +1,205 @@
+"""Robot config (TOML, validated with pydantic): URDF, frames, CAN bus, per-joint motors, limits, gains, gripper.
+
+See configs/robots/*.toml for complete examples and docs/arm.md for every field.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import pybullet_data
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from drivers.arm.damiao import MODELS, PARAM_ID, MotorLimits
+from drivers.arm.kinematics import Kinematics
+from drivers.arm.robots import RobotSpec
+from drivers.arm.safety import SafetyLimits
+from drivers.errors import ArmError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class CanConfig(_Strict):
+    """The CAN channel: python-can interface (socketcan, virtual, pcan, slcan, ...), bitrate, CAN FD."""
+
+    interface: str = "socketcan"
+    channel: str = "can0"
+    bitrate: int = Field(1_000_000, gt=0)
+    fd: bool = False
+    data_bitrate: int = Field(5_000_000, gt=0)
+
+
+class MotorConfig(_Strict):
+    """One Damiao motor: model (for default limits), command id, feedback (master) id, mounting."""
+
+    motor: str = "DM4310"
+    can_id: int = Field(gt=0, lt=PARAM_ID)
+    master_id: int = Field(ge=0, lt=PARAM_ID)
+    direction: Literal[1, -1] = 1
+    zero_offset: float = 0.0  # joint position (rad) where the motor reads 0: q_joint = direction * q_motor + offset
+
+    @model_validator(mode="after")
+    def _known_model(self) -> MotorConfig:
+        if self.motor not in MODELS:
+            raise ValueError(f"unknown motor model {self.motor!r}; known: {', '.join(MODELS)}")
+        if self.master_id == self.can_id:
+            raise ValueError(f"master_id must differ from can_id ({self.can_id})")
+        return self
+
+    @property
+    def default_limits(self) -> MotorLimits:
+        return MODELS[self.motor]
+
+
+class JointConfig(MotorConfig):
+    """One arm joint: its URDF name, motor, limits (None = the URDF's) and MIT gains (normal and compliant)."""
+
+    name: str
+    q_min: float | None = None
+    q_max: float | None = None
+    v_max: float | None = Field(None, gt=0)
+    a_max: float = Field(10.0, gt=0)
+    j_max: float = Field(5000.0, gt=0)
+    tau_max: float = Field(gt=0)
+    kp: float = Field(30.0, ge=0, le=500)
+    kd: float = Field(1.0, ge=0, le=5)
+    kp_compliant: float = Field(5.0, ge=0, le=500)
+    kd_compliant: float = Field(0.5, ge=0, le=5)
+
+
+class GripperConfig(MotorConfig):
+    """A gripper driven by one Damiao motor: width = width_per_rad * (q_motor_joint - q_closed), in metres.
+
+    `nm_per_newton` converts the requested grip force into the motor torque the driver allows (kp * error)."""
+
+    max_width_m: float = Field(gt=0)
+    width_per_rad: float = Field(gt=0)
+    q_closed: float = 0.0
+    nm_per_newton: float = Field(0.01, gt=0)
+    kp: float = Field(10.0, ge=0, le=500)
+    kd: float = Field(0.5, ge=0, le=5)
+
+
+class WatchdogConfig(_Strict):
+    """When the driver disables the motors: feedback older than `feedback_timeout_s`, a control cycle later than
+    `max_late_cycles` periods, a parameter read unanswered after `reply_timeout_s` (per motor)."""
+
+    feedback_timeout_s: float = Field(0.02, gt=0)
+    max_late_cycles: float = Field(2.0, gt=0)
+    reply_timeout_s: float = Field(0.05, gt=0)
+    torque_margin: float = Field(1.2, ge=1.0)  # measured |tau| above margin * tau_max is a fault
+    stop_damping_s: float = Field(0.3, ge=0)  # stop(): damp (kp = 0) this long before disabling
+
+
+class RobotConfig(_Strict):
+    """A whole arm. `urdf` is a path (relative to the config file) or `pybullet_data:<relative path>`."""
+
+    name: str
+    urdf: str
+    base_frame: str
+    tool_frame: str
+    locked_joints: list[str] = []
+    q_ready: list[float]
+    workspace_min: list[float] = Field(min_length=3, max_length=3)
+    workspace_max: list[float] = Field(min_length=3, max_length=3)
+    control_rate_hz: float = Field(500.0, gt=0, le=2000)
+    gravity_compensation: bool = False  # MIT torque feed-forward from the URDF's inertias
+    can: CanConfig = CanConfig()
+    watchdog: WatchdogConfig = WatchdogConfig()
+    joints: list[JointConfig] = Field(min_length=1)
+    gripper: GripperConfig | None = None
+    source: Path | None = None  # the file it was read from (set by load_robot_config)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> RobotConfig:
+        if len(self.q_ready) != len(self.joints):
+            raise ValueError(f"q_ready has {len(self.q_ready)} values for {len(self.joints)} joints")
+        if any(lo >= hi for lo, hi in zip(self.workspace_min, self.workspace_max, strict=True)):
+            raise ValueError("workspace_min must be below workspace_max on every axis")
+        motors = [*self.joints, *([self.gripper] if self.gripper else [])]
+        for key in ("can_id", "master_id"):
+            ids = [getattr(m, key) for m in motors]
+            if len(set(ids)) != len(ids):
+                raise ValueError(f"two motors share a {key}: {ids}")
+        for j in self.joints:
+            if j.q_min is not None and j.q_max is not None and j.q_min >= j.q_max:
+                raise ValueError(f"joint {j.name}: q_min must be below q_max")
+        return self
+
+    @property
+    def control_period_s(self) -> float:
+        return 1.0 / self.control_rate_hz
+
+    @property
+    def joint_names(self) -> list[str]:
+        return [j.name for j in self.joints]
+
+    @property
+    def motors(self) -> list[MotorConfig]:
+        """Every motor on the bus: the joints', then the gripper's."""
+        return [*self.joints, *([self.gripper] if self.gripper else [])]
+
+    def urdf_path(self) -> Path:
+        if self.urdf.startswith("pybullet_data:"):
+            return Path(pybullet_data.getDataPath()) / self.urdf.removeprefix("pybullet_data:")
+        path = Path(self.urdf)
+        return path if path.is_absolute() or self.source is None else self.source.parent / path
+
+    def robot_spec(self) -> RobotSpec:
+        """The RobotSpec the shared kinematics, motion and safety code take."""
+        width = self.gripper.max_width_m if self.gripper else 0.0
+        return RobotSpec(
+            name=self.name, urdf=self.urdf_path(), arm_joints=tuple(self.joint_names),
+            finger_joints=tuple(self.locked_joints), tool_frame=self.tool_frame, q_ready=np.array(self.q_ready),
+            gripper_max_width_m=width, a_max=np.array([j.a_max for j in self.joints]),
+            j_max=np.array([j.j_max for j in self.joints]), workspace_min=np.array(self.workspace_min),
+            workspace_max=np.array(self.workspace_max),
+        )
+
+    def kinematics(self) -> Kinematics:
+        """Pinocchio kinematics of the URDF with the locked joints removed; checks joints and frames match."""
+        kin = Kinematics.from_robot(self.robot_spec())
+        if kin.joint_names != self.joint_names:
+            raise ArmError(f"robot config {self.name!r}: joints {self.joint_names} do not match the URDF's movable "
+                           f"joints {kin.joint_names}: list them in URDF order, lock the others (locked_joints)")
+        if not kin.model.existFrame(self.base_frame):
+            raise ArmError(f"robot config {self.name!r}: base frame {self.base_frame!r} is not in the URDF")
+        return kin
+
+    def safety_limits(self, kin: Kinematics) -> SafetyLimits:
+        """URDF limits narrowed by the config's per-joint limits."""
+        q_min, q_max, v_max = kin.q_min, kin.q_max, kin.v_max
+        for i, j in enumerate(self.joints):
+            q_min[i] = q_min[i] if j.q_min is None else max(q_min[i], j.q_min)
+            q_max[i] = q_max[i] if j.q_max is None else min(q_max[i], j.q_max)
+            v_max[i] = v_max[i] if j.v_max is None else min(v_max[i], j.v_max)
+        return SafetyLimits(q_min, q_max, v_max, np.array([j.a_max for j in self.joints]),
+                            np.array(self.workspace_min), np.array(self.workspace_max))
+
+
+def load_robot_config(path: str | Path) -> RobotConfig:
+    """Read and validate a robot config; ArmError naming the file and the bad field otherwise."""
+    path = Path(path)
+    if not path.is_file():
+        raise ArmError(f"robot config {path} not found: pass one of configs/robots/*.toml or your own")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ArmError(f"robot config {path} is not valid TOML ({exc}): fix the syntax") from exc
+    try:
+        return RobotConfig.model_validate({**data, "source": path.resolve()})
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(x) for x in first["loc"]) or "(top level)"
+        raise ArmError(f"robot config {path}: {where}: {first['msg']} ({exc.error_count()} problem(s)): "
+                       "fix the field (docs/arm.md lists them)") from exc

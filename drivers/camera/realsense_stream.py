@@ -1,0 +1,124 @@
+"""The librealsense pipeline shared by the live D415 and .bag/.db3 playback: start, depth scale,
+post-processing, alignment of depth to colour, and framesets as `Frame`s."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pyrealsense2 as rs
+
+from drivers.camera.base import Frame, Intrinsics
+from drivers.camera.realsense_config import HOLE_FILLING, FilterConfig
+
+_TO_RGB = {
+    rs.format.rgb8: None, rs.format.bgr8: cv2.COLOR_BGR2RGB,
+    rs.format.rgba8: cv2.COLOR_RGBA2RGB, rs.format.bgra8: cv2.COLOR_BGRA2RGB,
+}
+
+
+def build_filters(config: FilterConfig) -> list[rs.filter]:
+    """The post-processing chain of `config`, in librealsense's recommended order."""
+    chain: list[rs.filter] = []
+    if config.decimation > 1:
+        decimation = rs.decimation_filter()
+        decimation.set_option(rs.option.filter_magnitude, config.decimation)
+        chain.append(decimation)
+    if config.spatial or config.temporal:
+        chain.append(rs.disparity_transform(True))
+        if config.spatial:
+            spatial = rs.spatial_filter()
+            spatial.set_option(rs.option.filter_smooth_alpha, config.spatial_alpha)
+            spatial.set_option(rs.option.filter_smooth_delta, config.spatial_delta)
+            chain.append(spatial)
+        if config.temporal:
+            temporal = rs.temporal_filter()
+            temporal.set_option(rs.option.filter_smooth_alpha, config.temporal_alpha)
+            temporal.set_option(rs.option.filter_smooth_delta, config.temporal_delta)
+            chain.append(temporal)
+        chain.append(rs.disparity_transform(False))
+    if config.hole_filling is not None:
+        chain.append(rs.hole_filling_filter(HOLE_FILLING[config.hole_filling]))
+    return chain
+
+
+def intrinsics_of(profile: rs.video_stream_profile) -> Intrinsics:
+    """Our pinhole intrinsics from a librealsense video stream profile."""
+    i = profile.get_intrinsics()
+    return Intrinsics(i.width, i.height, float(i.fx), float(i.fy), float(i.ppx), float(i.ppy))
+
+
+class RealSenseStream:
+    """A started pipeline delivering aligned colour + metric depth.
+
+    `config` selects the device or file (`rs.config`). Playback is switched to not-real-time, so
+    every recorded frame is delivered once, in order, however slow the reader. Raises RuntimeError
+    from librealsense when the pipeline cannot start; callers turn it into CameraError/RecordingError.
+    """
+
+    def __init__(self, config: rs.config, filters: FilterConfig) -> None:
+        self.pipeline = rs.pipeline()
+        resolved = config.resolve(rs.pipeline_wrapper(self.pipeline)).get_device()
+        if resolved.is_playback():  # before start, or the first frames may be dropped
+            resolved.as_playback().set_real_time(False)
+        self.profile = self.pipeline.start(config)
+        try:
+            self.device = self.profile.get_device()
+            self.playback = self.device.as_playback() if self.device.is_playback() else None
+            self.depth_scale = float(self.device.first_depth_sensor().get_depth_scale())
+            color = self.profile.get_stream(rs.stream.color).as_video_stream_profile()
+            self.fps = color.fps()
+            self.intrinsics = intrinsics_of(color)
+            self.color_format = color.format()
+            if self.color_format not in _TO_RGB:
+                raise RuntimeError(f"colour format {self.color_format} is not RGB8/BGR8/RGBA8/BGRA8")
+        except Exception:
+            self.pipeline.stop()
+            raise
+        self._align = rs.align(rs.stream.color)
+        self._filters = build_filters(filters)
+        self._t0_ms: float | None = None
+        self._n0: int | None = None
+        self._last_depth_number: int | None = None
+        self.timed_out = False  # whether the last poll got no frameset at all
+
+    def poll(self, timeout_s: float) -> Frame | None:
+        """The next aligned frame, or None if none arrived within `timeout_s` (then `timed_out`). In playback, partial
+        framesets (colour and depth more than half a frame period apart, which the syncer emits when
+        not in real time) and repeated depth frames are skipped."""
+        ok, frames = self.pipeline.try_wait_for_frames(max(1, int(timeout_s * 1000)))
+        self.timed_out = not ok
+        if not ok:
+            return None
+        depth, color = frames.get_depth_frame(), frames.get_color_frame()
+        if not depth or not color:
+            return None
+        if self.playback is not None:
+            number = depth.get_frame_number()
+            apart_ms = abs(depth.get_timestamp() - color.get_timestamp())
+            if number == self._last_depth_number or apart_ms > 500.0 / self.fps:
+                return None
+            self._last_depth_number = number
+        return self._to_frame(frames)
+
+    def _to_frame(self, frames: rs.composite_frame) -> Frame:
+        depth = frames.get_depth_frame()
+        stamp_ms, number = depth.get_timestamp(), depth.get_frame_number()
+        if self._t0_ms is None:
+            self._t0_ms, self._n0 = stamp_ms, number
+        for f in self._filters:
+            frames = f.process(frames).as_frameset()
+        frames = self._align.process(frames)
+        aligned = frames.get_depth_frame()
+        rgb = np.asanyarray(frames.get_color_frame().get_data())
+        conversion = _TO_RGB[self.color_format]
+        rgb = rgb.copy() if conversion is None else cv2.cvtColor(rgb, conversion)
+        depth_m = np.asanyarray(aligned.get_data()).astype(np.float32) * np.float32(self.depth_scale)
+        return Frame(index=number - self._n0, t=(stamp_ms - self._t0_ms) / 1000.0, color=rgb,
+                     depth_m=depth_m, intrinsics=self.intrinsics)
+
+    def stop(self) -> None:
+        """Stop the pipeline (idempotent; errors of a vanished device are ignored)."""
+        try:
+            self.pipeline.stop()
+        except RuntimeError:
+            pass

@@ -1,0 +1,52 @@
+"""Record any camera to a frames directory, one flushed frame at a time; a failing camera keeps what was recorded."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from drivers.camera.base import Camera, Frame
+from drivers.camera.frames_dir import FramesWriter
+from drivers.errors import CameraError, RecordingError
+
+
+def record(
+    camera: Camera,
+    out: str | Path,
+    frames: int | None = None,
+    seconds: float | None = None,
+    depth_scale: float = 0.001,
+    progress: Callable[[Frame], None] | None = None,
+) -> dict:
+    """Read `camera` (connected here) into the frames directory `out` until `frames` frames or `seconds`
+    of camera time (whichever comes first), or until a replay ends (the only stop if neither is set).
+
+    A camera failure (e.g. unplugged) stops the recording and raises CameraError saying how many frames
+    were kept; they stay readable. Returns {"out", "frames", "seconds"}.
+    """
+    if (frames is not None and frames <= 0) or (seconds is not None and seconds <= 0):
+        raise RecordingError(f"frames and seconds must be positive, got frames={frames} seconds={seconds}")
+    count, t0, t = 0, None, 0.0
+    with camera:
+        first = camera.read()
+        with FramesWriter(out, camera.intrinsics, depth_scale, first.T_base_camera) as writer:
+            frame = first
+            while True:
+                t0 = frame.t if t0 is None else t0
+                t = frame.t - t0
+                if seconds is not None and t >= seconds:
+                    break
+                writer.write(frame)
+                count += 1
+                if progress is not None:
+                    progress(frame)
+                if frames is not None and count >= frames:
+                    break
+                try:
+                    frame = camera.read()
+                except RecordingError:  # a replay ended
+                    break
+                except CameraError as exc:
+                    raise CameraError(f"{exc}; recording stopped: the {count} frames recorded so far are kept "
+                                      f"in {out}") from None
+    return {"out": str(out), "frames": count, "seconds": t}

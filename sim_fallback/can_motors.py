@@ -1,0 +1,333 @@
+"""Simulated Damiao motors on a python-can bus (virtual, or Linux vcan): they answer enable / disable / set zero /
+clear error / parameter read / refresh / MIT frames with realistic feedback, so the real CAN driver (CanArm)
+is tested without hardware.
+
+Motor state comes from one of two backends:
+- `IntegratedMotors`: each joint is an inertia with viscous friction driven by the MIT law
+  tau = kp (q* - q) + kd (dq* - dq) + tau*, clipped to TMAX, integrated in sub-steps;
+- `PyBulletMotors`: the joints of a `SimArm` (PyBullet position control toward q*, dq* within the URDF efforts;
+  gains are not modelled, disabled motors hold still) and its gripper.
+
+Two ways to run: `start()` a thread that answers at once on the wall clock (realtime CanArm), or `step(dt)` from
+the arm's `on_cycle` (lockstep: answer, advance one period, reply to MIT frames with the new state).
+
+Fault injection per motor (`MotorFaults`): dropped and delayed frames, silence, a status fault; and for the bus:
+`inject_bus_off()` / `inject_error_passive()` (SocketCAN error frames).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+
+import can
+import numpy as np
+
+from drivers.arm.can_bus import CAN_ERR_BUSOFF, CAN_ERR_CRTL, CAN_ERR_CRTL_TX_PASSIVE
+from drivers.arm.damiao import (
+    PARAM_ID,
+    PARAM_READ,
+    PARAM_WRITE,
+    REFRESH,
+    REG_MST_ID,
+    REG_PMAX,
+    REG_TMAX,
+    REG_VMAX,
+    FrameError,
+    MotorLimits,
+    Special,
+    Status,
+    is_special,
+    pack_feedback,
+    pack_param_reply,
+    unpack_mit,
+    unpack_param_request,
+)
+from drivers.arm.robot_config import MotorConfig, RobotConfig
+
+SUBSTEP_S = 2.5e-4
+DEFAULT_INERTIA, DEFAULT_FRICTION = 0.05, 0.1  # kg m^2 and N m s / rad at the joint: a small arm link
+
+
+@dataclass
+class MotorFaults:
+    """What to break on one motor: drop every n-th reply (or a random share), delay replies, stop answering,
+    report a status fault (the motor then disables itself, as a real one does)."""
+
+    drop_every: int = 0
+    drop_rate: float = 0.0
+    delay_s: float = 0.0
+    silent: bool = False
+    status: Status | None = None
+
+
+@dataclass
+class SimMotor:
+    """One simulated motor's registers, command and state (motor side: rad, rad/s, N m)."""
+
+    config: MotorConfig
+    limits: MotorLimits
+    enabled: bool = False
+    q: float = 0.0
+    dq: float = 0.0
+    tau: float = 0.0
+    command: tuple[float, float, float, float, float] | None = None  # q, dq, kp, kd, tau
+    faults: MotorFaults = field(default_factory=MotorFaults)
+    replies: int = 0
+    mit_frames: int = 0
+
+    @property
+    def status(self) -> Status:
+        if self.faults.status is not None:
+            return self.faults.status
+        return Status.ENABLED if self.enabled else Status.DISABLED
+
+
+class IntegratedMotors:
+    """Joint dynamics integrated from the MIT commands (no gravity: the motors are unloaded)."""
+
+    def __init__(self, inertia: float = DEFAULT_INERTIA, friction: float = DEFAULT_FRICTION) -> None:
+        self.inertia, self.friction = inertia, friction
+
+    def advance(self, motors: list[SimMotor], dt: float) -> None:
+        n = max(1, int(np.ceil(dt / SUBSTEP_S)))
+        h = dt / n
+        for m in motors:
+            for _ in range(n):
+                tau = 0.0
+                if m.enabled and m.command is not None:
+                    q_ref, dq_ref, kp, kd, tau_ff = m.command
+                    tau = kp * (q_ref - m.q) + kd * (dq_ref - m.dq) + tau_ff
+                    tau = min(max(tau, -m.limits.t_max), m.limits.t_max)
+                m.dq += h * (tau - self.friction * m.dq) / self.inertia
+                m.q += h * m.dq
+                m.tau = tau
+
+
+class PyBulletMotors:
+    """The motors are a `SimArm`'s joints (and gripper): commands go to PyBullet, state comes from it."""
+
+    def __init__(self, arm, config: RobotConfig) -> None:
+        self.arm, self.config = arm, config
+        self._last_width: float | None = None
+
+    def advance(self, motors: list[SimMotor], dt: float) -> None:
+        joints = motors[: len(self.config.joints)]
+        state = self.arm.state()
+        if all(m.enabled and m.command is not None for m in joints):
+            q = np.array([_joint(m, m.command[0]) for m in joints])
+            dq = np.array([m.config.direction * m.command[1] for m in joints])
+            self.arm._send(q, dq)  # noqa: SLF001 - the motors below the safety layer, like real hardware
+        else:
+            self.arm._send(state.q, np.zeros_like(state.q))  # noqa: SLF001 - disabled motors hold (no sag)
+        if self.config.gripper is not None:
+            self._gripper(motors[-1], state.gripper_width_m)
+        for _ in range(max(1, round(dt / self.arm.control_period_s))):
+            self.arm.sync()  # physics steps
+        self.read(motors)
+
+    def read(self, motors: list[SimMotor]) -> None:
+        state = self.arm.state()
+        for i, m in enumerate(motors[: len(self.config.joints)]):
+            c = m.config
+            m.q, m.dq, m.tau = c.direction * (state.q[i] - c.zero_offset), c.direction * state.dq[i], \
+                c.direction * float(state.tau[i])
+        if self.config.gripper is not None:
+            g, m = self.config.gripper, motors[-1]
+            q_joint = g.q_closed + state.gripper_width_m / g.width_per_rad
+            m.q, m.dq = g.direction * (q_joint - g.zero_offset), 0.0
+
+    def _gripper(self, m: SimMotor, width_now: float) -> None:
+        if not m.enabled or m.command is None:
+            return
+        g = self.config.gripper
+        q_cmd, _, kp, _, _ = m.command
+        width = max(0.0, (_joint(m, q_cmd) - g.q_closed) * g.width_per_rad)
+        if self._last_width is None or abs(width - self._last_width) > 1e-3:
+            force = max(20.0, kp * abs(width - width_now) / g.width_per_rad / g.nm_per_newton)
+            self.arm.set_gripper(width, force)
+            self._last_width = width
+
+
+def _joint(m: SimMotor, q_motor: float) -> float:
+    return m.config.direction * q_motor + m.config.zero_offset
+
+
+class SimMotorBus:
+    """The motors of `config` on their own python-can endpoint of `config.can` (interface and channel)."""
+
+    def __init__(self, config: RobotConfig, backend: IntegratedMotors | PyBulletMotors | None = None,
+                 q0: np.ndarray | None = None, seed: int = 0) -> None:
+        self.config = config
+        self.backend = backend or IntegratedMotors()
+        self.motors = [SimMotor(m, m.default_limits) for m in config.motors]
+        q0 = np.asarray(config.q_ready if q0 is None else q0, float)
+        if config.gripper is not None:  # the gripper starts open
+            q0 = np.append(q0, config.gripper.q_closed + config.gripper.max_width_m / config.gripper.width_per_rad)
+        for m, q in zip(self.motors, q0, strict=True):
+            m.q = m.config.direction * (q - m.config.zero_offset)
+        if isinstance(self.backend, PyBulletMotors):
+            self.backend.read(self.motors)
+        self._by_id = {m.config.can_id: m for m in self.motors}
+        self._bus = can.Bus(interface=config.can.interface, channel=config.can.channel)
+        self._rng = np.random.default_rng(seed)
+        self._delayed: list[tuple[float, can.Message]] = []
+        self._deferred: list[SimMotor] = []
+        self._lockstep = True
+        self._t = 0.0
+        self._t_wall = time.perf_counter()
+        self._lock = threading.RLock()  # re-entrant: a signal handler may disable motors from inside step()
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self.bus_dead = False
+
+    def motor(self, name_or_id: str | int) -> SimMotor:
+        """A motor by CAN id or joint name ("gripper" for the gripper)."""
+        for m, c in zip(self.motors, self.config.motors, strict=True):
+            name = getattr(c, "name", "gripper")
+            if name_or_id in (c.can_id, name):
+                return m
+        raise KeyError(name_or_id)
+
+    # --- running ---------------------------------------------------------------------------------------------
+
+    def start(self) -> SimMotorBus:
+        """Answer in a background thread on the wall clock (for a realtime CanArm)."""
+        self._lockstep = False
+        self._t_wall = time.perf_counter()
+        self._thread = threading.Thread(target=self._run, name="sim-damiao-motors", daemon=True)
+        self._thread.start()
+        return self
+
+    def poll(self) -> None:
+        """Lockstep: handle every pending frame (MIT replies wait for `step`)."""
+        with self._lock:
+            while (msg := self._bus.recv(0.0)) is not None:
+                self._handle(msg)
+            self._flush_delayed()
+
+    def step(self, dt: float) -> None:
+        """Lockstep: handle pending frames, advance the motors by dt, reply to this cycle's MIT frames."""
+        self.poll()
+        with self._lock:
+            self._t += dt
+            self.backend.advance(self.motors, dt)
+            deferred, self._deferred = self._deferred, []
+            for m in deferred:
+                self._reply_feedback(m)
+            self._flush_delayed()
+
+    def close(self) -> None:
+        """Stop the thread, handle the frames still queued (the driver's last disables), release the endpoint
+        (idempotent)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=1.0)
+            self._thread = None
+        if self._bus is not None:
+            self.poll()
+            self._bus.shutdown()
+            self._bus = None
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            msgs = [self._bus.recv(0.001)]
+            while msgs[-1] is not None:
+                msgs.append(self._bus.recv(0.0))
+            with self._lock:
+                now = time.perf_counter()
+                dt, self._t_wall = now - self._t_wall, now
+                self._t += dt
+                self.backend.advance(self.motors, dt)
+                for msg in msgs[:-1]:
+                    self._handle(msg)
+                deferred, self._deferred = self._deferred, []
+                for m in deferred:
+                    self._reply_feedback(m)
+                self._flush_delayed()
+
+    # --- faults ------------------------------------------------------------------------------------------------
+
+    def inject_bus_off(self) -> None:
+        """The bus goes bus-off: one SocketCAN bus-off error frame, then no motor answers."""
+        self.bus_dead = True
+        self._bus.send(can.Message(arbitration_id=CAN_ERR_BUSOFF, is_error_frame=True, data=bytes(8),
+                                   is_extended_id=False))
+
+    def inject_error_passive(self) -> None:
+        """A controller error-passive error frame (motors keep answering)."""
+        self._bus.send(can.Message(arbitration_id=CAN_ERR_CRTL, is_error_frame=True,
+                                   data=bytes([0, CAN_ERR_CRTL_TX_PASSIVE, 0, 0, 0, 0, 0, 0]), is_extended_id=False))
+
+    # --- protocol --------------------------------------------------------------------------------------------
+
+    def _handle(self, msg: can.Message) -> None:
+        if self.bus_dead or msg.is_error_frame:
+            return
+        data = bytes(msg.data)
+        try:
+            if msg.arbitration_id == PARAM_ID:
+                self._param(data)
+            elif (m := self._by_id.get(msg.arbitration_id)) is not None and not m.faults.silent:
+                self._command(m, data)
+        except FrameError:
+            pass  # a real motor ignores frames it cannot parse
+
+    def _command(self, m: SimMotor, data: bytes) -> None:
+        if is_special(data):
+            kind = Special(data[7])
+            if kind == Special.ENABLE:
+                m.enabled = m.faults.status is None
+            elif kind == Special.DISABLE:
+                m.enabled, m.command = False, None
+            elif kind == Special.SET_ZERO:
+                m.q = 0.0
+            elif kind == Special.CLEAR_ERROR:
+                m.faults.status = None
+            self._reply_feedback(m)
+            return
+        command = unpack_mit(data, m.limits)
+        m.mit_frames += 1
+        if m.enabled and m.faults.status is None:
+            m.command = command
+        if m.faults.status is not None:
+            m.enabled = False
+        self._deferred.append(m)
+
+    def _param(self, data: bytes) -> None:
+        can_id, op, register = unpack_param_request(data)
+        m = self._by_id.get(can_id)
+        if m is None or m.faults.silent:
+            return
+        if op == REFRESH:
+            self._reply_feedback(m)
+            return
+        values = {REG_PMAX: m.limits.p_max, REG_VMAX: m.limits.v_max, REG_TMAX: m.limits.t_max,
+                  REG_MST_ID: m.config.master_id}
+        if op in (PARAM_READ, PARAM_WRITE) and register in values:
+            self._send(m, pack_param_reply(can_id, register, values[register]))
+
+    def _reply_feedback(self, m: SimMotor) -> None:
+        if m.faults.silent:
+            return
+        temperature = 30 + int(abs(m.tau) / m.limits.t_max * 20)
+        self._send(m, pack_feedback(m.config.can_id, m.status, m.q, m.dq, m.tau, temperature, temperature + 2,
+                                    m.limits))
+
+    def _send(self, m: SimMotor, data: bytes) -> None:
+        m.replies += 1
+        f = m.faults
+        if (f.drop_every and m.replies % f.drop_every == 0) or (f.drop_rate and self._rng.random() < f.drop_rate):
+            return
+        msg = can.Message(arbitration_id=m.config.master_id, data=data, is_extended_id=False)
+        if f.delay_s > 0:
+            self._delayed.append((self._t + f.delay_s, msg))
+        else:
+            self._bus.send(msg)
+
+    def _flush_delayed(self) -> None:
+        due = [msg for t, msg in self._delayed if t <= self._t + 1e-12]
+        self._delayed = [(t, msg) for t, msg in self._delayed if t > self._t + 1e-12]
+        for msg in due:
+            self._bus.send(msg)

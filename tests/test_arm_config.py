@@ -1,0 +1,83 @@
+"""Robot configs: the examples load and match their URDFs; bad configs are one clear error; the arm factory."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drivers.arm.can_arm import CanArm
+from drivers.arm.factory import open_arm
+from drivers.arm.ideal import IdealArm
+from drivers.arm.robot_config import load_robot_config
+from drivers.errors import ArmError
+from sim_fallback.arm_factory import open_arm as open_any_arm
+
+EXAMPLES = sorted(Path("configs/robots").glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=[p.stem for p in EXAMPLES])
+def test_examples_load_and_match_their_urdf(path):
+    config = load_robot_config(path)
+    kin = config.kinematics()
+    assert kin.joint_names == config.joint_names and len(config.joints) in (6, 7)
+    limits = config.safety_limits(kin)
+    q = np.array(config.q_ready)
+    assert np.all(q > limits.q_min) and np.all(q < limits.q_max)
+    tool = kin.fk(q)[:3, 3]
+    assert np.all(tool > limits.workspace_min) and np.all(tool < limits.workspace_max)
+    for j in config.joints:  # the example limits fit the motors' factory ranges
+        assert j.tau_max <= j.default_limits.t_max
+
+
+def test_config_limits_narrow_the_urdf_limits(tmp_path):
+    config = load_robot_config("configs/robots/damiao_6dof.toml")
+    limits = config.safety_limits(config.kinematics())
+    assert limits.v_max[0] == 2.0  # the URDF says 3.14
+    joints = [config.joints[0].model_copy(update={"q_min": -1.0, "q_max": 1.0}), *config.joints[1:]]
+    narrowed = config.model_copy(update={"joints": joints}).safety_limits(config.kinematics())
+    assert (narrowed.q_min[0], narrowed.q_max[0]) == (-1.0, 1.0)
+
+
+@pytest.mark.parametrize(("edit", "words"), [
+    (lambda t: t.replace('motor = "DM8009"', 'motor = "DM9999"', 1), "joints.0: Value error, unknown motor model"),
+    (lambda t: t.replace("can_id = 2", "can_id = 1", 1), "share a can_id"),
+    (lambda t: t.replace("q_ready = [0.0, -0.3,", "q_ready = [-0.3,", 1), "q_ready has 5 values for 6 joints"),
+    (lambda t: t.replace("tau_max = 40.0", "tau_max = -1.0", 1), "joints.0.tau_max"),
+    (lambda t: t.replace("[can]", "[can]\nspeed = 3", 1), "can.speed: Extra inputs"),
+    (lambda t: t + "\n[[joints\n", "not valid TOML"),
+])
+def test_bad_configs_name_the_field(tmp_path, edit, words):
+    path = tmp_path / "arm.toml"
+    path.write_text(edit(Path("configs/robots/damiao_6dof.toml").read_text()))
+    with pytest.raises(ArmError, match=words.replace("(", r"\(")):
+        load_robot_config(path)
+
+
+def test_joints_that_do_not_match_the_urdf(tmp_path):
+    path = tmp_path / "arm.toml"
+    path.write_text(Path("configs/robots/damiao_6dof.toml").read_text().replace('name = "joint2"', 'name = "elbow"'))
+    with pytest.raises(ArmError, match="do not match the URDF's movable joints"):
+        load_robot_config(path).kinematics()
+
+
+def test_missing_config():
+    with pytest.raises(ArmError, match="not found"):
+        load_robot_config("configs/robots/nope.toml")
+
+
+def test_factory_builds_ideal_can_and_refuses_unknown():
+    config = load_robot_config("configs/robots/panda_sim.toml")
+    ideal = open_arm("ideal", config)
+    assert isinstance(ideal, IdealArm) and ideal.control_period_s == pytest.approx(1 / 240)
+    np.testing.assert_allclose(ideal.state().q, config.q_ready)
+    can_arm = open_arm("can", config)  # the example's interface is virtual: opening needs no hardware
+    assert isinstance(can_arm, CanArm)
+    with pytest.raises(ArmError, match="did not answer"):  # nothing answers on this channel
+        can_arm.connect()
+    can_arm.disconnect()
+    with pytest.raises(ArmError, match="sim_fallback"):
+        open_arm("sim-can", config)
+    with pytest.raises(ArmError, match="needs a simulated world"):
+        open_any_arm("sim", config)
+    with pytest.raises(ArmError, match="not one of"):
+        open_any_arm("robot", config)

@@ -1,0 +1,98 @@
+"""`deploy cameras list|snapshot`, `deploy record` and `deploy convert` end to end, on recordings made here."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from realsense_recordings import scene, write_db3
+
+from deploy.cli import main
+from drivers.camera.frames_dir import FramesRecording
+
+
+def run(capsys, *args):
+    code = main([str(a) for a in args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.fixture(scope="module")
+def db3(tmp_path_factory):
+    return write_db3(tmp_path_factory.mktemp("cli") / "session.db3", scene(6))
+
+
+@pytest.mark.parametrize("command", [("cameras", "list"), ("cameras", "snapshot"), ("record",), ("convert",)])
+def test_help_has_an_example(capsys, command):
+    code, out, _ = run(capsys, *command, "--help")
+    assert code == 0 and "Example" in out
+
+
+def test_list_without_cameras_is_empty_and_succeeds(capsys):
+    code, out, _ = run(capsys, "cameras", "list", "--json")
+    assert code == 0 and json.loads(out) == {"cameras": []}
+    code, out, _ = run(capsys, "cameras", "list")
+    assert code == 0 and "no RealSense camera connected" in out
+
+
+def test_convert_db3(capsys, db3, tmp_path):
+    code, out, _ = run(capsys, "convert", db3, "--out", tmp_path / "frames", "--json")
+    assert code == 0
+    summary = json.loads(out)
+    assert summary["frames"] == 6 and summary["source_depth_scale"] == pytest.approx(1e-4)
+    rec = FramesRecording(tmp_path / "frames")
+    assert len(rec) == 6 and rec.frame(5).depth_m[23, 29] == pytest.approx(0.8)
+
+
+def test_record_from_replay_and_replay_the_result(capsys, db3, tmp_path):
+    code, out, _ = run(capsys, "record", "--camera", f"replay:{db3}", "--out", tmp_path / "a", "--frames", 4)
+    assert code == 0 and "wrote 4 frames" in out
+    code, out, _ = run(capsys, "record", "--camera", f"replay:{tmp_path / 'a'}", "--out", tmp_path / "b",
+                       "--seconds", 0.05, "--json")
+    assert code == 0 and json.loads(out)["frames"] == 2  # t = 0 and 1/30 s: under 0.05 s
+    np.testing.assert_array_equal(FramesRecording(tmp_path / "b").frame(1).color,
+                                  FramesRecording(tmp_path / "a").frame(1).color)
+
+
+def test_record_sim(capsys, tmp_path):
+    code, out, _ = run(capsys, "record", "--camera", "sim", "--out", tmp_path / "sim", "--frames", 2,
+                       "--width", 160, "--height", 120)
+    assert code == 0, out
+    rec = FramesRecording(tmp_path / "sim")
+    assert len(rec) == 2 and rec.intrinsics.width == 160 and rec.T_base_camera is not None
+
+
+def test_snapshot(capsys, db3, tmp_path):
+    code, out, _ = run(capsys, "cameras", "snapshot", "--camera", f"replay:{db3}", "--out", tmp_path / "s", "--json")
+    assert code == 0
+    data = json.loads(out)
+    assert data["intrinsics"]["fx"] == 50.0 and len(data["files"]) == 4
+    depth = cv2.imread(str(tmp_path / "s" / "depth.png"), cv2.IMREAD_UNCHANGED)
+    meta = json.loads((tmp_path / "s" / "intrinsics.json").read_text())
+    assert depth.dtype == np.uint16 and depth[23, 29] * meta["depth_scale"] == pytest.approx(0.8)
+    coloured = cv2.imread(str(tmp_path / "s" / "depth_color.png"))
+    assert coloured.shape == (48, 64, 3) and (coloured[0, 0] == 0).all() and coloured[23, 29].any()
+
+
+@pytest.mark.parametrize("args, message", [
+    (("record", "--camera", "kinect", "--out", "x", "--frames", 1), "unknown camera 'kinect'"),
+    (("record", "--camera", "sim", "--out", "x"), "--seconds S or --frames N"),
+    (("record", "--camera", "d415", "--out", "x", "--frames", 1), "no RealSense camera is connected"),
+    (("record", "--camera", "d415", "--out", "x", "--frames", 1, "--width", 100), "resolution 100x480"),
+    (("cameras", "snapshot", "--camera", "d415:1234", "--out", "x"), "no RealSense camera is connected"),
+    (("convert", "missing.db3", "--out", "x"), "not found"),
+    (("convert", "notes.txt", "--out", "x"), "expected a RealSense .bag or .db3"),
+])
+def test_bad_input_is_one_red_line(capsys, tmp_path, monkeypatch, args, message):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(capsys, *args)
+    assert code == 2 and "Traceback" not in err
+    assert message in " ".join(err.split())
+
+
+def test_corrupt_frames_directory_via_replay(capsys, tmp_path):
+    (tmp_path / "rec").mkdir()
+    (tmp_path / "rec" / "meta.json").write_text("{not json")
+    code, _, err = run(capsys, "record", "--camera", f"replay:{tmp_path / 'rec'}", "--out", tmp_path / "o",
+                       "--frames", 1)
+    assert code == 2 and "meta.json is not valid JSON" in " ".join(err.split())

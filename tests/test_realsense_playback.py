@@ -1,0 +1,124 @@
+"""RealSense recordings made here with rs.software_device + rs.recorder (.db3), played back through the
+pipeline code the live D415 uses: alignment, depth scale, intrinsics, timestamps, filters, corrupt files."""
+
+import numpy as np
+import pyrealsense2 as rs
+import pytest
+from realsense_recordings import scene, write_db3
+
+from drivers.camera.frames_dir import FramesRecording
+from drivers.camera.realsense_config import FilterConfig
+from drivers.camera.realsense_convert import convert_recording
+from drivers.camera.realsense_playback import RealSenseReplayCamera
+from drivers.camera.realsense_stream import build_filters
+from drivers.errors import RecordingError
+
+N = 8
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    s = scene(N)
+    return write_db3(tmp_path_factory.mktemp("rs") / "synthetic.db3", s), s
+
+
+def read_all(camera):
+    frames = []
+    with camera:
+        with pytest.raises(RecordingError, match="end of RealSense recording"):
+            while True:
+                frames.append(camera.read())
+    return frames
+
+
+def test_intrinsics_depth_scale_timestamps_and_colour(recording):
+    path, s = recording
+    camera = RealSenseReplayCamera(path)
+    frames = read_all(camera)
+    assert len(frames) == N
+    with camera:
+        assert camera.depth_scale == pytest.approx(1e-4)  # the device's depth unit, not the 1 mm default
+        intr = camera.intrinsics
+    assert (intr.width, intr.height, intr.fx, intr.fy) == (64, 48, 50.0, 50.0)  # colour's, not depth's 60
+    assert (intr.cx, intr.cy) == (31.5, 23.5)
+    for k, frame in enumerate(frames):
+        assert frame.index == k and frame.t == pytest.approx(k / 30, abs=1e-6)
+        assert frame.color.dtype == np.uint8 and frame.depth_m.dtype == np.float32
+        np.testing.assert_array_equal(frame.color, s.color[k])  # RGB: red = frame, green = column, blue = row
+
+
+def test_depth_is_aligned_to_colour(recording):
+    path, s = recording
+    frame = read_all(RealSenseReplayCamera(path))[0]
+    depth = frame.depth_m
+    # square at depth columns 23.5..31.5, rows 19.5..27.5, 0.8 m: in colour (fx 50, 15 mm baseline) it spans
+    # columns 50 * ((u - 31.5) / 60 * 0.8 + 0.015) / 0.8 + 31.5 = 25.8..32.4 and rows 20.2..26.8
+    np.testing.assert_allclose(depth[21:26, 27:32], 0.8, atol=1e-4)
+    for v, u in ((23, 24), (23, 34), (18, 29), (29, 29), (23, 10)):
+        assert depth[v, u] == pytest.approx(1.0, abs=1e-4), (v, u)
+    assert np.all(depth[:, :3] == 0)  # beyond the narrower depth field of view: no depth
+    assert not np.allclose(depth[20:28, 24:32], 0.8)  # the unaligned square would be here
+
+
+def test_bgr_recording_is_delivered_as_rgb(tmp_path):
+    s = scene(2)
+    frames = read_all(RealSenseReplayCamera(write_db3(tmp_path / "bgr.db3", s, rs.format.bgr8)))
+    np.testing.assert_array_equal(frames[1].color, s.color[1])
+
+
+def test_filters(tmp_path):
+    s = scene(3)
+    for depth in s.depth:
+        depth[10:13, 10:13] = 0  # a hole in the plane
+    path = write_db3(tmp_path / "holes.db3", s)
+    raw = read_all(RealSenseReplayCamera(path))[-1].depth_m
+    filled = read_all(RealSenseReplayCamera(path, FilterConfig(spatial=False, hole_filling="nearest_from_around")))
+    decimated = read_all(RealSenseReplayCamera(path, FilterConfig(decimation=2, spatial=False)))
+    inside = (slice(8, 40), slice(8, 56))  # within the depth field of view
+    assert (raw[inside] == 0).sum() == 4 and (raw[12:14, 14:16] == 0).all()  # the 3x3 hole at 5/6 scale
+    assert not (filled[-1].depth_m[inside] == 0).any()
+    assert decimated[-1].depth_m.shape == (48, 64)  # alignment brings decimated depth back to colour size
+    assert decimated[-1].depth_m[23, 29] == pytest.approx(0.8, abs=1e-3)
+    names = [type(f).__name__ for f in build_filters(FilterConfig(decimation=2, temporal=True,
+                                                                   hole_filling="fill_from_left"))]
+    assert names == ["decimation_filter", "disparity_transform", "spatial_filter", "temporal_filter",
+                     "disparity_transform", "hole_filling_filter"]
+    assert build_filters(FilterConfig.none()) == []
+
+
+def test_convert_to_frames_directory(recording, tmp_path):
+    path, s = recording
+    summary = convert_recording(path, tmp_path / "frames", depth_scale=0.001)
+    assert summary["frames"] == N and summary["source_depth_scale"] == pytest.approx(1e-4)
+    rec = FramesRecording(tmp_path / "frames")
+    assert len(rec) == N and rec.depth_scale == 0.001 and rec.intrinsics.fx == 50.0
+    frame = rec.frame(N - 1)
+    assert frame.t == pytest.approx((N - 1) / 30, abs=1e-6)
+    np.testing.assert_array_equal(frame.color, s.color[N - 1])
+    np.testing.assert_allclose(frame.depth_m[21:26, 27:32], 0.8, atol=1e-6)  # 8000 units of 0.1 mm -> 800 mm
+    units = np.unique(np.round(frame.depth_m / 0.001))
+    assert set(units) <= {0, 800, 1000}
+
+
+@pytest.mark.parametrize("content", ["truncated-db3", "truncated-bag", "empty-bag", "text-db3"])
+def test_corrupt_recordings_are_clear_errors(recording, tmp_path, content):
+    data = recording[0].read_bytes()
+    name, payload = {
+        "truncated-db3": ("t.db3", data[: len(data) * 2 // 3]),
+        "truncated-bag": ("t.bag", b"#ROSBAG V2.0\n" + b"\x04\x00\x00\x00op=\x03"),
+        "empty-bag": ("e.bag", b""),
+        "text-db3": ("x.db3", b"not a recording\n"),
+    }[content]
+    (tmp_path / name).write_bytes(payload)
+    with pytest.raises(RecordingError, match=f"cannot play RealSense recording .*{name}.*record it again"):
+        RealSenseReplayCamera(tmp_path / name).connect()
+
+
+def test_missing_or_misnamed_recording(tmp_path):
+    with pytest.raises(RecordingError, match="not found"):
+        RealSenseReplayCamera(tmp_path / "nope.db3")
+    (tmp_path / "x.mp4").write_bytes(b"")
+    with pytest.raises(RecordingError, match="expected a .bag or .db3"):
+        RealSenseReplayCamera(tmp_path / "x.mp4")
+    with pytest.raises(RecordingError, match="expected a RealSense .bag or .db3"):
+        convert_recording(tmp_path / "x.mp4", tmp_path / "out")
