@@ -90,7 +90,7 @@ class SimArm(Arm):
         dq = np.zeros_like(q) if dq is None else np.asarray(dq, float)
         try:
             self.guard.check(q, dq, self._q_prev_cmd, self.control_period_s, self.kin.fk(q)[:3, 3],
-                              self._dq_prev_cmd)
+                              self._dq_prev_cmd, self.state().q)
         except ArmError:
             self.stop()
             raise

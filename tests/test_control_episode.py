@@ -13,7 +13,7 @@ from deploy.config import Config
 from deploy.control import OpenConfig, run_episode
 from deploy.estimate_recording import estimate_recording
 from deploy.perception.oracle import OracleSegmenter
-from sim_fallback.arm import SimArm
+from sim_fallback.arm import GRASP_FORCE_LIMIT_N, SimArm
 from sim_fallback.camera import SimCamera, d415_intrinsics
 from sim_fallback.scenario import Scenario
 from sim_fallback.world import SimWorld
@@ -99,6 +99,27 @@ def test_slipping_grasp_regrasps_once_then_fails_clearly():
     assert "after one re-grasp" in result.message or "re-grasp after a slip failed" in result.message
     assert not result.success and still
     assert json.loads(json.dumps(result.to_dict()))["stop_reason"] == result.stop_reason
+
+
+def test_a_slip_is_recovered_by_finding_the_handle_again():
+    def slip_once(world, arm):  # weak and frictionless until the gripper has slipped off and opened again
+        arm.grasp_force_limit_n = 0.5
+        pb.changeDynamics(world.cabinet_id, world.handle_link, lateralFriction=0.0, physicsClientId=world.client)
+        seen = {"slipped": False}
+
+        def restore():
+            width = arm.state().gripper_width_m
+            seen["slipped"] |= width < 0.003
+            if seen["slipped"] and width > 0.03 and arm.grasp_force_limit_n < GRASP_FORCE_LIMIT_N:
+                arm.grasp_force_limit_n = GRASP_FORCE_LIMIT_N
+                pb.changeDynamics(world.cabinet_id, world.handle_link, lateralFriction=1.0,
+                                  physicsClientId=world.client)
+
+        world.clock.add_hook(restore)
+
+    result, still = _episode(slip_once, target=0.15)
+    assert result.stop_reason == "target reached" and result.success and still
+    assert result.regrasped and result.opened >= 0.15
 
 
 def test_lost_tracking_stops_safely():

@@ -68,6 +68,21 @@ def test_jump_between_cycles_names_the_joint(guard, kin):
     _check(guard, kin, q, q_prev=q_prev)
 
 
+def test_a_step_from_where_a_pushed_arm_is_is_not_a_jump(guard, kin):
+    q_prev = panda().q_ready
+    measured = q_prev.copy()
+    measured[4] += 0.03  # a held door pushed the compliant arm off its last command
+    q = measured.copy()
+    q[4] += 0.005
+    guard.check(q, None, q_prev, 0.002, kin.fk(q)[:3, 3], q_measured=measured)
+    with pytest.raises(ArmError, match="panda_joint5 command jumps"):
+        guard.check(q, None, q_prev, 0.002, kin.fk(q)[:3, 3])
+    far = q_prev.copy()
+    far[4] -= 0.05  # away from both the last command and the arm
+    with pytest.raises(ArmError, match="panda_joint5 command jumps"):
+        guard.check(far, None, q_prev, 0.002, kin.fk(far)[:3, 3], q_measured=measured)
+
+
 def test_acceleration_limit_names_the_joint(guard, kin):
     q = panda().q_ready
     dq_prev, dq = np.zeros(7), np.zeros(7)

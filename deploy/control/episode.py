@@ -18,7 +18,16 @@ from scipy.spatial.transform import Rotation
 from deploy.axis_pipeline import AxisPipeline, frame_points, viewpoint
 from deploy.config import Config, EstimatorConfig
 from deploy.control.classify import classify_joint, front_turn_deg
-from deploy.control.grasp import Handle, find_handle, grasp_pose, hinge_prior, pregrasp_configuration
+from deploy.control.grasp import (
+    REGRASP_RADIUS_M,
+    Handle,
+    find_handle,
+    grasp_pose,
+    hinge_prior,
+    pregrasp_configuration,
+    pregrasp_pose,
+    protruding_points,
+)
 from deploy.control.policy import OpenConfig, choose_axis, opening, orient_axis
 from deploy.control.run_folder import RunFolder
 from deploy.control.viewer import RerunViewer
@@ -28,7 +37,15 @@ from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 from deploy.perception.base import Segmenter
 from drivers.arm.base import Arm, ArmState
 from drivers.arm.kinematics import Kinematics
-from drivers.arm.motion import PathFn, PathResult, arc_path, follow_cartesian_path, line_path, move_to_joints
+from drivers.arm.motion import (
+    PathFn,
+    PathResult,
+    arc_path,
+    follow_cartesian_path,
+    line_path,
+    move_to_joints,
+    move_to_pose,
+)
 from drivers.arm.robots import panda
 from drivers.arm.trajectory import MotionLimits
 from drivers.camera.base import Camera, Frame
@@ -60,6 +77,7 @@ class EpisodeResult:
     message: str
     run_dir: Path | None
     timings: dict[str, float]
+    regrasped: bool = False
     estimates: list[dict] = field(default_factory=list)
     commanded: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
     measured: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
@@ -70,7 +88,7 @@ class EpisodeResult:
         axis = None if self.axis is None else {
             k: v for k, v in self.axis.to_dict().items() if k in ("joint_type", "origin", "direction")}
         return {"success": self.success, "opened": self.opened, "target": self.target, "steps": self.steps,
-                "axis": axis, "stop_reason": self.stop_reason, "message": self.message,
+                "axis": axis, "stop_reason": self.stop_reason, "message": self.message, "regrasped": self.regrasped,
                 "run_dir": None if self.run_dir is None else str(self.run_dir), "timings": self.timings}
 
 
@@ -279,15 +297,29 @@ class _Episode:
                         "it missed the handle; check the handle detection and the camera calibration")
 
     def regrasp(self) -> None:
-        """Open, back off along the approach and come back to where the grasp was, close again."""
+        """Open, back off along the approach, find the handle again in a fresh frame near where it was held,
+        approach it and close. The opening measured before the slipping pull is kept (the slipping pull's
+        share is not counted: the arm errs toward opening further); later travel counts from the new grip."""
         arm, kin = self.arm, self.kin
+        held = self.tool()[:3, 3]
         arm.set_gripper(self.open_width)
         self.wait(CLOSE_TIME_S)
         T = self.tool()
         follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), RETREAT_M, self.line_limits())
+        frame = self.camera.read()
+        points = frame_points(frame, self.segmenter.track(frame), self.pipeline.config)
+        handle = find_handle(protruding_points(points, held, viewpoint(frame)), points, self.pipeline.body_box,
+                             viewpoint(frame), self.joint_type() is JointType.REVOLUTE)
+        if handle is None:
+            raise _Stop("grasp lost", f"the handle slipped out of the gripper and was not found again within "
+                        f"{REGRASP_RADIUS_M * 100:.0f} cm of where it was held: check the view of the handle")
+        T_grasp = grasp_pose(handle)
+        move_to_pose(arm, kin, pregrasp_pose(T_grasp, RETREAT_M), self.joint_limits)
+        self.wait(SETTLE_S)
         T = self.tool()
         follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), RETREAT_M, self.line_limits())
         self.close_and_check(self.open_width, "grasp lost", "re-grasp after a slip failed: ")
+        self.opened_before, self.p_grasp = self.opened, self.tool()[:3, 3]
 
     def step_path(self, axis: Axis) -> tuple[PathFn, float, MotionLimits]:
         """The next step: a line (drawer, or the paper's straight steps) or an arc about the axis (door)."""
@@ -444,7 +476,7 @@ class _Episode:
             target=self.report_target(), steps=self.steps,
             joint_type=None if self.axis is None else self.axis.joint_type.value, axis=self.axis,
             stop_reason=reason, message=message, run_dir=None if folder is None else folder.path,
-            timings=self.timings, estimates=self.estimates,
+            timings=self.timings, regrasped=self.regrasped, estimates=self.estimates,
             commanded=np.array(self.commanded).reshape(-1, 4, 4), measured=np.array(self.measured).reshape(-1, 4, 4),
             opening_curve=self.curve,
         )

@@ -24,6 +24,8 @@ FRONT_RADIUS_M = 0.15  # the front face is fitted to object points this close to
 MIN_FRONT_POINTS = 30
 PLANE_TOLERANCE_M = 0.004  # RANSAC inlier distance of the front plane
 FACE_BAND_M = 0.01  # points this close to the front plane belong to the front face
+REGRASP_RADIUS_M = 0.12  # a slipped handle is looked for this close to where the gripper held it
+HANDLE_MIN_STANDOFF_M, HANDLE_MAX_STANDOFF_M = 0.01, 0.08  # a handle stands this far out of its front
 
 
 @dataclass(frozen=True)
@@ -79,6 +81,24 @@ def find_handle(
     else:
         bar = UP - normal * (normal @ UP) if vertical_default else np.cross(normal, UP)
     return Handle(center, normal, bar / np.linalg.norm(bar), len(pts))
+
+
+def protruding_points(
+    object_points: np.ndarray, near: np.ndarray, viewpoint: np.ndarray, radius_m: float = REGRASP_RADIUS_M
+) -> np.ndarray:
+    """Object points within `radius_m` of `near` that stand 1-8 cm out of the local front plane toward the
+    viewpoint: the handle of a front that has moved out of the first frame's body box (re-grasp)."""
+    pts = np.asarray(object_points, float).reshape(-1, 3)
+    local = pts[np.linalg.norm(pts - near, axis=1) < radius_m]
+    if len(local) < MIN_FRONT_POINTS:
+        return local[:0]
+    o3d.utility.random.seed(0)
+    plane, _ = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(local)).segment_plane(PLANE_TOLERANCE_M, 3, 200)
+    normal, offset = np.asarray(plane[:3]), float(plane[3])
+    if (np.asarray(viewpoint, float) @ normal + offset) < 0:
+        normal, offset = -normal, -offset
+    height = local @ normal + offset
+    return local[(height > HANDLE_MIN_STANDOFF_M) & (height < HANDLE_MAX_STANDOFF_M)]
 
 
 def grasp_pose(handle: Handle, depth_m: float = GRASP_DEPTH_M, pitch_rad: float = GRASP_PITCH_RAD) -> np.ndarray:

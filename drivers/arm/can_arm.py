@@ -211,7 +211,7 @@ class CanArm(Arm):
         q = np.asarray(q, float)
         try:
             tool = self.kin.fk(q)[:3, 3] if q.shape == (len(self.joints),) else np.full(3, np.nan)
-            self.guard.check(q, dq, self._q_cmd, self.control_period_s, tool, self._dq_prev_cmd)
+            self.guard.check(q, dq, self._q_cmd, self.control_period_s, tool, self._dq_prev_cmd, self.state().q)
         except ArmError:
             self.stop()
             raise

@@ -57,14 +57,20 @@ class SafetyGuard:
         dt: float,
         tool_position: np.ndarray,
         dq_prev_cmd: np.ndarray | None = None,
+        q_measured: np.ndarray | None = None,
     ) -> None:
         """Raise ArmError if the command breaks a position, velocity, jump, acceleration or workspace limit.
 
         dq_cmd may be None (no velocity feed-forward); the acceleration check needs dq_cmd and dq_prev_cmd.
+        A step is measured from the previous command or, when given and nearer, from the measured joints: a
+        motion that starts where a compliant arm was pushed to (a held door) is not a jump.
         """
         lim = self.limits
         q = self._vector("position", q_cmd)
         step = q - self._vector("previous position", q_prev_cmd)
+        if q_measured is not None:
+            from_measured = q - self._vector("measured position", q_measured)
+            step = np.where(np.abs(from_measured) < np.abs(step), from_measured, step)
         q_tol = RELATIVE_SLACK * (1.0 + lim.q_max - lim.q_min)
         v_max = lim.v_max * (1 + RELATIVE_SLACK)
         if (j := _worst(q - lim.q_max - q_tol)) is not None:
