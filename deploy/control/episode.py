@@ -349,9 +349,13 @@ class _Episode:
             self.capture(state)
             return state.gripper_width_m > MIN_GRASP_WIDTH_M
 
-        result = follow_cartesian_path(self.arm, self.kin, path, max(length, 1e-4), limits or self.line_limits(),
-                                       on_tick)
-        self.wait(SETTLE_S)
+        self.arm.set_compliance(True)
+        try:
+            result = follow_cartesian_path(self.arm, self.kin, path, max(length, 1e-4),
+                                           limits or self.line_limits(), on_tick)
+            self.wait(SETTLE_S)
+        finally:
+            self.arm.set_compliance(False)
         self.next_frame_t = 0.0
         self.capture(self.arm.state())  # the settled end of the motion
         self.timings["motion_s"] += time.perf_counter() - clock

@@ -60,6 +60,9 @@ class Arm(ABC):
     def stop(self) -> None:
         """Hold still and make safe (real arm: damp then disable motors). Idempotent, never raises."""
 
+    def set_compliance(self, compliant: bool) -> None:
+        """Softer joint gains while pulling a handle (arms with impedance/MIT gains); others ignore it."""
+
     def time(self) -> float:
         return self.state().t
 
