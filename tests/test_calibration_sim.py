@@ -116,10 +116,10 @@ def test_cli(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("AXISLOOP_CALIBRATION_DIR", str(tmp_path))
     assert main(["calibrate", "board", "--out", str(tmp_path / "b.png"), "--squares", "6x8"]) == 0
     assert (tmp_path / "b.png").is_file()
-    assert main(["calibrate", "hand-eye", "--camera", "d415"]) == 2
-    assert "only the simulated rig" in capsys.readouterr().err
+    assert main(["calibrate", "hand-eye", "--camera", "d415"]) == 2  # a D415 goes with the CAN arm and its config
+    assert "--arm can needs --robot" in capsys.readouterr().err
     assert main(["calibrate", "check"]) == 2
-    assert "no hand-eye calibration for camera sim-d415" in capsys.readouterr().err
+    assert "no hand-eye calibration for camera sim-d415 on robot panda-sim" in capsys.readouterr().err
     assert main(["calibrate", "hand-eye", "--setup", "eye-in-hand", "--poses", "6", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert data["samples"] == 6 and data["true_error_mm"] < 5.0 and data["file"].startswith(str(tmp_path))

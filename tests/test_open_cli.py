@@ -59,6 +59,8 @@ def test_hardware_path_on_a_recording_with_the_kinematic_arm(capsys, tmp_path):
     (("--camera", "replay:/nonexistent", "--arm", "can"), "--arm can needs --robot"),
     (("--segmenter", "classical"), "renderer's segmentation"),
     (("--camera", "webcam", "--arm", "ideal", "--robot", ROBOT), "unknown camera 'webcam'"),
+    (("--camera", "d415", "--arm", "ideal", "--robot", ROBOT, "--segmenter", "oracle"),
+     "no RealSense camera is connected"),
 ])
 def test_bad_combinations_are_one_clear_error(capsys, args, text):
     code, _, err = run(capsys, "open-drawer", *args)

@@ -8,8 +8,6 @@ from typing import Annotated
 
 import typer
 
-SIM_SERIAL = "sim-d415"  # the simulated camera's serial, naming its calibration files
-
 
 class SetupChoice(str, Enum):
     eye_to_hand = "eye-to-hand"
@@ -23,15 +21,26 @@ class ExistingChoice(str, Enum):
 
 
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object instead of a table.")]
-CameraOpt = Annotated[str, typer.Option("--camera", help="Camera: sim (PyBullet D415 rig); real cameras come with "
-                                        "the camera factory.")]
-ArmOpt = Annotated[str, typer.Option("--arm", help="Arm: sim (PyBullet Panda); real arms come with the arm factory.")]
+CameraOpt = Annotated[str, typer.Option("--camera", help="Camera: sim (PyBullet D415 rig), d415 or d415:SERIAL "
+                                        "(RealSense; its serial names the calibration file).")]
+ArmOpt = Annotated[str | None, typer.Option("--arm", help="Arm: sim (PyBullet Panda), sim-can (the CAN driver on "
+                                            "simulated Damiao motors) or can (hardware) (default: sim with the sim "
+                                            "camera, can with a D415).")]
+RobotOpt = Annotated[Path | None, typer.Option("--robot", help="Robot config TOML; its name names the calibration "
+                                               "file (required for --arm can; default for sim arms: "
+                                               "configs/robots/panda_sim.toml).")]
+PivotOpt = Annotated[tuple[float, float, float] | None, typer.Option(
+    "--pivot-mm", help="Point (mm, tool frame) the stations turn about: eye-to-hand the board centre, eye-in-hand the "
+    "point the wrist camera looks at (required on a real arm, except for check: from the stored calibration; "
+    "sim: the rig's).")]
+YesOpt = Annotated[bool, typer.Option("--yes", "-y", help="Do not ask before a real arm moves.")]
+DryRunOpt = Annotated[bool, typer.Option("--dry-run", help="Open the camera, read the arm's joints, plan and print "
+                                         "the stations; enable and move nothing.")]
 SetupOpt = Annotated[SetupChoice, typer.Option("--setup", help="eye-to-hand (fixed camera, board on the tool) or "
                                                "eye-in-hand (wrist camera, board fixed).")]
 PosesOpt = Annotated[int, typer.Option("--poses", min=1, help="Stations the arm visits.")]
-RobotIdOpt = Annotated[str, typer.Option("--robot-id", help="Robot id naming the calibration file.")]
-DirOpt = Annotated[Path | None, typer.Option("--dir", help="Calibration folder [default: $AXISLOOP_CALIBRATION_DIR "
-                                             "or ~/.config/axisloop/calibration].")]
+DirOpt = Annotated[Path | None, typer.Option("--dir", help="Calibration folder (default: $AXISLOOP_CALIBRATION_DIR "
+                                             "or ~/.config/axisloop/calibration).")]
 SquaresOpt = Annotated[str, typer.Option("--squares", help="Board squares, COLSxROWS.")]
 SquareMmOpt = Annotated[float, typer.Option("--square-mm", min=1.0, help="Square side as printed (mm).")]
 MarkerMmOpt = Annotated[float, typer.Option("--marker-mm", min=1.0, help="Marker side as printed (mm).")]
@@ -49,16 +58,6 @@ def _board(squares: str, square_mm: float, marker_mm: float, dictionary: str, le
     except ValueError as exc:
         raise ConfigError(f"--squares {squares!r} is not COLSxROWS: write e.g. 5x7") from exc
     return BoardConfig((cols, rows), square_mm / 1000, marker_mm / 1000, dictionary, legacy)
-
-
-def _require_sim(camera: str, arm: str) -> None:
-    from deploy.errors import ConfigError
-
-    if camera != "sim" or arm != "sim":
-        raise ConfigError(
-            f"--camera {camera} --arm {arm}: only the simulated rig (--camera sim --arm sim) is wired to calibration "
-            "yet; real cameras and arms arrive with their factories (drivers/camera, drivers/arm)"
-        )
 
 
 def register(app: typer.Typer, bench_app: typer.Typer) -> None:
@@ -102,117 +101,177 @@ def register(app: typer.Typer, bench_app: typer.Typer) -> None:
         w, h = cfg.size_m
         console.print(f"wrote {out}: {squares} squares of {square_mm:g} mm ({w * 1e3:.0f} x {h * 1e3:.0f} mm)")
 
+    def _prepare(dev, cfg, board, dry_run: bool, yes: bool, json_out: bool, record=None, note: str = "") -> bool:
+        """Plan the stations; dry run: print them and return False. Otherwise ask (real arm, unless --yes),
+        enable the arm and return True."""
+        plan = dev.plan(cfg)
+        if dry_run:
+            data = {"dry_run": True, "camera": dev.choice.camera, "serial": dev.serial, "arm": dev.choice.arm,
+                    "robot": dev.robot_id, "setup": cfg.setup, "pivot_tool_m": list(cfg.stations.pivot_tool_m),
+                    "board_visible": dev.board_visible(board, record), **plan.to_dict()}
+            if json_out:
+                _print_json(data)
+                return False
+            from rich.table import Table
+
+            table = Table(title=f"{len(plan.stations)} stations for {dev.robot_id} ({dev.choice.arm}), camera "
+                                f"{dev.serial}: dry run, nothing moved")
+            for col in ("#", "joints (rad)", "tool position (m)", "turn (deg)"):
+                table.add_column(col)
+            for i, s in enumerate(data["stations"]):
+                table.add_row(str(i + 1), " ".join(f"{v:+.3f}" for v in s["q"]),
+                              " ".join(f"{v:.3f}" for v in s["tool_position_m"]), f"{s['turn_deg']:.1f}")
+            console.print(table)
+            console.print(f"board visible at the start pose: {data['board_visible']}; about {plan.duration_s:.0f} s; "
+                          f"tool within {plan.max_shift_m * 100:.1f} cm and {plan.max_turn_deg:.1f} deg of its start")
+            return False
+        dev.start(plan, None if yes else lambda message: typer.confirm(message + note, abort=True, err=True))
+        return True
+
     @calibrate_app.command("intrinsics")
     def intrinsics_cmd(
-        camera: CameraOpt = "sim", arm: ArmOpt = "sim", poses: PosesOpt = 12, setup: SetupOpt = SetupChoice.eye_to_hand,
+        camera: CameraOpt = "sim", arm: ArmOpt = None, robot: RobotOpt = None, pivot_mm: PivotOpt = None,
+        poses: PosesOpt = 12, setup: SetupOpt = SetupChoice.eye_to_hand,
         squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0, marker_mm: MarkerMmOpt = 28.0,
         dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False, directory: DirOpt = None,
-        seed: SeedOpt = 0, json_out: JsonOpt = False,
+        yes: YesOpt = False, dry_run: DryRunOpt = False, seed: SeedOpt = 0, json_out: JsonOpt = False,
     ) -> None:
         """Fit the camera's own intrinsics from board views at N stations (default: RealSense factory values).
 
-        Example: deploy calibrate intrinsics --poses 12 --json
+        Example: deploy calibrate intrinsics --camera d415 --arm can --robot my_arm.toml --pivot-mm 0 0 30 --poses 12
         """
-        from calibration.routine import run_intrinsics
+        from calibration.poses import PoseConfig
+        from calibration.routine import RoutineConfig, run_intrinsics
         from calibration.store import IntrinsicsRecord, save_intrinsics
-        from deploy.bench.calibration import limits, routine_config, sim_rig
+        from deploy.calibration_devices import choose, open_devices
 
-        _require_sim(camera, arm)
+        choice = choose(camera, arm, robot, pivot_mm)
         board = _board(squares, square_mm, marker_mm, dictionary, legacy)
-        bar, progress = _progress("intrinsics")
-        with sim_rig(setup.value, board, seed=seed) as rig, bar:
-            result = run_intrinsics(rig.camera, rig.arm, rig.arm.kin, routine_config(rig, poses, board, seed),
-                                    limits(rig), progress)
-            factory = rig.camera.intrinsics
-        path = save_intrinsics(IntrinsicsRecord(SIM_SERIAL, result.intrinsics, result.distortion, result.rms_px,
+        with open_devices(choice, setup.value, board, seed) as dev:
+            cfg = RoutineConfig(setup.value, poses, board, PoseConfig(pivot_tool_m=dev.pivot(), seed=seed))
+            if not _prepare(dev, cfg, board, dry_run, yes, json_out):
+                return
+            bar, progress = _progress("intrinsics")
+            with bar:
+                result = run_intrinsics(dev.camera, dev.arm, dev.kin, cfg, dev.limits, progress)
+            factory, serial = dev.camera.intrinsics, dev.serial
+        path = save_intrinsics(IntrinsicsRecord(serial, result.intrinsics, result.distortion, result.rms_px,
                                                 result.views), directory)
         data = {"file": str(path), "views": result.views, "rms_px": result.rms_px, **result.intrinsics.to_dict(),
                 "distortion": result.distortion.tolist(), "factory": factory.to_dict()}
         if json_out:
             _print_json(data)
         else:
-            _table(f"intrinsics of {SIM_SERIAL}", {k: v for k, v in data.items() if k not in ("factory",)})
+            _table(f"intrinsics of {serial}", {k: v for k, v in data.items() if k not in ("factory",)})
 
     @calibrate_app.command("hand-eye")
     def hand_eye_cmd(
-        setup: SetupOpt = SetupChoice.eye_to_hand, poses: PosesOpt = 15, camera: CameraOpt = "sim", arm: ArmOpt = "sim",
-        robot_id: RobotIdOpt = "panda", squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0,
+        setup: SetupOpt = SetupChoice.eye_to_hand, poses: PosesOpt = 15, camera: CameraOpt = "sim", arm: ArmOpt = None,
+        robot: RobotOpt = None, pivot_mm: PivotOpt = None, squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0,
         marker_mm: MarkerMmOpt = 28.0, dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False,
         existing: Annotated[ExistingChoice, typer.Option("--existing", help="When a calibration exists: ask, reuse "
                                                          "it, or redo it.")] = ExistingChoice.ask,
-        directory: DirOpt = None, seed: SeedOpt = 0, json_out: JsonOpt = False,
+        directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: SeedOpt = 0,
+        json_out: JsonOpt = False,
     ) -> None:
         """Hand-eye: move through N diverse poses, detect the board, solve, refine and save the calibration.
 
         Several solvers run; the most consistent one is refined on the corners' reprojection error. The file is
-        one per camera serial and robot id; an existing one is offered for reuse first.
+        one per camera serial and robot config name; an existing one is offered for reuse first. A real arm asks
+        before it moves (--yes skips); --dry-run prints the stations and moves nothing.
 
-        Example: deploy calibrate hand-eye --setup eye-to-hand --poses 15 --json
+        Example: deploy calibrate hand-eye --camera d415 --arm can --robot my_arm.toml --pivot-mm 0 0 30 --poses 15
         """
+        from calibration.poses import PoseConfig
+        from calibration.routine import RoutineConfig, run_hand_eye
         from calibration.store import hand_eye_path, load_for, load_intrinsics_for
-        from deploy.bench.calibration import sim_rig, simulated_hand_eye
+        from deploy.bench.calibration import truth_error
+        from deploy.calibration_devices import choose, open_devices
 
-        _require_sim(camera, arm)
+        choice = choose(camera, arm, robot, pivot_mm)
         board = _board(squares, square_mm, marker_mm, dictionary, legacy)
-        old = load_for(SIM_SERIAL, robot_id, directory) if existing != ExistingChoice.redo else None
-        if old is not None and (existing == ExistingChoice.reuse or typer.confirm(
-                f"{hand_eye_path(SIM_SERIAL, robot_id, directory)} exists ({old.setup}, {old.method}, "
-                f"{old.created:%Y-%m-%d}, spread {old.spread_mm:.1f} mm): reuse it?", default=True,
-                err=True)):
-            data = {"file": str(hand_eye_path(SIM_SERIAL, robot_id, directory)), "reused": True}
-            if json_out:
-                _print_json(data)
-            else:
-                console.print(f"reusing {data['file']}")
-            return
-        own = load_intrinsics_for(SIM_SERIAL, directory)  # else the camera's factory values
-        bar, progress = _progress(f"hand-eye {setup.value}")
-        with sim_rig(setup.value, board, seed=seed) as rig, bar:
-            run, (err_mm, err_deg) = simulated_hand_eye(rig, poses, board, seed, own and own.intrinsics,
-                                                        own and own.distortion, progress)
-            path = _save(run, rig, board, robot_id, directory)
-        data = _hand_eye_summary(run, path) | {"true_error_mm": err_mm, "true_error_deg": err_deg}
+        with open_devices(choice, setup.value, board, seed) as dev:
+            serial, robot_id = dev.serial, dev.robot_id
+            old = load_for(serial, robot_id, directory) if existing != ExistingChoice.redo and not dry_run else None
+            if old is not None and (existing == ExistingChoice.reuse or typer.confirm(
+                    f"{hand_eye_path(serial, robot_id, directory)} exists ({old.setup}, {old.method}, "
+                    f"{old.created:%Y-%m-%d}, spread {old.spread_mm:.1f} mm): reuse it?", default=True,
+                    err=True)):
+                data = {"file": str(hand_eye_path(serial, robot_id, directory)), "reused": True}
+                if json_out:
+                    _print_json(data)
+                else:
+                    console.print(f"reusing {data['file']}")
+                return
+            own = load_intrinsics_for(serial, directory)  # else the camera's factory values
+            cfg = RoutineConfig(setup.value, poses, board, PoseConfig(pivot_tool_m=dev.pivot(), seed=seed))
+            if not _prepare(dev, cfg, board, dry_run, yes, json_out):
+                return
+            bar, progress = _progress(f"hand-eye {setup.value}")
+            with bar:
+                run = run_hand_eye(dev.camera, dev.arm, dev.kin, cfg, dev.limits, own and own.intrinsics,
+                                   own and own.distortion, progress)
+            path = _save(run, dev, board, directory)
+            data = _hand_eye_summary(run, path) | {"camera_serial": serial, "robot_id": robot_id}
+            if dev.rig is not None:
+                err_mm, err_deg = truth_error(dev.rig, run.best)
+                data |= {"true_error_mm": err_mm, "true_error_deg": err_deg}
         if json_out:
             _print_json(data)
         else:
-            _table(f"hand-eye {setup.value} ({SIM_SERIAL} on {robot_id})", {k: v for k, v in data.items()
-                                                                           if k != "methods"})
+            _table(f"hand-eye {setup.value} ({serial} on {robot_id})", {k: v for k, v in data.items()
+                                                                       if k != "methods"})
 
     @calibrate_app.command("check")
     def check_cmd(
-        camera: CameraOpt = "sim", arm: ArmOpt = "sim", robot_id: RobotIdOpt = "panda", poses: PosesOpt = 6,
+        camera: CameraOpt = "sim", arm: ArmOpt = None, robot: RobotOpt = None, pivot_mm: PivotOpt = None,
+        poses: PosesOpt = 6,
         max_age_days: Annotated[float, typer.Option("--max-age-days", help="Warn when older.")] = 30.0,
         point: Annotated[bool, typer.Option("--point", help="Eye-in-hand: move the tool tip to 2 cm in front of "
                                             "the board's centre corner.")] = False,
-        directory: DirOpt = None, seed: SeedOpt = 1, json_out: JsonOpt = False,
+        directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: SeedOpt = 1,
+        json_out: JsonOpt = False,
     ) -> None:
         """Check the stored calibration: spread of the fixed frame over fresh poses, a one-shot test, warnings.
 
-        Example: deploy calibrate check --poses 6 --json
+        Example: deploy calibrate check --camera d415 --arm can --robot my_arm.toml --poses 6 --json
         """
         import numpy as np
 
-        from calibration.routine import point_at_board, run_check
+        from calibration.poses import PoseConfig
+        from calibration.routine import RoutineConfig, point_at_board, run_check
         from calibration.store import load_for
-        from deploy.bench.calibration import limits, routine_config, sim_rig
+        from deploy.calibration_devices import SIM_SERIAL, choose, open_devices
         from deploy.errors import CalibrationError
 
-        _require_sim(camera, arm)
-        record = load_for(SIM_SERIAL, robot_id, directory)
-        if record is None:
-            raise CalibrationError(f"no hand-eye calibration for camera {SIM_SERIAL} on robot {robot_id}: run "
-                                   "`deploy calibrate hand-eye` first")
-        bar, progress = _progress("check")
-        with sim_rig(record.setup, record.board, seed=seed) as rig, bar:
-            report = run_check(rig.camera, rig.arm, rig.arm.kin, record, routine_config(rig, poses, record.board, seed),
-                               limits(rig), SIM_SERIAL, max_age_days, progress)
+        def stored(serial: str, robot_id: str):
+            record = load_for(serial, robot_id, directory)
+            if record is None:
+                raise CalibrationError(f"no hand-eye calibration for camera {serial} on robot {robot_id}: run "
+                                       "`deploy calibrate hand-eye` first")
+            return record
+
+        choice = choose(camera, arm, robot, pivot_mm, pivot_from_record=True)
+        record = stored(SIM_SERIAL, choice.robot.name) if choice.simulated else None  # the rig needs its setup
+        with open_devices(choice, record.setup if record else "eye-to-hand", record and record.board, seed) as dev:
+            record = record or stored(dev.serial, dev.robot_id)
+            cfg = RoutineConfig(record.setup, poses, record.board,  # type: ignore[arg-type]
+                                PoseConfig(pivot_tool_m=dev.pivot(record), seed=seed))
+            note = " Then the tool tip goes to 2 cm in front of the board's centre corner." if point else ""
+            if not _prepare(dev, cfg, record.board, dry_run, yes, json_out, record, note):
+                return
+            bar, progress = _progress("check")
+            with bar:
+                report = run_check(dev.camera, dev.arm, dev.kin, record, cfg, dev.limits, dev.serial, max_age_days,
+                                   progress)
             data = report.to_dict()
             if point:
-                pointed = point_at_board(rig.camera, rig.arm, rig.arm.kin, record, limits(rig))
+                pointed = point_at_board(dev.camera, dev.arm, dev.kin, record, dev.limits)
                 data |= {"point_corner_m": pointed.corner.tolist(), "point_reached_m": pointed.reached.tolist(),
-                         "point_tracking_mm": float(np.linalg.norm(pointed.reached - pointed.target) * 1e3),
-                         "point_true_error_mm": float(np.linalg.norm(pointed.corner - _true_corner(rig, record.board))
-                                                      * 1e3)}
+                         "point_tracking_mm": float(np.linalg.norm(pointed.reached - pointed.target) * 1e3)}
+                if dev.rig is not None:
+                    data["point_true_error_mm"] = float(np.linalg.norm(pointed.corner
+                                                                       - _true_corner(dev.rig, record.board)) * 1e3)
         for warning in report.warnings:
             err_console.print(f"[yellow]warning:[/] {warning}", highlight=False)
         if json_out:
@@ -245,15 +304,15 @@ def register(app: typer.Typer, bench_app: typer.Typer) -> None:
         console.print(f"best at 15 poses: {data['best_at_15_poses']}")
 
 
-def _save(run, rig, board, robot_id: str, directory: Path | None) -> Path:
-    """The run's best solution as this camera and robot's calibration file."""
+def _save(run, dev, board, directory: Path | None) -> Path:
+    """The run's best solution as the calibration file of this camera and robot."""
     from calibration.store import HandEyeRecord, save_hand_eye
 
     best = run.best
     record = HandEyeRecord(
-        camera_serial=SIM_SERIAL, robot_id=robot_id, setup=best.setup,
+        camera_serial=dev.serial, robot_id=dev.robot_id, setup=best.setup,
         method=best.method + ("+refined" if best.refined else ""), T_camera=best.T_camera, T_board=best.T_board,
-        tool_frame=rig.arm.kin.tool_frame, intrinsics=run.intrinsics, distortion=run.distortion,
+        tool_frame=dev.kin.tool_frame, intrinsics=run.intrinsics, distortion=run.distortion,
         reprojection_px=best.reprojection_px, spread_mm=best.spread_mm, spread_deg=best.spread_deg,
         samples=best.samples, board=board,
     )

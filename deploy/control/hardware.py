@@ -22,7 +22,6 @@ from drivers.arm.base import Arm
 from drivers.arm.factory import DRIVER_ARMS, open_arm
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.robot_config import load_robot_config
-from drivers.arm.trajectory import MotionLimits
 from drivers.camera.base import Camera, Frame, Intrinsics
 from drivers.camera.factory import open_camera
 
@@ -71,7 +70,7 @@ def open_on_hardware(request: OpenRequest) -> dict:
             typer.confirm(f"The arm will grasp and pull the {request.task} in view. Area clear, arm supervised?",
                           abort=True)
         result = run_episode(posed, arm, kin, segmenter, config, request.folder(),
-                             MotionLimits.for_robot(robot.robot_spec(), kin, JOINT_SPEED_SHARE), viewer=viewer)
+                             robot.motion_limits(kin, JOINT_SPEED_SHARE), viewer=viewer)
     return {**result.to_dict(), "task": request.task, "camera": request.camera, "arm": request.arm,
             "policy": request.policy}
 

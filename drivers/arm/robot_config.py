@@ -17,6 +17,7 @@ from drivers.arm.damiao import MODELS, PARAM_ID, MotorLimits
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.robots import RobotSpec
 from drivers.arm.safety import SafetyLimits
+from drivers.arm.trajectory import MotionLimits
 from drivers.errors import ArmError
 
 if sys.version_info >= (3, 11):
@@ -185,6 +186,12 @@ class RobotConfig(_Strict):
             v_max[i] = v_max[i] if j.v_max is None else min(v_max[i], j.v_max)
         return SafetyLimits(q_min, q_max, v_max, np.array([j.a_max for j in self.joints]),
                             np.array(self.workspace_min), np.array(self.workspace_max))
+
+    def motion_limits(self, kin: Kinematics, fraction: float) -> MotionLimits:
+        """`fraction` of the safety limits (URDF narrowed by the config) for planned moves: they never trip
+        the safety layer."""
+        safety = self.safety_limits(kin)
+        return MotionLimits(safety.v_max * fraction, safety.a_max * fraction, self.robot_spec().j_max * fraction)
 
 
 def load_robot_config(path: str | Path) -> RobotConfig:

@@ -1,0 +1,243 @@
+"""The camera and arm `deploy calibrate` runs on, chosen by --camera, --arm and --robot.
+
+- `--camera sim` with `--arm sim` (SimArm) or `--arm sim-can` (the real CAN driver on simulated Damiao motors that
+  move the same PyBullet Panda): the rig of deploy.bench.calibration, with its ground truth;
+- `--camera d415[:SERIAL]` with `--arm can --robot CONFIG.toml`: a RealSense D415 and a Damiao arm.
+A recording (`replay:PATH`) is refused: calibration moves the arm, and a recording cannot show those motions.
+
+Opening order: specs and the robot config are checked first, then the camera is connected (its serial names the
+calibration file), then the arm is probed (joints read, nothing enabled) so the stations can be planned and shown.
+`Devices.start` asks before a real arm's first motion and only then enables it; leaving `open_devices` always
+stops the arm (damp, disable) and releases the camera.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from calibration.board import BoardConfig
+from calibration.detect import BoardDetector
+from calibration.routine import RoutineConfig, plan_around_start
+from calibration.store import HandEyeRecord
+from deploy.errors import ConfigError
+from drivers.arm.base import Arm
+from drivers.arm.can_arm import CanArm
+from drivers.arm.kinematics import Kinematics
+from drivers.arm.robot_config import RobotConfig, load_robot_config
+from drivers.arm.trajectory import MotionLimits, joint_trajectory
+from drivers.camera.base import Camera
+from drivers.errors import ArmError
+
+SIM_SERIAL = "sim-d415"  # the simulated camera's serial, naming its calibration files
+SIM_ROBOT = Path(__file__).resolve().parents[1] / "configs" / "robots" / "panda_sim.toml"
+SIM_ARMS, REAL_ARMS = ("sim", "sim-can"), ("can",)
+CAMERAS = ("sim", "d415", "d415:SERIAL")
+SPEED_FRACTION = 0.5  # stations are visited at this share of the velocity, acceleration and jerk limits
+MAX_DRIFT_RAD = 0.02  # the arm may not move more than this between planning and enabling
+NO_PIVOT = ("--pivot-mm X Y Z is needed on a real arm: the board centre in the tool frame (eye-to-hand, e.g. 0 0 30 "
+            "for a board 3 cm beyond the tool point) or the point the wrist camera looks at (eye-in-hand, e.g. "
+            "0 0 450); the stations turn about it so the board stays in view")
+
+
+@dataclass(frozen=True)
+class DeviceChoice:
+    """--camera, --arm and the robot config, checked against each other."""
+
+    camera: str
+    arm: str
+    robot: RobotConfig
+    pivot_mm: tuple[float, float, float] | None = None
+
+    @property
+    def simulated(self) -> bool:
+        return self.camera == "sim"
+
+
+def choose(camera: str, arm: str | None, robot: Path | None, pivot_mm: tuple[float, float, float] | None = None,
+           pivot_from_record: bool = False) -> DeviceChoice:
+    """Check the camera and arm specs, the pivot (needed on a real arm unless a stored calibration gives it) and
+    load the robot config (default arm: sim with the sim camera, can with a D415; default robot for sim arms:
+    configs/robots/panda_sim.toml). ConfigError naming the fix otherwise."""
+    kind = camera.partition(":")[0]
+    if kind == "replay":
+        raise ConfigError(f"--camera {camera}: calibration moves the arm and needs live images of each pose, which a "
+                          "recording cannot show; use --camera d415[:SERIAL] (or sim)")
+    if kind not in ("sim", "d415") or (kind == "sim" and camera != "sim"):
+        raise ConfigError(f"--camera {camera!r} is not one of {', '.join(CAMERAS)}")
+    arm = arm or ("sim" if kind == "sim" else "can")
+    if arm not in SIM_ARMS + REAL_ARMS:
+        raise ConfigError(f"--arm {arm!r} is not one of {', '.join(SIM_ARMS + REAL_ARMS)}")
+    if (kind == "sim") != (arm in SIM_ARMS):
+        raise ConfigError(f"--camera {camera} cannot see --arm {arm}: pair the simulated camera with a simulated arm "
+                          "(--camera sim --arm sim|sim-can) and a D415 with the real one (--camera d415 --arm can)")
+    if robot is None and arm in REAL_ARMS:
+        raise ConfigError(f"--arm {arm} needs --robot CONFIG.toml: your arm's config (configs/robots/damiao_6dof.toml "
+                          "is the template; docs/arm.md)")
+    if arm in REAL_ARMS and pivot_mm is None and not pivot_from_record:
+        raise ConfigError(NO_PIVOT)
+    config = load_robot_config(robot or SIM_ROBOT)
+    if arm in SIM_ARMS and config.joint_names != load_robot_config(SIM_ROBOT).joint_names:
+        raise ConfigError(f"robot config {config.name!r} is not the simulated Panda: use --robot "
+                          f"{SIM_ROBOT.relative_to(SIM_ROBOT.parents[2])} (or none) with the simulation")
+    return DeviceChoice(camera, arm, config, pivot_mm)
+
+
+@dataclass(frozen=True)
+class StationPlan:
+    """The stations the arm will visit (joints), with their tool poses, from the start joints."""
+
+    q_start: np.ndarray
+    stations: list[np.ndarray]
+    tools: list[np.ndarray]
+    T_start: np.ndarray
+    duration_s: float
+
+    @property
+    def max_shift_m(self) -> float:
+        return max(float(np.linalg.norm(T[:3, 3] - self.T_start[:3, 3])) for T in self.tools)
+
+    @property
+    def max_turn_deg(self) -> float:
+        return max(_angle_deg(self.T_start[:3, :3].T @ T[:3, :3]) for T in self.tools)
+
+    def to_dict(self) -> dict:
+        return {
+            "q_start": self.q_start.round(4).tolist(), "tool_start_m": self.T_start[:3, 3].round(4).tolist(),
+            "duration_s": round(self.duration_s, 1), "max_shift_m": round(self.max_shift_m, 4),
+            "max_turn_deg": round(self.max_turn_deg, 2),
+            "stations": [{"q": q.round(4).tolist(), "tool_position_m": T[:3, 3].round(4).tolist(),
+                          "turn_deg": round(_angle_deg(self.T_start[:3, :3].T @ T[:3, :3]), 2)}
+                         for q, T in zip(self.stations, self.tools, strict=True)],
+        }
+
+
+@dataclass
+class Devices:
+    """An open camera and a probed arm (not yet enabled: call `start`). `rig` (with the ground truth) and `motors`
+    (sim-can's simulated motors) are set in simulation only."""
+
+    choice: DeviceChoice
+    camera: Camera
+    arm: Arm
+    kin: Kinematics
+    serial: str
+    limits: MotionLimits
+    rig: object | None = None
+    motors: object | None = None
+
+    @property
+    def robot_id(self) -> str:
+        return self.choice.robot.name
+
+    @property
+    def real_arm(self) -> bool:
+        return self.choice.arm in REAL_ARMS
+
+    def pivot(self, record: HandEyeRecord | None = None) -> tuple[float, float, float]:
+        """The stations' pivot in the tool frame (m): --pivot-mm, else the sim rig's, else (check) the board centre
+        or look point the stored calibration gives; ConfigError when none is known."""
+        if self.choice.pivot_mm is not None:
+            return tuple(float(v) / 1000 for v in self.choice.pivot_mm)  # type: ignore[return-value]
+        if self.rig is not None:
+            return self.rig.pivot_tool_m
+        if record is not None:
+            return pivot_from_record(record, self.kin.fk(self.arm.state().q))
+        raise ConfigError(NO_PIVOT)
+
+    def plan(self, cfg: RoutineConfig) -> StationPlan:
+        """The stations the routine will visit from the arm's current joints (checked by IK, limits, workspace)."""
+        q0 = self.arm.state().q
+        stations = plan_around_start(self.kin, self.arm, cfg)
+        settle = cfg.settle_s * len(stations)
+        path = [q0, *stations, q0]
+        moves = zip(path[:-1], path[1:], strict=True)
+        duration = sum(joint_trajectory(a, b, self.limits).duration for a, b in moves) + settle
+        return StationPlan(q0, stations, [self.kin.fk(q) for q in stations], self.kin.fk(q0), duration)
+
+    def board_visible(self, board: BoardConfig, record: HandEyeRecord | None = None) -> bool:
+        """Whether one image shows the board (commands nothing)."""
+        intrinsics = record.intrinsics if record is not None else self.camera.intrinsics
+        distortion = record.distortion if record is not None else None
+        return BoardDetector(board).pose(self.camera.read().color, intrinsics, distortion) is not None
+
+    def start(self, plan: StationPlan, confirm: Callable[[str], None] | None) -> None:
+        """Ask `confirm` (real arm only; it aborts by raising), enable the arm, check it has not moved since the
+        plan was made."""
+        if self.real_arm and confirm is not None:
+            confirm(f"The arm {self.robot_id!r} will visit {len(plan.stations)} stations around its current pose "
+                    f"(tool within {plan.max_shift_m * 100:.0f} cm and {plan.max_turn_deg:.0f} deg of it, about "
+                    f"{plan.duration_s:.0f} s, {SPEED_FRACTION:.0%} speed, no collision checking). "
+                    "Area clear, arm supervised, e-stop at hand?")
+        self.arm.connect()
+        drift = float(np.abs(self.arm.state().q - plan.q_start).max())
+        if drift > MAX_DRIFT_RAD:
+            self.arm.stop()
+            raise ArmError(f"the arm moved {drift:.3f} rad between planning and enabling: hold it still and run the "
+                           "command again")
+
+
+def pivot_from_record(record: HandEyeRecord, T_base_tool: np.ndarray) -> tuple[float, float, float]:
+    """The board centre in the tool frame: eye-to-hand from the stored board mount; eye-in-hand from the stored
+    board pose and the current tool pose (the point the wrist camera looks at)."""
+    centre = np.append(record.board.center_m, 1.0)
+    T_tool_board = record.T_board if record.setup == "eye-to-hand" else np.linalg.inv(T_base_tool) @ record.T_board
+    return tuple(float(v) for v in (T_tool_board @ centre)[:3])  # type: ignore[return-value]
+
+
+@contextmanager
+def open_devices(choice: DeviceChoice, setup: str = "eye-to-hand", board: BoardConfig | None = None,
+                 seed: int = 0) -> Iterator[Devices]:
+    """Connect the camera, then probe the arm (nothing enabled); on leaving, stop the arm and release both.
+    In simulation `setup` and `board` build the rig (board on the tool or on the table)."""
+    with ExitStack() as stack:
+        if choice.simulated:
+            devices = _simulated(choice, setup, board or BoardConfig(), seed, stack)
+        else:
+            devices = _hardware(choice, stack)
+        yield devices
+
+
+def _simulated(choice: DeviceChoice, setup: str, board: BoardConfig, seed: int, stack: ExitStack) -> Devices:
+    from deploy.bench.calibration import sim_rig
+    from sim_fallback.arm_factory import sim_can_arm
+
+    rig = stack.enter_context(sim_rig(setup, board, seed=seed))
+    robot = choice.robot
+    if choice.arm == "sim":
+        arm, motors, kin = rig.arm, None, rig.arm.kin
+        stack.callback(arm.disconnect)
+    else:
+        arm, motors = sim_can_arm(robot, rig.world)
+        stack.callback(arm.disconnect)
+        arm.probe()
+        kin = arm.kin
+    return Devices(choice, rig.camera, arm, kin, SIM_SERIAL, motion_limits(robot, kin), rig, motors)
+
+
+def _hardware(choice: DeviceChoice, stack: ExitStack) -> Devices:
+    from drivers.arm.factory import open_arm
+    from drivers.camera.factory import open_camera
+
+    camera = open_camera(choice.camera)
+    camera.connect()
+    stack.callback(camera.disconnect)
+    serial = getattr(camera, "serial", None) or choice.camera
+    arm = open_arm(choice.arm, choice.robot)
+    stack.callback(arm.disconnect)
+    if isinstance(arm, CanArm):
+        arm.probe()
+    return Devices(choice, camera, arm, arm.kin, serial, motion_limits(choice.robot, arm.kin))
+
+
+def motion_limits(robot: RobotConfig, kin: Kinematics, fraction: float = SPEED_FRACTION) -> MotionLimits:
+    """`fraction` of the robot's safety limits (URDF narrowed by the config), so no move trips the guard."""
+    return robot.motion_limits(kin, fraction)
+
+
+def _angle_deg(R: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0))))
