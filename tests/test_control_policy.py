@@ -87,6 +87,10 @@ def test_choose_axis_rule():
     assert choose_axis(vision, traj, JointType.REVOLUTE, 19.0, vision_only)[1] == "none"  # hinge still loose
     drawer = Axis(JointType.PRISMATIC, np.zeros(3), np.array([1.0, 0, 0]), confidence=0.5)
     assert choose_axis(drawer, NoAxis("x"), JointType.PRISMATIC, 0.01, vision_only)[1] == "vision"
+    fair_door = Axis(JointType.REVOLUTE, np.zeros(3), np.array([0, 0, 1.0]), confidence=0.25)
+    fair_drawer = Axis(JointType.PRISMATIC, np.zeros(3), np.array([1.0, 0, 0]), confidence=0.25)
+    assert choose_axis(fair_door, NoAxis("x"), JointType.REVOLUTE, 25.0, vision_only)[1] == "vision"
+    assert choose_axis(fair_drawer, NoAxis("x"), JointType.PRISMATIC, 0.1, vision_only)[1] == "none"
     weak = Axis(JointType.REVOLUTE, np.zeros(3), np.array([0, 0, 1.0]), confidence=0.01)
     result, source = choose_axis(weak, NoAxis("x"), JointType.REVOLUTE, 20.0, cfg)
     assert source == "none" and "confidence 0.01" in result.reason
