@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from deploy.axis_pipeline import AxisPipeline, frame_points, viewpoint
 from deploy.config import Config, EstimatorConfig
-from deploy.control.classify import classify_joint, front_turn_deg
+from deploy.control.classify import classify_joint, front_shift_m, front_turn_deg
 from deploy.control.grasp import (
     REGRASP_RADIUS_M,
     Handle,
@@ -265,12 +265,14 @@ class _Episode:
         frame, mask = self.last_seen
         turn = front_turn_deg(handle.normal, frame_points(frame, mask, self.pipeline.config), self.tool()[:3, 3],
                               self.pipeline.body_box, viewpoint(frame))
-        self.joint = classify_joint(turn)
+        after = frame_points(frame, mask, self.pipeline.config)
+        shift = front_shift_m(self.first_points, after, handle.center, handle.normal)
+        self.joint = classify_joint(turn, shift, self.config.probe_pull_m)
         self.pipeline.joint = self.joint
         if self.joint is JointType.REVOLUTE:  # the straight probe slips on a door's arc: count the turn seen
             self.p_grasp, self.opened_before = self.tool()[:3, 3], float(np.radians(turn))
         self.estimates.append({"step": 0, "t": self.arm.time() - self.t0, "source": "probe pull", "axis": None,
-                               "classified": self.joint.value, "front_turn_deg": turn})
+                               "classified": self.joint.value, "front_turn_deg": turn, "front_shift_m": shift})
 
     def grasp(self, handle: Handle) -> None:
         clock = time.perf_counter()
