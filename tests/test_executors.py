@@ -33,8 +33,7 @@ def closed_port() -> int:
 
 @pytest.fixture(scope="module")
 def ray_executor():
-    pytest.importorskip("ray", reason="the optional cluster extra: pip install 'axisloop[cluster]'")
-    import ray.cloudpickle
+    import ray.cloudpickle  # the cluster extra: scripts/setup.sh installs it
 
     ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])  # tests/ is not importable on Ray workers
     with RayExecutor("local", num_cpus=2) as executor:
@@ -103,7 +102,6 @@ def test_missing_ray_names_the_cluster_extra(monkeypatch):
 
 @pytest.mark.parametrize("scheme", ["ray://", ""])
 def test_unreachable_cluster_fails_fast(scheme):
-    pytest.importorskip("ray")
     address = f"{scheme}127.0.0.1:{closed_port()}"
     start = time.perf_counter()
     with pytest.raises(ConfigError, match=f"--ray {address}: Ray cluster unreachable"):

@@ -42,6 +42,12 @@ class LatestFrameReader:
                     self._latest, self._serial = frame, self._serial + 1
                     self._cond.notify_all()
 
+    @property
+    def latest(self) -> Frame | None:
+        """The newest frame received so far (whether or not `read` returned it); None before the first."""
+        with self._cond:
+            return self._latest
+
     def read(self, timeout_s: float) -> Frame | None:
         """The latest frame not yet returned, waiting up to `timeout_s`; None if none came."""
         deadline = time.monotonic() + timeout_s
