@@ -5,7 +5,8 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,9 +21,8 @@ from drivers.arm.motion import move_to_joints
 from drivers.arm.robot_config import RobotConfig, load_robot_config
 from drivers.arm.trajectory import MotionLimits, joint_trajectory
 from drivers.errors import ArmError
-from sim_fallback.arm_factory import open_arm, sim_can_arm
+from sim_fallback.arm_factory import PANDA_SIM_CONFIG, open_arm, sim_can_arm
 
-DEFAULT_ROBOT = Path(__file__).resolve().parents[1] / "configs" / "robots" / "panda_sim.toml"
 BRINGUP_SPEED = 0.2  # share of the velocity, acceleration and jerk limits used by bring-up moves
 
 
@@ -44,7 +44,7 @@ class Plan:
 
 
 def load(robot: Path | None) -> RobotConfig:
-    return load_robot_config(robot or DEFAULT_ROBOT)
+    return load_robot_config(robot or PANDA_SIM_CONFIG)
 
 
 def make_arm(kind: str, config: RobotConfig) -> Arm:
@@ -52,19 +52,27 @@ def make_arm(kind: str, config: RobotConfig) -> Arm:
     return open_arm(kind, config)
 
 
-def scan(kind: str, config: RobotConfig, ids: range) -> list[dict]:
-    """Motors that answer on the config's bus (sim-can: the simulated motors of the config)."""
+@contextmanager
+def raw_bus(config: RobotConfig, kind: str) -> Iterator[CanBus]:
+    """The config's CAN bus without an arm on top (sim-can: with its simulated motors answering); closed after."""
     if kind == "sim-can":
         arm, motors = sim_can_arm(config)
-        try:
-            return [m.to_dict() for m in scan_bus(arm.bus, ids)]
-        finally:
-            arm.bus.close()
-            motors.close()
-    if kind != "can":
-        raise ArmError(f"`deploy arm scan` needs a CAN arm (can or sim-can), not {kind!r}")
-    c = config.can
-    with CanBus(c.channel, c.interface, c.bitrate, c.fd, c.data_bitrate) as bus:
+        bus, close = arm.bus, motors.close
+    elif kind == "can":
+        bus, close = CanBus.from_config(config.can), None
+    else:
+        raise ArmError(f"this command talks to the motors directly: it needs --arm can or sim-can, not {kind!r}")
+    try:
+        yield bus
+    finally:
+        bus.close()
+        if close is not None:
+            close()
+
+
+def scan(kind: str, config: RobotConfig, ids: range) -> list[dict]:
+    """Motors that answer on the config's bus (sim-can: the simulated motors of the config)."""
+    with raw_bus(config, kind) as bus:
         return [m.to_dict() for m in scan_bus(bus, ids)]
 
 
@@ -85,19 +93,9 @@ def status(arm: Arm) -> dict:
 
 def disable_all(config: RobotConfig, kind: str) -> int:
     """Send disable to every configured motor (works without connecting); returns how many."""
-    if kind == "sim-can":
-        arm, motors = sim_can_arm(config)
-        bus, close = arm.bus, motors.close
-    else:
-        c = config.can
-        bus, close = CanBus(c.channel, c.interface, c.bitrate, c.fd, c.data_bitrate), None
-    try:
+    with raw_bus(config, kind) as bus:
         for m in config.motors:
             bus.send(m.can_id, special(Special.DISABLE))
-    finally:
-        bus.close()
-        if close is not None:
-            close()
     return len(config.motors)
 
 
@@ -106,20 +104,9 @@ def set_zero(config: RobotConfig, kind: str, joint: str) -> dict:
     motors = {getattr(m, "name", "gripper"): m for m in config.motors}
     if joint not in motors:
         raise ArmError(f"joint {joint!r} is not in robot config {config.name!r}: joints are {', '.join(motors)}")
-    if kind == "sim-can":
-        arm, sim = sim_can_arm(config)
-        bus, close = arm.bus, sim.close
-    else:
-        c = config.can
-        bus, close = CanBus(c.channel, c.interface, c.bitrate, c.fd, c.data_bitrate), None
-    try:
-        m = motors[joint]
-        bus.send(m.can_id, special(Special.DISABLE))
-        bus.send(m.can_id, special(Special.SET_ZERO))
-    finally:
-        bus.close()
-        if close is not None:
-            close()
+    with raw_bus(config, kind) as bus:
+        bus.send(motors[joint].can_id, special(Special.DISABLE))
+        bus.send(motors[joint].can_id, special(Special.SET_ZERO))
     return {"joint": joint, "can_id": motors[joint].can_id, "zeroed": True}
 
 

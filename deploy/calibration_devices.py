@@ -32,9 +32,9 @@ from drivers.arm.robot_config import RobotConfig, load_robot_config
 from drivers.arm.trajectory import MotionLimits, joint_trajectory
 from drivers.camera.base import Camera
 from drivers.errors import ArmError
+from sim_fallback.arm_factory import PANDA_SIM_CONFIG
 
 SIM_SERIAL = "sim-d415"  # the simulated camera's serial, naming its calibration files
-SIM_ROBOT = Path(__file__).resolve().parents[1] / "configs" / "robots" / "panda_sim.toml"
 SIM_ARMS, REAL_ARMS = ("sim", "sim-can"), ("can",)
 CAMERAS = ("sim", "d415", "d415:SERIAL")
 SPEED_FRACTION = 0.5  # stations are visited at this share of the velocity, acceleration and jerk limits
@@ -80,10 +80,10 @@ def choose(camera: str, arm: str | None, robot: Path | None, pivot_mm: tuple[flo
                           "is the template; docs/arm.md)")
     if arm in REAL_ARMS and pivot_mm is None and not pivot_from_record:
         raise ConfigError(NO_PIVOT)
-    config = load_robot_config(robot or SIM_ROBOT)
-    if arm in SIM_ARMS and config.joint_names != load_robot_config(SIM_ROBOT).joint_names:
+    config = load_robot_config(robot or PANDA_SIM_CONFIG)
+    if arm in SIM_ARMS and config.joint_names != load_robot_config(PANDA_SIM_CONFIG).joint_names:
         raise ConfigError(f"robot config {config.name!r} is not the simulated Panda: use --robot "
-                          f"{SIM_ROBOT.relative_to(SIM_ROBOT.parents[2])} (or none) with the simulation")
+                          f"{PANDA_SIM_CONFIG.relative_to(PANDA_SIM_CONFIG.parents[2])} (or none) with the simulation")
     return DeviceChoice(camera, arm, config, pivot_mm)
 
 

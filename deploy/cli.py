@@ -66,6 +66,16 @@ def _print_json(data: dict) -> None:
     sys.stdout.write(json.dumps(data, indent=2) + "\n")
 
 
+def print_rows(title: str, rows: dict, digits: int | None = 3) -> None:
+    """`rows` as a two-column table: floats with `digits` decimals (None: as they are), None as "-"."""
+    table = Table(title=title, show_header=False)
+    for key, value in rows.items():
+        text = "-" if value is None else f"{value:.{digits}f}" if isinstance(value, float) and digits is not None \
+            else str(value)
+        table.add_row(key, text)
+    console.print(table)
+
+
 def _fmt(value: float | None, scale: float = 1.0, digits: int = 2) -> str:
     return "-" if value is None else f"{value * scale:.{digits}f}"
 
@@ -189,13 +199,9 @@ def _print_episode(data: dict, json_out: bool) -> None:
         _print_json(data)
         return
     where = f"seed {data['seed']}" if "seed" in data else data.get("camera", "")
-    table = Table(title=f"{data['task']} episode ({where}, {data['policy']} loop)", show_header=False)
-    for key in ("success", "opened", "target", "true_opened", "steps", "stop_reason", "message", "axis_angle_error_deg",
-                "axis_position_error_m", "run_dir"):
-        if key in data:
-            value = data[key]
-            table.add_row(key, f"{value:.3f}" if isinstance(value, float) else str(value))
-    console.print(table)
+    keys = ("success", "opened", "target", "true_opened", "steps", "stop_reason", "message", "axis_angle_error_deg",
+            "axis_position_error_m", "run_dir")
+    print_rows(f"{data['task']} episode ({where}, {data['policy']} loop)", {k: data[k] for k in keys if k in data})
 
 
 def _open(request_fields: dict, json_out: bool) -> None:
@@ -417,10 +423,7 @@ def bench_open_cmd(
     if json_out:
         _print_json(data)
         return
-    table = Table(title=f"{task.value} to {target} ({split.value}, {policy.value} loop)", show_header=False)
-    for key, value in data.items():
-        table.add_row(key, f"{value:.3f}" if isinstance(value, float) else str(value))
-    console.print(table)
+    print_rows(f"{task.value} to {target} ({split.value}, {policy.value} loop)", data)
 
 
 @bench_app.command("sim")
@@ -435,10 +438,7 @@ def bench_sim_cmd(json_out: JsonOpt = False) -> None:
     if json_out:
         _print_json(data)
         return
-    table = Table(title="simulation speed", show_header=False)
-    for key, value in data.items():
-        table.add_row(key, f"{value:.2f}" if isinstance(value, float) else str(value))
-    console.print(table)
+    print_rows("simulation speed", data, digits=2)
 
 
 from deploy.commands import arm, calibrate, cameras, perception  # noqa: E402  (they add to the apps above)

@@ -9,6 +9,7 @@ the motors their own thread and the CanArm its realtime loop, exactly as on hard
 from __future__ import annotations
 
 import itertools
+from pathlib import Path
 
 from drivers.arm.base import Arm
 from drivers.arm.can_arm import CanArm
@@ -22,6 +23,7 @@ from sim_fallback.can_motors import MotorFaults, PyBulletMotors, SimMotorBus
 from sim_fallback.world import SimWorld
 
 ARMS = (*DRIVER_ARMS, "sim", "sim-can")
+PANDA_SIM_CONFIG = Path(__file__).resolve().parents[1] / "configs" / "robots" / "panda_sim.toml"  # the simulated Panda
 _channels = itertools.count()
 
 
@@ -61,9 +63,9 @@ def sim_can_arm(config: RobotConfig, world: SimWorld | None = None, faults: dict
     c = config.can
     if not lockstep:
         motors.start()
-        bus = CanBus(c.channel, c.interface, c.bitrate, c.fd, c.data_bitrate)
+        bus = CanBus.from_config(c)
         return CanArm(config, bus, on_close=motors.close), motors
-    bus = CanBus(c.channel, c.interface, c.bitrate, c.fd, c.data_bitrate, pump=motors.poll)
+    bus = CanBus.from_config(c, pump=motors.poll)
     arm = CanArm(config, bus, realtime=False, on_cycle=lambda: motors.step(config.control_period_s),
                  on_close=motors.close)
     return arm, motors

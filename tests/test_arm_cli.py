@@ -86,3 +86,9 @@ def test_bench_arm_json_keys(capsys):
     for key in ("ik_ms_median", "ik_success_rate", "ruckig_ms_median", "loop_hz", "loop_jitter_ms_p99", "motors"):
         assert key in data
     assert data["motors"] == 8 and data["ik_success_rate"] > 0.9 and data["loop_hz"] > 50
+
+
+@pytest.mark.parametrize("command", [["scan"], ["disable"], ["zero", "--joint", "panda_joint1", "--yes"]])
+def test_bus_commands_refuse_an_arm_without_motors(capsys, command):
+    code, _, err = run(capsys, "arm", *command, "--arm", "ideal")
+    assert code == 2 and "needs --arm can or sim-can, not 'ideal'" in " ".join(err.split())

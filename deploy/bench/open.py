@@ -22,13 +22,12 @@ from drivers.arm.base import Arm
 from drivers.arm.robot_config import load_robot_config
 from drivers.arm.trajectory import MotionLimits
 from sim_fallback.arm import SimArm
-from sim_fallback.arm_factory import open_arm
+from sim_fallback.arm_factory import PANDA_SIM_CONFIG, open_arm
 from sim_fallback.camera import SimCamera, d415_intrinsics
 from sim_fallback.scenario import Scenario
 from sim_fallback.world import SimWorld
 
 Hook = Callable[[SimWorld, SimArm], None]
-PANDA_SIM_CONFIG = Path(__file__).parents[2] / "configs" / "robots" / "panda_sim.toml"
 
 
 def simulate_episode(

@@ -28,19 +28,11 @@ HoldOpt = Annotated[float, typer.Option("--hold", help="Seconds to hold the goal
 
 def register(app: typer.Typer, bench_app: typer.Typer) -> None:
     """Add this area's commands to the main app and to `deploy bench`."""
-    from deploy.cli import _print_json, console, err_console
+    from deploy.cli import _print_json, console, err_console, print_rows
 
     arm_app = typer.Typer(help="Arm bring-up: scan the CAN bus, status, enable/disable/zero, home, jog, move.",
                           no_args_is_help=True)
     app.add_typer(arm_app, name="arm")
-
-    def _table(title: str, rows: dict) -> None:
-        from rich.table import Table
-
-        table = Table(title=title, show_header=False)
-        for key, value in rows.items():
-            table.add_row(key, str(value))
-        console.print(table)
 
     def _motors_table(title: str, motors: list[dict]) -> None:
         from rich.table import Table
@@ -91,7 +83,7 @@ def register(app: typer.Typer, bench_app: typer.Typer) -> None:
         if json_out:
             _print_json(data)
             return
-        _table("arm", {k: v for k, v in data.items() if k != "motors"})
+        print_rows("arm", {k: v for k, v in data.items() if k != "motors"}, digits=None)
         if "motors" in data:
             _motors_table("motors", data["motors"])
 
@@ -132,9 +124,6 @@ def register(app: typer.Typer, bench_app: typer.Typer) -> None:
         """
         from deploy.arm_bringup import disable_all, load
 
-        if arm == ArmKind.ideal:
-            console.print("the ideal arm has no motors")
-            return
         console.print(f"sent disable to {disable_all(load(robot), arm.value)} motors")
 
     @arm_app.command("zero")
@@ -151,9 +140,6 @@ def register(app: typer.Typer, bench_app: typer.Typer) -> None:
         """
         from deploy.arm_bringup import load, set_zero
 
-        if arm == ArmKind.ideal:
-            console.print("the ideal arm has no motors")
-            return
         if not yes and not typer.confirm(f"Set the zero of {joint}'s motor at its current position?"):
             raise typer.Exit(1)
         _print_json(set_zero(load(robot), arm.value, joint))
@@ -177,7 +163,7 @@ def register(app: typer.Typer, bench_app: typer.Typer) -> None:
         if json_out and dry_run:
             _print_json({"dry_run": True, **p.to_dict()})
         elif not json_out:
-            _table(f"{what} plan ({kind.value} arm{', dry run' if dry_run else ''})", p.to_dict())
+            print_rows(f"{what} plan ({kind.value} arm{', dry run' if dry_run else ''})", p.to_dict(), digits=None)
         if dry_run or (not yes and not typer.confirm("Run this motion now?")):
             a.disconnect()
             if not dry_run:
@@ -189,7 +175,7 @@ def register(app: typer.Typer, bench_app: typer.Typer) -> None:
         if json_out:
             _print_json({"dry_run": False, **p.to_dict(), **result})
         else:
-            _table(f"{what} done", result)
+            print_rows(f"{what} done", result, digits=None)
 
     @arm_app.command("home")
     def home_cmd(arm: ArmOpt = ArmKind.sim_can, robot: RobotOpt = None, dry_run: DryRunOpt = False,
@@ -252,4 +238,4 @@ def register(app: typer.Typer, bench_app: typer.Typer) -> None:
         if json_out:
             _print_json(data)
         else:
-            _table("arm benchmark", {k: f"{v:.4f}" if isinstance(v, float) else v for k, v in data.items()})
+            print_rows("arm benchmark", data, digits=4)

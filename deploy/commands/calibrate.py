@@ -62,19 +62,11 @@ def _board(squares: str, square_mm: float, marker_mm: float, dictionary: str, le
 
 def register(app: typer.Typer, bench_app: typer.Typer) -> None:
     """Add this area's commands to the main app and to `deploy bench`."""
-    from deploy.cli import _print_json, console, err_console
+    from deploy.cli import _print_json, console, err_console, print_rows
 
     calibrate_app = typer.Typer(help="Field calibration: ChArUco board, intrinsics, hand-eye, checks.",
                                 no_args_is_help=True)
     app.add_typer(calibrate_app, name="calibrate")
-
-    def _table(title: str, rows: dict) -> None:
-        from rich.table import Table
-
-        table = Table(title=title, show_header=False)
-        for key, value in rows.items():
-            table.add_row(key, f"{value:.4f}" if isinstance(value, float) else str(value))
-        console.print(table)
 
     def _progress(label: str):
         from rich.progress import Progress
@@ -162,7 +154,7 @@ def register(app: typer.Typer, bench_app: typer.Typer) -> None:
         if json_out:
             _print_json(data)
         else:
-            _table(f"intrinsics of {serial}", {k: v for k, v in data.items() if k not in ("factory",)})
+            print_rows(f"intrinsics of {serial}", {k: v for k, v in data.items() if k not in ("factory",)}, digits=4)
 
     @calibrate_app.command("hand-eye")
     def hand_eye_cmd(
@@ -219,8 +211,8 @@ def register(app: typer.Typer, bench_app: typer.Typer) -> None:
         if json_out:
             _print_json(data)
         else:
-            _table(f"hand-eye {setup.value} ({serial} on {robot_id})", {k: v for k, v in data.items()
-                                                                       if k != "methods"})
+            rows = {k: v for k, v in data.items() if k != "methods"}
+            print_rows(f"hand-eye {setup.value} ({serial} on {robot_id})", rows, digits=4)
 
     @calibrate_app.command("check")
     def check_cmd(
@@ -277,7 +269,7 @@ def register(app: typer.Typer, bench_app: typer.Typer) -> None:
         if json_out:
             _print_json(data)
         else:
-            _table(f"check of {record.setup} calibration ({record.created:%Y-%m-%d})", data)
+            print_rows(f"check of {record.setup} calibration ({record.created:%Y-%m-%d})", data, digits=4)
 
     @bench_app.command("calibration")
     def bench_calibration_cmd(seed: SeedOpt = 0, json_out: JsonOpt = False) -> None:

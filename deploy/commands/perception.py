@@ -41,7 +41,7 @@ def track(
       deploy track runs/rec --prompt cabinet --out runs/rec-masks
       deploy track runs/rec --segmenter classical --box 112 79 468 362 --out runs/rec-classical --json
     """
-    from deploy.cli import _print_json, console
+    from deploy.cli import _print_json, print_rows
     from deploy.perception import make_segmenter
     from deploy.perception.config import perception_config
     from deploy.perception.track_recording import track_recording
@@ -54,12 +54,7 @@ def track(
     if json_out:
         _print_json(data)
         return
-    from rich.table import Table
-
-    table = Table(title=f"{data['segmenter']} on {recording}", show_header=False)
-    for key, value in data.items():
-        table.add_row(key, "-" if value is None else str(value))
-    console.print(table)
+    print_rows(f"{data['segmenter']} on {recording}", data, digits=None)
 
 
 def models_check(

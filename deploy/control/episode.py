@@ -263,9 +263,8 @@ class _Episode:
         if self.last_seen is None:
             raise _Stop("tracking lost", "no frame was seen during the probe pull: check the camera")
         frame, mask = self.last_seen
-        turn = front_turn_deg(handle.normal, frame_points(frame, mask, self.pipeline.config), self.tool()[:3, 3],
-                              self.pipeline.body_box, viewpoint(frame))
         after = frame_points(frame, mask, self.pipeline.config)
+        turn = front_turn_deg(handle.normal, after, self.tool()[:3, 3], self.pipeline.body_box, viewpoint(frame))
         shift = front_shift_m(self.first_points, after, handle.center, handle.normal)
         self.joint = classify_joint(turn, shift, self.config.probe_pull_m)
         self.pipeline.joint = self.joint

@@ -38,20 +38,26 @@ class Handle:
     points: int
 
 
+def _local_plane(points: np.ndarray, near: np.ndarray, radius_m: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """The points within `radius_m` of `near` and their dominant plane (RANSAC) as (a, b, c, d) with
+    a x + b y + c z + d = 0 and a unit normal; None with fewer than MIN_FRONT_POINTS points."""
+    pts = np.asarray(points, float).reshape(-1, 3)
+    local = pts[np.linalg.norm(pts - near, axis=1) < radius_m]
+    if len(local) < MIN_FRONT_POINTS:
+        return None
+    o3d.utility.random.seed(0)
+    plane, _ = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(local)).segment_plane(PLANE_TOLERANCE_M, 3, 200)
+    return local, np.asarray(plane, float)
+
+
 def front_normal(
     object_points: np.ndarray, near: np.ndarray, body_box: Box, viewpoint: np.ndarray
 ) -> np.ndarray:
     """Unit horizontal normal of the front face around `near` (the handle), facing `viewpoint`: the
     dominant plane (RANSAC) of the object points within FRONT_RADIUS_M; the body box's front face when
     that plane is missing or not vertical."""
-    pts = np.asarray(object_points, float).reshape(-1, 3)
-    local = pts[np.linalg.norm(pts - near, axis=1) < FRONT_RADIUS_M]
-    normal = np.zeros(3)
-    if len(local) >= MIN_FRONT_POINTS:
-        o3d.utility.random.seed(0)
-        cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(local))
-        plane, _ = cloud.segment_plane(PLANE_TOLERANCE_M, 3, 200)
-        normal = np.array([plane[0], plane[1], 0.0])
+    fit = _local_plane(object_points, near, FRONT_RADIUS_M)
+    normal = np.zeros(3) if fit is None else np.array([fit[1][0], fit[1][1], 0.0])
     if np.linalg.norm(normal) < np.cos(np.radians(30)):  # missing, or a top / side face
         normal = front_direction(body_box, viewpoint)
     normal /= np.linalg.norm(normal)
@@ -88,13 +94,11 @@ def protruding_points(
 ) -> np.ndarray:
     """Object points within `radius_m` of `near` that stand 1-8 cm out of the local front plane toward the
     viewpoint: the handle of a front that has moved out of the first frame's body box (re-grasp)."""
-    pts = np.asarray(object_points, float).reshape(-1, 3)
-    local = pts[np.linalg.norm(pts - near, axis=1) < radius_m]
-    if len(local) < MIN_FRONT_POINTS:
-        return local[:0]
-    o3d.utility.random.seed(0)
-    plane, _ = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(local)).segment_plane(PLANE_TOLERANCE_M, 3, 200)
-    normal, offset = np.asarray(plane[:3]), float(plane[3])
+    fit = _local_plane(object_points, near, radius_m)
+    if fit is None:
+        return np.empty((0, 3))
+    local, plane = fit
+    normal, offset = plane[:3], float(plane[3])
     if (np.asarray(viewpoint, float) @ normal + offset) < 0:
         normal, offset = -normal, -offset
     height = local @ normal + offset

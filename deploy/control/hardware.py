@@ -63,13 +63,14 @@ def open_on_hardware(request: OpenRequest) -> dict:
     camera = open_camera(request.camera)  # checks the spec; connects below
     segmenter = make_segmenter(request.segmenter or "gdino-sam2")
     config = OpenConfig(task=request.task, policy=request.policy, **request.options())
-    viewer = RerunViewer(request.folder() / "episode.rrd") if request.view else None
+    run_dir = request.folder()
+    viewer = RerunViewer(run_dir / "episode.rrd") if request.view else None
     with camera, open_arm(request.arm, robot) as arm:
         posed = PosedCamera(camera, _camera_pose(request, camera, robot.name, kin, arm))
         if request.arm == "can" and not (request.dry_run or request.yes):
             typer.confirm(f"The arm will grasp and pull the {request.task} in view. Area clear, arm supervised?",
                           abort=True)
-        result = run_episode(posed, arm, kin, segmenter, config, request.folder(),
+        result = run_episode(posed, arm, kin, segmenter, config, run_dir,
                              robot.motion_limits(kin, JOINT_SPEED_SHARE), viewer=viewer)
     return {**result.to_dict(), "task": request.task, "camera": request.camera, "arm": request.arm,
             "policy": request.policy}

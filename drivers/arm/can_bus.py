@@ -9,10 +9,14 @@ from __future__ import annotations
 import errno
 import time
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import can
 
 from drivers.errors import CanBusError
+
+if TYPE_CHECKING:
+    from drivers.arm.robot_config import CanConfig
 
 # SocketCAN error frame classes (linux/can/error.h): bits of the error frame's id, details in data[1]
 CAN_ERR_CRTL, CAN_ERR_BUSOFF, CAN_ERR_RESTARTED = 0x004, 0x040, 0x100
@@ -54,6 +58,12 @@ class CanBus:
             ) from exc
         self._closed = False
 
+
+    @classmethod
+    def from_config(cls, can_config: CanConfig, pump: Callable[[], None] | None = None) -> CanBus:
+        """The bus a robot config's [can] section names."""
+        c = can_config
+        return cls(c.channel, c.interface, c.bitrate, c.fd, c.data_bitrate, pump=pump)
     def send(self, arbitration_id: int, data: bytes) -> None:
         """Send one standard-id frame; CanBusError naming the cause when the bus refuses it."""
         msg = can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False, is_fd=self.fd,

@@ -22,7 +22,7 @@ def open_arm(spec: str, config: RobotConfig) -> Arm:
     """An arm of kind `spec`, not yet connected: use it as a context manager (enter enables, exit stops)."""
     if spec == "can":
         c = config.can
-        return CanArm(config, CanBus(c.channel, c.interface, c.bitrate, c.fd, c.data_bitrate))
+        return CanArm(config, CanBus.from_config(c))
     if spec == "ideal":
         kin = config.kinematics()
         guard = SafetyGuard(config.safety_limits(kin), config.joint_names)
