@@ -45,6 +45,7 @@ class JointChoice(str, Enum):
 class EstimatorChoice(str, Enum):
     paper_obb = "paper-obb"
     screw = "screw"
+    screw_grip = "screw-grip"
     trajectory = "trajectory"
 
 

@@ -72,7 +72,7 @@ class GeometryConfig(_Section):
 class EstimatorConfig(_Section):
     """Which axis estimator runs, over how many frames, for which joint type."""
 
-    name: Literal["paper-obb", "screw", "trajectory"] = "screw"
+    name: Literal["paper-obb", "screw", "screw-grip", "trajectory"] = "screw"
     joint: Literal["auto", "prismatic", "revolute"] = "auto"
     window: int = Field(default=10, ge=2, le=100)
 

@@ -96,7 +96,7 @@ def test_estimate_missing_recording(capsys, tmp_path):
 def test_axis_demo_prints_every_estimator(capsys):
     code, out, _ = run(capsys, "axis", "demo", "--seed", "1")
     assert code == 0
-    for name in ("paper-obb", "screw", "trajectory"):
+    for name in ("paper-obb", "screw", "screw-grip", "trajectory"):
         assert name in out
 
 

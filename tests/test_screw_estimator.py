@@ -1,11 +1,13 @@
 """Screw estimator on synthetic moving-part clouds of drawers and doors seen by a D415-like camera."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 from deploy.geometry.estimators.base import Observation
-from deploy.geometry.estimators.screw import ScrewEstimator
+from deploy.geometry.estimators.screw import ScrewEstimator, ScrewGripEstimator, _circle_centre
 from deploy.geometry.types import Axis, Box, JointType, NoAxis
 
 # Cabinet frame: x out of the front face, z up. The body box includes the closed fronts.
@@ -290,3 +292,68 @@ def test_a_drawer_from_its_first_centimetre_is_fitted_on_the_large_parts():
     axis = estimator.estimate(window)
     assert estimator.rekey_registrations > 0
     assert axis.joint_type is JointType.PRISMATIC and angle_deg(axis.direction, direction) < 0.8
+
+
+def with_gripper(window, values, pose, slip_m=0.0):
+    """The window with the gripper holding the handle bar's centre (pose = cabinet -> base); from the
+    middle frame on, the grasp has slipped by `slip_m` along the door."""
+    rotation, translation = pose
+    grip = np.array([0.065, 0.22, 0.375])  # door_faces' handle, hinge left, in the cabinet frame
+    observations = []
+    for k, (observation, value) in enumerate(zip(window, values, strict=True)):
+        turn, hinge, _ = door_motion(value, hinge_left=True)
+        held = turn.apply(grip - hinge) + hinge + (slip_m * np.array([0, -1.0, 0]) if k >= len(values) // 2 else 0)
+        T = np.eye(4)
+        T[:3, 3] = rotation @ held + translation
+        observations.append(replace(observation, gripper_pose=T))
+    return observations
+
+
+def test_a_held_handle_pins_the_hinge_and_a_slipping_grasp_is_ignored():
+    pose = POSES["tilted"]
+    window, direction, hinge = make_window("door", DOOR_20DEG, seed=5, pose=pose, noise_m=3e-3)
+    vision = ScrewEstimator().estimate(with_gripper(window, DOOR_20DEG, pose))  # the gripper is not used
+    held = ScrewGripEstimator().estimate(with_gripper(window, DOOR_20DEG, pose))
+    slipped = ScrewGripEstimator().estimate(with_gripper(window, DOOR_20DEG, pose, slip_m=0.03))
+    assert ScrewGripEstimator().estimate(window).origin == pytest.approx(vision.origin)  # no poses: screw
+    assert all(isinstance(a, Axis) and a.joint_type is JointType.REVOLUTE for a in (vision, held, slipped))
+    assert distance_to_line(held.origin, hinge, direction) < 0.004
+    assert distance_to_line(held.origin, hinge, direction) < distance_to_line(vision.origin, hinge, direction)
+    np.testing.assert_allclose(slipped.origin, vision.origin, atol=1e-9)
+
+
+def test_circle_centre_is_exact_on_noise_free_tracks():
+    w = np.array([0.0, 0.6, 0.8])
+    a = np.array([0.3, -0.2, 0.1])
+    turns = Rotation.from_rotvec(np.outer(np.radians([4.0, 9.0, 15.0]), w)).as_matrix()
+    rotations = np.concatenate([np.eye(3)[None], turns])
+    levers = [np.array([0.2, 0.1, 0.4]), np.array([-0.1, 0.3, 0.0])]
+    tracks = [(a + rotations @ lever, sigma) for lever, sigma in zip(levers, (0.003, 0.001), strict=True)]
+    centre, misses = _circle_centre(w, turns, tracks, anchor=float(w @ a))
+    np.testing.assert_allclose(centre, a, atol=1e-9)
+    np.testing.assert_allclose(misses, 0.0, atol=1e-9)
+
+
+def test_a_held_drawer_handle_straightens_the_direction_and_a_wobbling_one_is_ignored():
+    pose = POSES["upright"]
+    rotation, translation = pose
+    window, direction, _ = make_window("drawer", DRAWER_10CM, seed=5, pose=pose, noise_m=4e-3)
+    rng = np.random.default_rng(0)
+
+    def held(wobble_m):
+        observations = []
+        for observation, value in zip(window, DRAWER_10CM, strict=True):
+            T = np.eye(4)
+            grip = np.array([0.0325 + value, 0.0, 0.4375]) + rng.normal(0, 1e-3, 3)
+            grip[1] += wobble_m * np.sin(value * 60)
+            T[:3, 3] = rotation @ grip + translation
+            observations.append(replace(observation, gripper_pose=T))
+        return observations
+
+    vision = ScrewEstimator().estimate(window)
+    fused = ScrewGripEstimator().estimate(held(0.0))
+    wobbling = ScrewGripEstimator().estimate(held(0.03))
+    assert all(a.joint_type is JointType.PRISMATIC for a in (vision, fused, wobbling))
+    assert angle_deg(vision.direction, direction) > 0.8
+    assert angle_deg(fused.direction, direction) < 0.4
+    np.testing.assert_allclose(wobbling.direction, vision.direction, atol=1e-9)

@@ -39,7 +39,7 @@ class OpenConfig(BaseModel):
     target_angle_deg: float = Field(default=45.0, gt=0, le=170)
     policy: Policy = "closed"
     dry_run: bool = Field(default=False, description="perceive and plan the grasp, command nothing")
-    estimator: Literal["screw", "paper-obb", "trajectory"] = "screw"
+    estimator: Literal["screw", "screw-grip", "paper-obb", "trajectory"] = "screw"
     fusion: Fusion = "vision"
     window: int = Field(default=10, ge=2, le=100)
     first_pull_m: float = Field(default=0.05, gt=0, le=0.15)

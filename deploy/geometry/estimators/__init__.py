@@ -4,12 +4,13 @@ from __future__ import annotations
 
 from deploy.geometry.estimators.base import AxisEstimator, Observation
 
-ESTIMATOR_NAMES = ("paper-obb", "screw", "trajectory")
+ESTIMATOR_NAMES = ("paper-obb", "screw", "screw-grip", "trajectory")
 
 
 def make_estimator(name: str) -> AxisEstimator:
     """A fresh estimator by name: "paper-obb" (the paper's rules), "screw" (registration of the moving part
-    across the window), "trajectory" (fit to the gripper's own path)."""
+    across the window), "screw-grip" (the same, with the gripper's path), "trajectory" (fit to the
+    gripper's own path)."""
     if name == "paper-obb":
         from deploy.geometry.estimators.paper_obb import PaperOBBEstimator
 
@@ -18,6 +19,10 @@ def make_estimator(name: str) -> AxisEstimator:
         from deploy.geometry.estimators.screw import ScrewEstimator
 
         return ScrewEstimator()
+    if name == "screw-grip":
+        from deploy.geometry.estimators.screw import ScrewGripEstimator
+
+        return ScrewGripEstimator()
     if name == "trajectory":
         from deploy.geometry.estimators.trajectory import TrajectoryEstimator
 

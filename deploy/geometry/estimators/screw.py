@@ -84,6 +84,10 @@ class ScrewEstimator(AxisEstimator):
         noise_floor_m: float = 0.001,
         max_radius_m: float = 3.0,
         min_share: float = 0.5,
+        use_gripper: bool = False,
+        part_noise_m: float = 0.003,
+        grip_noise_m: float = 0.001,
+        grip_gate_m: float = 0.005,
     ) -> None:
         self.voxel_m = voxel_m
         self.max_source = max_source
@@ -97,6 +101,10 @@ class ScrewEstimator(AxisEstimator):
         self.noise_floor_m = noise_floor_m
         self.max_radius_m = max_radius_m
         self.min_share = min_share
+        self.use_gripper = use_gripper
+        self.part_noise_m = part_noise_m
+        self.grip_noise_m = grip_noise_m
+        self.grip_gate_m = grip_gate_m
         self.registrations = 0
         self.rekey_registrations = 0
         self.reset()
@@ -117,15 +125,17 @@ class ScrewEstimator(AxisEstimator):
         Only frames whose part has at least min_share of the keyframe's points take part (the first
         frames of a pull hold little more than the handle, whose registration can slide). Their
         motions are taken relative to the oldest of them; the model points are the keyframe's.
-        Prismatic: direction = dominant direction of the translations (along the motion), origin =
-        centroid of the model points at the window start. Revolute: direction from least squares over
-        R_k w = w (signed so the observed motion is a positive rotation), axis point from stacking
-        (I - R_k) a = t_k. When the part is a plate (a door panel), w is projected onto its plane: a
-        hinge lies in its door's plane, and the rotation about a plate's normal is what registration
-        measures worst. Origin = the axis point nearest the latest moving-part centroid, radius_m =
-        distance from that centroid to the axis. residual_m = RMS distance between the registered and
-        the joint model's positions of the model points; confidence = fitness (1 from 90 %) x motion
-        (1 from 5 cm or 10 deg) x 1 / (1 + (residual / 2 mm)^2).
+        Prismatic: direction = principal direction of the part centroid's path (and the gripper's,
+        with use_gripper), along the motion; origin = centroid of the model points at the window
+        start. Revolute: direction from least squares over R_k w = w (signed so the observed motion
+        is a positive rotation); axis point = the centre of the circles that the part's centroid (and
+        the gripper) run through at the registered turns about w (`_revolute`). When the part is a
+        plate (a door panel), w is projected onto its plane: a hinge lies in its door's plane, and the
+        rotation about a plate's normal is what registration measures worst. Origin = the axis point
+        nearest the latest moving-part centroid, radius_m = distance from that centroid to the axis.
+        residual_m = RMS distance between the registered and the joint model's positions of the model
+        points; confidence = fitness (1 from 90 %) x motion (1 from 5 cm or 10 deg) x
+        1 / (1 + (residual / 2 mm)^2).
 
         Joint type when `joint` is None: BIC = n ln(rms^2 + sigma0^2) + k ln n with n = 6 per pose
         (what a registration measures), k = poses + 2 (prismatic) or poses + 4 (revolute); the lower
@@ -164,7 +174,9 @@ class ScrewEstimator(AxisEstimator):
         poses = np.array([self._motions[i].motion @ np.linalg.inv(start) for i in used[1:]])
         model = self._keyframe_points @ start[:3, :3].T + start[:3, 3]
         fitness = min([self._motions[i].fitness for i in used] + [0.9]) / 0.9
-        return self._fit(poses, model, clouds[usable[-1]].points, fitness, joint)
+        grips = {o.index: np.asarray(o.gripper_pose, float)[:3, 3] for o in window if o.gripper_pose is not None}
+        path = np.array([grips[i] for i in used]) if all(i in grips for i in used) else None
+        return self._fit(poses, model, clouds[usable[-1]].points, fitness, joint, path)
 
     def _cloud(self, observation: Observation) -> _Cloud:
         """The frame's cloud, cached by frame index."""
@@ -275,9 +287,10 @@ class ScrewEstimator(AxisEstimator):
 
     def _fit(
         self, poses: np.ndarray, start: np.ndarray, latest: np.ndarray, fitness: float,
-        joint: JointType | None,
+        joint: JointType | None, path: np.ndarray | None,
     ) -> AxisResult:
-        """Fit the joint to the motions `poses` (K,4,4) of the window-start points `start` (M,3)."""
+        """Fit the joint to the motions `poses` (K,4,4) of the window-start points `start` (M,3);
+        `path`: the gripper's positions at the start and after each motion, when known."""
         sample = start[np.linspace(0, len(start) - 1, min(len(start), 200)).astype(int)]
         moved = np.einsum("kij,mj->kmi", poses[:, :3, :3], sample) + poses[:, None, :3, 3]
         centroid = sample.mean(axis=0)
@@ -292,9 +305,9 @@ class ScrewEstimator(AxisEstimator):
         n = 6 * len(poses)
         fits = {}
         if joint is not JointType.REVOLUTE:
-            fits[JointType.PRISMATIC] = self._prismatic(sample, moved, n)
+            fits[JointType.PRISMATIC] = self._prismatic(sample, moved, n, path)
         if joint is not JointType.PRISMATIC:
-            fits[JointType.REVOLUTE] = self._revolute(poses, sample, moved, n)
+            fits[JointType.REVOLUTE] = self._revolute(poses, sample, moved, n, path)
         handle = latest.mean(axis=0)
         radius_m = _distance_to_line(handle, fits[JointType.REVOLUTE]) if JointType.REVOLUTE in fits else 0.0
         far = radius_m > self.max_radius_m
@@ -319,10 +332,21 @@ class ScrewEstimator(AxisEstimator):
     def _bic(self, rms_m: float, n: int, k: int) -> float:
         return float(n * np.log(rms_m**2 + self.noise_floor_m**2) + k * np.log(n))
 
-    def _prismatic(self, sample: np.ndarray, moved: np.ndarray, n: int) -> _JointFit:
-        """Points move by s_k d: d = principal direction of the mean displacements, along the motion."""
+    def _tracks(self, sample: np.ndarray, moved: np.ndarray, path: np.ndarray | None) -> list[tuple[np.ndarray, float]]:
+        """Positions to fit a joint to, each with its noise: the part's centroid at the start and after
+        each motion, and the gripper's when it is used."""
+        tracks = [(np.vstack([sample.mean(axis=0), moved.mean(axis=1)]), self.part_noise_m)]
+        return tracks + [(path, self.grip_noise_m)] if path is not None and self.use_gripper else tracks
+
+    def _prismatic(self, sample: np.ndarray, moved: np.ndarray, n: int, path: np.ndarray | None) -> _JointFit:
+        """Points move by s_k d: d = principal direction of the tracks' positions (each about its mean,
+        weighted by 1 / its noise), along the motion; a gripper path farther than grip_gate_m RMS from
+        its line is left out."""
+        tracks = self._tracks(sample, moved, path)
+        d = _principal_direction(tracks)
+        if len(tracks) > 1 and _line_miss(tracks[1][0], d) > self.grip_gate_m:
+            d = _principal_direction(tracks[:1])
         shifts = moved.mean(axis=1) - sample.mean(axis=0)
-        d = np.linalg.svd(shifts)[2][0]
         travel = shifts @ d
         if travel[np.argmax(np.abs(travel))] < 0:
             d, travel = -d, -travel
@@ -330,39 +354,86 @@ class ScrewEstimator(AxisEstimator):
         rms = float(np.sqrt(np.mean(np.sum((moved - predicted) ** 2, axis=2))))
         return _JointFit(d, sample.mean(axis=0), rms, self._bic(rms, n, len(moved) + 2))
 
-    def _revolute(self, poses: np.ndarray, sample: np.ndarray, moved: np.ndarray, n: int) -> _JointFit:
-        """Rotation about the line (w, a): R_k w = w and (I - R_k) a = t_k in least squares."""
-        rotations, translations = poses[:, :3, :3], poses[:, :3, 3]
+    def _revolute(
+        self, poses: np.ndarray, sample: np.ndarray, moved: np.ndarray, n: int, path: np.ndarray | None
+    ) -> _JointFit:
+        """Rotation about the line (w, a).
+
+        w: least squares over R_k w = w, projected into a plate's plane, signed so the motion turns
+        positively. The turns are the registered rotations' angles about w (what registration
+        measures best). a: the centre of the circles the part's centroid and, when given, the
+        gripper `path` run through at those turns (`_circle_centre`); a path that misses its circle
+        by more than grip_gate_m RMS (the grasp slipped) is left out.
+        """
+        rotations = poses[:, :3, :3]
         m = rotations - np.eye(3)
         w = np.linalg.eigh(np.einsum("kji,kjl->il", m, m))[1][:, 0]
         plate = _plate_normal(sample)
         if plate is not None and abs(w @ plate) < np.sin(np.radians(30)):
             w = w - (w @ plate) * plate
             w = w / np.linalg.norm(w)
-        if Rotation.from_matrix(rotations).as_rotvec().sum(axis=0) @ w < 0:
+        rotvecs = Rotation.from_matrix(rotations).as_rotvec()
+        if rotvecs.sum(axis=0) @ w < 0:
             w = -w
+        turns = Rotation.from_rotvec(np.outer(rotvecs @ w, w)).as_matrix()
         anchor = w @ sample.mean(axis=0)
-        a = np.linalg.lstsq(np.vstack([-m.reshape(-1, 3), w]), np.append(translations, anchor), rcond=None)[0]
-        centre, shifted = sample.mean(axis=0), moved.mean(axis=1)
-        for _ in range(3):
-            # (I - R_k) a = c_k - R_k c with R_k the pure turn about w: the centroids' motion, which
-            # registration measures well, instead of t_k, which also carries the rotation errors
-            # about the other axes times the lever arm.
-            turns = self._turns(w, a, sample, moved)
-            lhs = np.vstack([(np.eye(3) - turns).reshape(-1, 3), w])
-            a = np.linalg.lstsq(lhs, np.append(shifted - turns @ centre, anchor), rcond=None)[0]
-        turns = self._turns(w, a, sample, moved)
+        tracks = self._tracks(sample, moved, path)
+        a, misses = _circle_centre(w, turns, tracks, anchor)
+        if len(tracks) > 1 and misses[1] > self.grip_gate_m:
+            a, _ = _circle_centre(w, turns, tracks[:1], anchor)
         predicted = np.einsum("kij,mj->kmi", turns, sample - a) + a
         rms = float(np.sqrt(np.mean(np.sum((moved - predicted) ** 2, axis=2))))
         return _JointFit(w, a, rms, self._bic(rms, n, len(moved) + 4))
 
-    @staticmethod
-    def _turns(w: np.ndarray, a: np.ndarray, sample: np.ndarray, moved: np.ndarray) -> np.ndarray:
-        """Each pose's best rotation about the line (w, a) (2D Procrustes in the plane normal to w)."""
-        x = (sample - a) - np.outer((sample - a) @ w, w)
-        y = moved - a
-        angles = np.arctan2(np.einsum("mi,kmi->k", np.cross(w, x), y), np.einsum("mi,kmi->k", x, y))
-        return Rotation.from_rotvec(np.outer(angles, w)).as_matrix()
+
+class ScrewGripEstimator(ScrewEstimator):
+    """The screw estimator that also fits the held handle's path (the gripper poses from forward
+    kinematics): the part's registered turns with the gripper's positions, which locate a hinge and a
+    drawer's direction better than the part's sliding centroid. Without gripper poses it is `screw`."""
+
+    name = "screw-grip"
+
+    def __init__(self, **options) -> None:
+        super().__init__(**{"use_gripper": True, **options})
+
+
+def _circle_centre(
+    w: np.ndarray, turns: np.ndarray, tracks: list[tuple[np.ndarray, float]], anchor: float
+) -> tuple[np.ndarray, list[float]]:
+    """The point a of the axis (direction w, a @ w = anchor) about which each track of positions
+    p_0..p_K (start, then after each turn) moves: p_k = a + R_k v, one lever v per track, every
+    track weighted by 1 / its noise (m). Returns a and each track's RMS residual (m)."""
+    rotations = np.concatenate([np.eye(3)[None], turns])
+    cols = 3 + 3 * len(tracks)
+    rows, rhs = [], []
+    for j, (positions, sigma) in enumerate(tracks):
+        block = np.zeros((len(rotations), 3, cols))
+        block[:, :, :3] = np.eye(3)
+        block[:, :, 3 + 3 * j: 6 + 3 * j] = rotations
+        rows.append(block.reshape(-1, cols) / sigma)
+        rhs.append(np.asarray(positions).ravel() / sigma)
+    rows.append(np.append(w, np.zeros(cols - 3))[None] * 1e3)
+    rhs.append([anchor * 1e3])
+    x = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
+    a = x[:3]
+    rms = [
+        float(np.sqrt(np.mean(np.sum((positions - a - rotations @ x[3 + 3 * j: 6 + 3 * j]) ** 2, axis=1))))
+        for j, (positions, _) in enumerate(tracks)
+    ]
+    return a, rms
+
+
+def _principal_direction(tracks: list[tuple[np.ndarray, float]]) -> np.ndarray:
+    """The unit direction along which the tracks' positions spread most (each about its own mean,
+    weighted by 1 / its noise)."""
+    centred = np.vstack([(positions - positions.mean(axis=0)) / sigma for positions, sigma in tracks])
+    return np.linalg.svd(centred, full_matrices=False)[2][0]
+
+
+def _line_miss(positions: np.ndarray, direction: np.ndarray) -> float:
+    """RMS distance (m) of positions from the line through their mean along `direction`."""
+    offsets = positions - positions.mean(axis=0)
+    return float(np.sqrt(np.mean(np.sum((offsets - np.outer(offsets @ direction, direction)) ** 2, axis=1))))
 
 
 def _fingerprint(observation: Observation) -> tuple[int, bytes]:
