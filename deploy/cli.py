@@ -136,7 +136,8 @@ def axis_fit_trajectory(
 def axis_estimate(
     recording: Annotated[Path, typer.Argument(help="Frames directory with masks (docs/recording-format.md).")],
     joint: Annotated[JointChoice, typer.Option(help="Joint type, or auto to classify.")] = JointChoice.auto,
-    estimator: Annotated[EstimatorChoice | None, typer.Option(help="Axis estimator [default: screw].")] = None,
+    estimator: Annotated[EstimatorChoice | None, typer.Option(
+        help="Axis estimator \\[default: screw-grip; without gripper poses in the recording it is screw].")] = None,
     filter_profile: Annotated[str | None, typer.Option("--filter", help="Filter profile: sim or sparse.")] = None,
     filter_radius: Annotated[float | None, typer.Option(help="Filter radius, in --filter-unit.")] = None,
     filter_eps: Annotated[int | None, typer.Option(help="Minimum number of other points within the radius.")] = None,
@@ -219,11 +220,11 @@ CameraOpt = Annotated[str, typer.Option(help="sim | d415 | d415:SERIAL | replay:
 ArmOpt = Annotated[str, typer.Option(help="sim | sim-can (simulated motors over a virtual CAN bus) | can.")]
 RobotOpt = Annotated[Path | None, typer.Option(help="Robot config TOML for --arm can (see docs/arm.md).")]
 CalibrationOpt = Annotated[Path | None, typer.Option(
-    help="Hand-eye calibration file [default: the one saved for this camera and robot].")]
+    help="Hand-eye calibration file \\[default: the one saved for this camera and robot].")]
 SegmenterOpt = Annotated[str | None, typer.Option(
-    help="oracle | gdino-sam2 | classical [default: oracle in simulation, gdino-sam2 otherwise].")]
+    help="oracle | gdino-sam2 | classical \\[default: oracle in simulation, gdino-sam2 otherwise].")]
 PolicyOpt = Annotated[PolicyChoice, typer.Option(help="closed (re-estimate every step), open or paper.")]
-RunDirOpt = Annotated[Path | None, typer.Option(help="Run folder [default: runs/TASK-TIME].")]
+RunDirOpt = Annotated[Path | None, typer.Option(help="Run folder \\[default: runs/TASK-TIME].")]
 SplitOpt = Annotated[Split, typer.Option(help="Object family (--camera sim).")]
 DryRunOpt = Annotated[bool, typer.Option("--dry-run", help="Perceive and plan the grasp; move nothing.")]
 YesOpt = Annotated[bool, typer.Option("--yes", help="Skip the confirmation before a real arm's first motion.")]

@@ -7,7 +7,7 @@ A file holds any subset of the sections below; everything has a default, so no f
     [geometry]
     box = "yaw"         # body box: "yaw" (paper) or "oriented" (full 3D)
     [estimator]
-    name = "screw"
+    name = "screw-grip"
     joint = "auto"
 """
 
@@ -72,7 +72,7 @@ class GeometryConfig(_Section):
 class EstimatorConfig(_Section):
     """Which axis estimator runs, over how many frames, for which joint type."""
 
-    name: Literal["paper-obb", "screw", "screw-grip", "trajectory"] = "screw"
+    name: Literal["paper-obb", "screw", "screw-grip", "trajectory"] = "screw-grip"
     joint: Literal["auto", "prismatic", "revolute"] = "auto"
     window: int = Field(default=10, ge=2, le=100)
 

@@ -73,7 +73,7 @@ def grasp_pose(
 
 def opening_path(T_start: np.ndarray, truth: JointTruth) -> PathFn:
     """Tool poses opening the joint by s (m or rad) from `T_start` along the TRUE axis."""
-    if truth.joint_type.value == "prismatic":
+    if truth.joint_type == "prismatic":
         return line_path(T_start, truth.direction)
     return arc_path(T_start, truth.origin, truth.direction)
 
@@ -197,7 +197,7 @@ def record_scripted(
         (out / "truth.json").write_text(json.dumps({
             "source": "simulator ground truth (scripted data generator)",
             "task": task, "seed": seed, "split": split, "target": target,
-            "joint_type": truth.joint_type.value,
+            "joint_type": truth.joint_type,
             "origin": truth.origin.tolist(), "direction": truth.direction.tolist(),
             "joint_upper": truth.upper, "joint_values": joint_values,
         }, indent=2) + "\n")

@@ -7,18 +7,20 @@ ground truth (`SimWorld.truth()`) is for evaluation code and scripted data gener
 
 from __future__ import annotations
 
+import hashlib
+import os
 import re
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import open3d as o3d
 import pybullet as pb
 
-from deploy.geometry.types import Axis, JointType
 from drivers.arm.robots import panda
 from sim_fallback.cabinet_urdf import write_cabinet_urdf
 from sim_fallback.scenario import Scenario
@@ -61,15 +63,11 @@ class JointTruth:
     height. direction: unit; positive joint motion opens. value: m or rad, 0 closed.
     """
 
-    joint_type: JointType
+    joint_type: Literal["prismatic", "revolute"]
     origin: np.ndarray
     direction: np.ndarray
     value: float
     upper: float
-
-    @property
-    def axis(self) -> Axis:
-        return Axis(self.joint_type, self.origin.copy(), self.direction.copy())
 
 
 class SimWorld:
@@ -146,11 +144,11 @@ class SimWorld:
         value = self.joint_value()
         if spec.kind == "drawer":
             origin = T[:3, :3] @ spec.handle_cabinet + T[:3, 3]
-            joint_type = JointType.PRISMATIC
+            joint_type = "prismatic"
         else:
             hinge = T[:3, :3] @ spec.joint_origin_cabinet + T[:3, 3]
             origin = hinge + direction * float(direction @ (self.handle_pose()[:3, 3] - hinge))
-            joint_type = JointType.REVOLUTE
+            joint_type = "revolute"
         return JointTruth(joint_type, origin, direction, value, spec.joint_upper)
 
     def close(self) -> None:
@@ -188,21 +186,30 @@ def _low_poly_copy(urdf: Path, directory: Path) -> Path:
 @cache
 def _decimated(mesh_path: Path) -> Path:
     """`mesh_path` simplified (quadric error) to VISUAL_TRIANGLE_FRACTION of its triangles (kept whole
-    under 100, like the fingers), written once per process into a temporary directory removed at exit."""
+    under 100, like the fingers), made once per machine: kept in the user's cache directory, named by
+    the source file, its size and time, the fraction and the Open3D version."""
+    stat = mesh_path.stat()
+    key = f"{mesh_path.resolve()}:{stat.st_size}:{stat.st_mtime_ns}:{VISUAL_TRIANGLE_FRACTION}:{o3d.__version__}"
+    out = _cache_directory() / f"{mesh_path.stem}_{hashlib.sha1(key.encode()).hexdigest()[:12]}.obj"
+    if out.exists():
+        return out
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
         mesh = o3d.io.read_triangle_mesh(str(mesh_path))
         mesh.remove_duplicated_vertices()
         n = len(mesh.triangles)
         low = mesh if n < 100 else mesh.simplify_quadric_decimation(round(n * VISUAL_TRIANGLE_FRACTION))
         low.compute_vertex_normals()
-        out = Path(_mesh_directory().name) / f"{mesh_path.stem}_low.obj"
-        o3d.io.write_triangle_mesh(str(out), low, write_triangle_uvs=False)
+        partial = out.with_name(f"{out.stem}.{os.getpid()}.obj")  # then renamed: parallel workers never see half a file
+        o3d.io.write_triangle_mesh(str(partial), low, write_triangle_uvs=False)
+    os.replace(partial, out)
     return out
 
 
-@cache
-def _mesh_directory() -> tempfile.TemporaryDirectory:
-    return tempfile.TemporaryDirectory(prefix="axisloop_meshes_")
+def _cache_directory() -> Path:
+    """$XDG_CACHE_HOME/axisloop/meshes (default ~/.cache/axisloop/meshes), created when missing."""
+    directory = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "axisloop" / "meshes"
+    directory.mkdir(parents=True, exist_ok=True)
+    return directory
 
 
 def _static_box(client: int, half: list[float], pos: list[float], quat, rgba: tuple) -> int:

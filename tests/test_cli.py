@@ -36,6 +36,13 @@ def test_every_command_has_help_with_an_example(capsys, command):
     assert "Example" in out
 
 
+def test_defaults_written_in_the_help_text_are_shown(capsys):
+    """Square brackets are Rich markup: an unescaped "[default: ...]" would vanish from the help."""
+    code, out, _ = run(capsys, "open-drawer", "--help")
+    assert code == 0
+    assert "[default:" in out and "runs/TASK-TIME]" in out
+
+
 def test_fit_trajectory_json_on_an_arc(capsys, tmp_path):
     angles = np.radians(np.linspace(0, 40, 25))
     pts = np.c_[0.5 + 0.4 * np.cos(angles), 0.1 + 0.4 * np.sin(angles), np.full_like(angles, 0.7)]
@@ -73,7 +80,7 @@ def test_estimate_recording_json(capsys, drawer_recording):
     assert code == 0
     data = json.loads(out)
     assert data["joint_type"] == "prismatic"
-    assert data["estimator"] == "screw"
+    assert data["estimator"] == "screw-grip"  # the default: the most accurate
     assert len(data["steps"]) == len(seq.frames)
     assert {"frame", "joint_type", "origin", "direction"} <= set(data["steps"][-1])
     assert axis_angle_error_deg(seq.true_axis.direction, data["direction"]) < 3.0

@@ -16,7 +16,7 @@ from deploy.control.episode import run_episode
 from deploy.control.policy import OpenConfig, Policy
 from deploy.control.viewer import RerunViewer
 from deploy.geometry.metrics import axis_angle_error_deg, axis_position_error_m
-from deploy.geometry.types import Axis
+from deploy.geometry.types import Axis, JointType
 from deploy.perception.oracle import OracleSegmenter
 from drivers.arm.base import Arm
 from drivers.arm.robot_config import load_robot_config
@@ -77,7 +77,8 @@ def simulate_episode(
     angle_err, position_err = axis_error(result.axis) if result.axis is not None else (None, None)
     out.update({
         "task": task, "seed": seed, "split": split, "policy": policy,
-        "true_opened": true_value * scale, "success": bool(true_value >= config.target_for(truth0.joint_type)),
+        "true_opened": true_value * scale,
+        "success": bool(true_value >= config.target_for(JointType(truth0.joint_type))),
         "estimated_success": result.success, "axis_angle_error_deg": angle_err,
         "axis_position_error_m": position_err if task == "door" else None,
         "seconds": time.perf_counter() - wall,

@@ -19,7 +19,7 @@ class ArmKind(str, Enum):
 
 ArmOpt = Annotated[ArmKind, typer.Option("--arm", help="can (hardware), sim-can (simulated Damiao motors on a "
                                          "virtual CAN bus) or ideal (kinematic, no bus).")]
-RobotOpt = Annotated[Path | None, typer.Option("--robot", help="Robot config TOML [default: "
+RobotOpt = Annotated[Path | None, typer.Option("--robot", help="Robot config TOML \\[default: "
                                                "configs/robots/panda_sim.toml].")]
 YesOpt = Annotated[bool, typer.Option("--yes", "-y", help="Do not ask before moving.")]
 DryRunOpt = Annotated[bool, typer.Option("--dry-run", help="Plan and print the move; enable nothing.")]

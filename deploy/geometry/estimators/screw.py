@@ -175,8 +175,9 @@ class ScrewEstimator(AxisEstimator):
         model = self._keyframe_points @ start[:3, :3].T + start[:3, 3]
         fitness = min([self._motions[i].fitness for i in used] + [0.9]) / 0.9
         grips = {o.index: np.asarray(o.gripper_pose, float)[:3, 3] for o in window if o.gripper_pose is not None}
-        path = np.array([grips[i] for i in used]) if all(i in grips for i in used) else None
-        return self._fit(poses, model, clouds[usable[-1]].points, fitness, joint, path)
+        at_used = np.array([grips[i] for i in used]) if all(i in grips for i in used) else None
+        everywhere = np.array(list(grips.values())) if len(grips) >= 2 else None
+        return self._fit(poses, model, clouds[usable[-1]].points, fitness, joint, at_used, everywhere)
 
     def _cloud(self, observation: Observation) -> _Cloud:
         """The frame's cloud, cached by frame index."""
@@ -287,10 +288,12 @@ class ScrewEstimator(AxisEstimator):
 
     def _fit(
         self, poses: np.ndarray, start: np.ndarray, latest: np.ndarray, fitness: float,
-        joint: JointType | None, path: np.ndarray | None,
+        joint: JointType | None, path_used: np.ndarray | None, path_all: np.ndarray | None,
     ) -> AxisResult:
-        """Fit the joint to the motions `poses` (K,4,4) of the window-start points `start` (M,3);
-        `path`: the gripper's positions at the start and after each motion, when known."""
+        """Fit the joint to the motions `poses` (K,4,4) of the window-start points `start` (M,3).
+
+        The gripper's positions, when known: `path_used` at the start and after each motion (for a
+        hinge, which needs the turns), `path_all` in every frame of the window (for a line)."""
         sample = start[np.linspace(0, len(start) - 1, min(len(start), 200)).astype(int)]
         moved = np.einsum("kij,mj->kmi", poses[:, :3, :3], sample) + poses[:, None, :3, 3]
         centroid = sample.mean(axis=0)
@@ -305,9 +308,9 @@ class ScrewEstimator(AxisEstimator):
         n = 6 * len(poses)
         fits = {}
         if joint is not JointType.REVOLUTE:
-            fits[JointType.PRISMATIC] = self._prismatic(sample, moved, n, path)
+            fits[JointType.PRISMATIC] = self._prismatic(sample, moved, n, path_all)
         if joint is not JointType.PRISMATIC:
-            fits[JointType.REVOLUTE] = self._revolute(poses, sample, moved, n, path)
+            fits[JointType.REVOLUTE] = self._revolute(poses, sample, moved, n, path_used)
         handle = latest.mean(axis=0)
         radius_m = _distance_to_line(handle, fits[JointType.REVOLUTE]) if JointType.REVOLUTE in fits else 0.0
         far = radius_m > self.max_radius_m
