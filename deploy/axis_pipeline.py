@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from deploy.config import Config
-from deploy.geometry.boxes import oriented_box, remove_handle, yaw_box
+from deploy.geometry.boxes import extend_behind, front_direction, oriented_box, remove_handle, yaw_box
 from deploy.geometry.cloud import depth_to_points
 from deploy.geometry.estimators import make_estimator
 from deploy.geometry.estimators.base import AxisEstimator, Observation
@@ -66,6 +66,7 @@ class AxisPipeline:
         self.joint = None if joint == "auto" else JointType(joint)
         self.window: deque[Observation] = deque(maxlen=config.estimator.window)
         self.body_box: Box | None = None
+        self.cut_box: Box | None = None  # a door's body box reaches behind the front (geometry.inside_depth_m)
         self.handle_points = np.empty((0, 3))
 
     def _box(self, points: np.ndarray) -> Box:
@@ -89,7 +90,7 @@ class AxisPipeline:
             return self._first(kept, index, t, view, timings)
         clock = time.perf_counter()
         moving = moving_part(
-            points, self.body_box, margin_m=self.config.geometry.body_margin_m,
+            points, self.cut_box, margin_m=self.config.geometry.body_margin_m,
             radius_m=self.filter.radius_m, eps=self.filter.eps,
         )
         timings["moving_part"] = (time.perf_counter() - clock) * 1e3
@@ -108,6 +109,8 @@ class AxisPipeline:
             self.body_box, _, self.handle_points = remove_handle(kept, view, box_fn=self._box)
         else:
             self.body_box = self._box(kept)
+        inside = self.config.geometry.inside_depth_m if self.joint is JointType.REVOLUTE else 0.0
+        self.cut_box = extend_behind(self.body_box, front_direction(self.body_box, view), inside)
         timings["body_box"] = (time.perf_counter() - clock) * 1e3
         return StepResult(index, t, NoAxis("first frame: body box fixed, waiting for motion"), len(kept), 0,
                           timings)

@@ -58,6 +58,10 @@ class GeometryConfig(_Section):
     box: Literal["yaw", "oriented"] = "yaw"
     remove_handle: bool = True
     body_margin_m: float = Field(default=0.01, ge=0, le=0.1)
+    inside_depth_m: float = Field(
+        default=1.0, ge=0, le=5, description="doors (estimator.joint revolute): the moving part is cut out "
+        "by the body box reaching this far behind the front, because the cabinet's inside that an opening "
+        "door reveals does not move (a drawer's revealed inside is the drawer)")
     min_depth_m: float = Field(default=0.1, ge=0)
     max_depth_m: float = Field(default=3.0, gt=0)
     decimation: int = Field(default=2, ge=1, le=8, description="use every n-th pixel in each direction")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from deploy.geometry.boxes import front_direction, oriented_box, remove_handle, yaw_box
+from deploy.geometry.boxes import extend_behind, front_direction, oriented_box, remove_handle, yaw_box
 from deploy.geometry.types import Box
 
 
@@ -219,3 +219,16 @@ def test_remove_handle_with_depth_noise():
     assert all(tuple(p) in found for p in handle[ahead > 0.02])
     assert not any(tuple(p) in found for p in body)
     assert abs(body_box.extent @ np.abs(body_box.rotation.T @ normal) - 0.4) <= 0.015
+
+
+def test_extend_behind_keeps_the_front_and_the_sides_and_reaches_back():
+    rotation = Rotation.from_euler("z", 30, degrees=True).as_matrix()
+    box = Box(np.array([1.0, 0.5, 0.4]), rotation, np.array([0.4, 0.6, 0.8]))
+    front, side, up = rotation.T  # the +x face looks at the camera
+    deep = extend_behind(box, front + 0.2 * side, 1.0)  # a rough front normal picks the nearest face
+    np.testing.assert_allclose((deep.corners() @ front).max(), (box.corners() @ front).max())
+    np.testing.assert_allclose((deep.corners() @ front).min(), (box.corners() @ front).min() - 1.0)
+    np.testing.assert_allclose(deep.extent[1:], box.extent[1:])
+    behind, in_front = box.center - 1.1 * front, box.center + 0.25 * front
+    assert deep.contains(behind[None])[0] and not box.contains(behind[None])[0]
+    assert not deep.contains(np.array([in_front, box.center + 0.35 * side, box.center + 0.45 * up])).any()

@@ -58,3 +58,24 @@ def test_body_box_rotation_is_used():
     outside_rotated = grid(np.arange(0.2, 0.4, 0.01), [0.0], [0.0])  # along world x, beyond 0.1 + margin
     moving = moving_part(np.concatenate([inside_rotated, outside_rotated]), box, radius_m=0.02, eps=1)
     assert {tuple(p) for p in moving} == {tuple(p) for p in outside_rotated}
+
+
+@pytest.mark.parametrize("joint, inside_depth_m, interior_counts",
+                         [("revolute", 1.0, False), ("revolute", 0.0, True), ("prismatic", 1.0, True)])
+def test_the_cabinets_inside_revealed_by_a_door_is_not_the_moving_part(joint, inside_depth_m, interior_counts):
+    """The first frame sees only the front (a thin body box); opening reveals the inside 30 cm behind it:
+    static behind a door, the drawer itself behind a drawer's front."""
+    from deploy.axis_pipeline import AxisPipeline
+    from deploy.config import Config
+
+    rng = np.random.default_rng(0)
+    front = np.c_[np.zeros(4000), rng.uniform(-0.3, 0.3, 4000), rng.uniform(0.0, 0.6, 4000)]
+    inside = np.c_[np.full(6000, -0.3), rng.uniform(-0.25, 0.25, 6000), rng.uniform(0.05, 0.55, 6000)]
+    config = Config().model_copy(update={
+        "geometry": Config().geometry.model_copy(update={"inside_depth_m": inside_depth_m}),
+        "estimator": Config().estimator.model_copy(update={"joint": joint})})
+    pipe = AxisPipeline(config)
+    camera = np.array([1.5, 0.2, 0.8])
+    pipe.update(front, 0, 0.0, camera)
+    step = pipe.update(np.vstack([front, inside]), 1, 0.1, camera)
+    assert (step.moving_points > 5000 if interior_counts else step.moving_points == 0)

@@ -105,8 +105,9 @@ def bench_open(
     **options: Any,
 ) -> dict:
     """`episodes` consecutive scenario seeds from `seed`; success rate (truth), mean true opening,
-    median axis angle error, seconds per episode and failure causes {stop_reason: count}. Episodes run in
-    `workers` local processes, or on a Ray cluster at `ray_address` (see deploy/bench/executors.py)."""
+    median axis angle error (and, for doors, position error), seconds per episode and failure causes
+    {stop_reason: count}. Episodes run in `workers` local processes, or on a Ray cluster at
+    `ray_address` (see deploy/bench/executors.py)."""
     jobs = [dict(task=task, seed=s, split=split, target=target, policy=policy, **options)
             for s in range(seed, seed + episodes)]
     results = []
@@ -116,6 +117,7 @@ def bench_open(
             if progress is not None:
                 progress(result)
     angles = [r["axis_angle_error_deg"] for r in results if r["axis_angle_error_deg"] is not None]
+    positions = [r["axis_position_error_m"] for r in results if r["axis_position_error_m"] is not None]
     failures = Counter(r["stop_reason"] if r["stop_reason"] != "target reached" else "short of target (truth)"
                        for r in results if not r["success"])
     return {
@@ -123,6 +125,7 @@ def bench_open(
         "success_rate": float(np.mean([r["success"] for r in results])) if results else 0.0,
         "mean_opened": float(np.mean([r["true_opened"] for r in results])) if results else 0.0,
         "axis_angle_error_deg_median": float(np.median(angles)) if angles else None,
+        "axis_position_error_m_median": float(np.median(positions)) if positions else None,
         "seconds_per_episode": float(np.mean([r["seconds"] for r in results])) if results else 0.0,
         "failures": dict(failures),
     }

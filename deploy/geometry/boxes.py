@@ -84,6 +84,16 @@ def front_direction(box: Box, viewpoint: np.ndarray) -> np.ndarray:
     return box.rotation[:, axes[k]] * (1.0 if local[k] >= 0 else -1.0)
 
 
+def extend_behind(box: Box, front: np.ndarray, depth_m: float) -> Box:
+    """`box` reaching `depth_m` further behind its face whose outward normal is nearest `front`: the
+    cabinet's inside, which an opening door or drawer reveals and which does not move."""
+    k = int(np.argmax(np.abs(box.rotation.T @ np.asarray(front, dtype=np.float64))))
+    axis = box.rotation[:, k] * np.sign(box.rotation[:, k] @ front)
+    extent = box.extent.copy()
+    extent[k] += depth_m
+    return Box(box.center - axis * depth_m / 2, box.rotation, extent)
+
+
 def remove_handle(
     points: np.ndarray,
     viewpoint: np.ndarray,
