@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from deploy.control.grasp import Handle, find_handle, grasp_pose, hinge_prior
-from deploy.control.policy import OpenConfig, choose_axis, opening, orient_axis
+from deploy.control.policy import OpenConfig, choose_axis, opening, orient_axis, seen_opening
 from deploy.geometry.types import Axis, Box, JointType, NoAxis
 
 # a cabinet whose front faces -x (toward a robot at the origin), front face at x = 0.5
@@ -105,3 +105,19 @@ def test_config_targets_and_paper_schedule():
     assert cfg.step_for(JointType.REVOLUTE, 10) == pytest.approx(0.15)
     with pytest.raises(ValueError):
         OpenConfig(policy="sometimes")
+
+
+def test_seen_opening_is_the_drawer_fronts_distance_out_of_the_cabinet_front():
+    """The front faces (the densest outermost layers) are compared, not the handle standing 4 cm out."""
+    rng = np.random.default_rng(0)
+    direction = np.array([-0.8, 0.6, 0.0])  # the drawer opens toward the robot
+    lateral = np.cross([0, 0, 1.0], direction)
+
+    def plate(offset_m, n, half_width=0.2):
+        return (offset_m * direction + np.outer(rng.uniform(-half_width, half_width, n), lateral)
+                + np.outer(rng.uniform(0.3, 0.5, n), [0, 0, 1.0]) + rng.normal(0, 0.001, (n, 3)))
+
+    first = np.vstack([plate(0.0, 5000), plate(0.04, 300, 0.05)])  # cabinet front + handle
+    moving = np.vstack([plate(0.123, 3000), plate(0.163, 200, 0.05), plate(0.05, 1000)])  # front, handle, a side
+    assert seen_opening(moving, first, 3.0 * direction) == pytest.approx(0.123, abs=0.003)  # any length
+    assert seen_opening(moving[:150], first, direction) is None

@@ -28,7 +28,7 @@ from deploy.control.grasp import (
     pregrasp_pose,
     protruding_points,
 )
-from deploy.control.policy import OpenConfig, choose_axis, opening, orient_axis
+from deploy.control.policy import OpenConfig, choose_axis, opening, orient_axis, seen_opening
 from deploy.control.run_folder import RunFolder
 from deploy.control.viewer import RerunViewer
 from deploy.errors import PerceptionError
@@ -55,6 +55,7 @@ GRIPPER_FORCE_N = 40.0
 CLOSE_TIME_S = 0.5
 MIN_GRASP_WIDTH_M = 0.003  # a closed gripper narrower than this holds nothing
 OPEN_MARGIN_M = 0.005  # a gripper within this of fully open did not close on anything
+MAX_DRAWER_LAG_M = 0.03  # how far a drawer may lag the gripper's travel (a stretched grasp)
 OVERSHOOT = {JointType.PRISMATIC: 0.015, JointType.REVOLUTE: float(np.radians(5.0))}  # past the target
 SETTLE_S = 0.3  # after a motion the arm settles on its last command (a new motion starts from the
 # measured joints, and the safety layer refuses a jump from the last command to them)
@@ -419,6 +420,12 @@ class _Episode:
                 source = f"prior ({source})"
         self.axis = chosen
         self.opened = self.opened_before + opening(chosen, self.p_grasp, p_now)
+        if chosen.joint_type is JointType.PRISMATIC and self.pipeline.window:
+            # A drawer lags a stretched grasp: trust the camera's reading when it is a little short of the
+            # gripper's (more than MAX_DRAWER_LAG_M short is a misreading, not a lag).
+            seen = seen_opening(self.pipeline.window[-1].moving, self.first_points, chosen.direction)
+            if seen is not None and self.opened - MAX_DRAWER_LAG_M <= seen < self.opened:
+                self.opened = seen
         self.curve.append((self.arm.time() - self.t0, self.report_opened()))
         if self.viewer is not None:
             self.viewer.axis(self.arm.time() - self.t0, chosen, self.report_opened())

@@ -8,6 +8,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from deploy.geometry.boxes import front_face_depth
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 
 Task = Literal["drawer", "door", "auto"]
@@ -133,3 +134,15 @@ def choose_axis(
     reason = vision.reason if isinstance(vision, NoAxis) else (
         f"vision: {vision.joint_type.value} joint, confidence {vision.confidence:.2f}")
     return NoAxis(reason), "none"
+
+
+def seen_opening(moving: np.ndarray, first_points: np.ndarray, direction: np.ndarray,
+                 min_points: int = 200) -> float | None:
+    """How far a drawer's front stands out of the cabinet's front, as the camera sees it (m): the front
+    face of the moving part minus that of the first frame's object, along the drawer's `direction`
+    (`front_face_depth`). None with fewer than `min_points` moving points."""
+    moving = np.asarray(moving, float).reshape(-1, 3)
+    if len(moving) < min_points or len(first_points) < min_points:
+        return None
+    d = np.asarray(direction, float) / np.linalg.norm(direction)
+    return front_face_depth(moving @ d) - front_face_depth(np.asarray(first_points, float) @ d)

@@ -94,6 +94,18 @@ def extend_behind(box: Box, front: np.ndarray, depth_m: float) -> Box:
     return Box(box.center - axis * depth_m / 2, box.rotation, extent)
 
 
+def front_face_depth(depth: np.ndarray) -> float:
+    """Where the front face lies along a normal, given the points' depths along it (m): the median of the
+    outermost 5 mm layer holding at least a quarter of the densest layer's points (a handle or other
+    protrusion in front of it holds fewer)."""
+    depth = np.asarray(depth, dtype=np.float64)
+    n_bins = max(1, int(np.ceil((depth.max() - depth.min()) / _FACE_BIN_M)))
+    counts, edges = np.histogram(depth, bins=n_bins, range=(depth.min(), depth.min() + n_bins * _FACE_BIN_M))
+    face_bin = np.flatnonzero(counts >= _FACE_FRACTION * counts.max())[-1]
+    in_bin = (depth >= edges[face_bin]) & (depth <= edges[face_bin + 1])
+    return float(np.median(depth[in_bin]))
+
+
 def remove_handle(
     points: np.ndarray,
     viewpoint: np.ndarray,
@@ -102,19 +114,14 @@ def remove_handle(
 ) -> tuple[Box, np.ndarray, np.ndarray]:
     """Split a cabinet cloud into body and handle: returns (body_box, body_points, handle_points).
 
-    Along the front normal n the front face is the outermost 5 mm layer holding at least a quarter of
-    the densest layer's points, placed at the median of that layer; points more than `margin_m` in
+    Along the front normal the front face is found by `front_face_depth`; points more than `margin_m` in
     front of it are the handle (and other protrusions) and the body box is refitted without them.
     No handle: the box is returned unchanged.
     """
     pts = _finite(points, "remove_handle")
     box = box_fn(pts)
     depth = (pts - box.center) @ front_direction(box, viewpoint)
-    n_bins = max(1, int(np.ceil((depth.max() - depth.min()) / _FACE_BIN_M)))
-    counts, edges = np.histogram(depth, bins=n_bins, range=(depth.min(), depth.min() + n_bins * _FACE_BIN_M))
-    face_bin = np.flatnonzero(counts >= _FACE_FRACTION * counts.max())[-1]
-    in_bin = (depth >= edges[face_bin]) & (depth <= edges[face_bin + 1])
-    handle = depth > np.median(depth[in_bin]) + margin_m
+    handle = depth > front_face_depth(depth) + margin_m
     if not handle.any():
         return box, pts, pts[:0]
     return box_fn(pts[~handle]), pts[~handle], pts[handle]
