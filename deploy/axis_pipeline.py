@@ -66,8 +66,15 @@ class AxisPipeline:
         self.joint = None if joint == "auto" else JointType(joint)
         self.window: deque[Observation] = deque(maxlen=config.estimator.window)
         self.body_box: Box | None = None
-        self.cut_box: Box | None = None  # a door's body box reaches behind the front (geometry.inside_depth_m)
+        self.front = np.zeros(3)  # outward normal of the body box's front face (toward the camera)
         self.handle_points = np.empty((0, 3))
+
+    def cut_box(self) -> Box:
+        """The box the moving part is cut out of: the body box, reaching geometry.inside_depth_m behind the
+        front for a door (the inside it reveals is static; a drawer's revealed inside is the drawer). It
+        follows `joint`, which `--joint auto` sets once the joint is classified."""
+        inside = self.config.geometry.inside_depth_m if self.joint is JointType.REVOLUTE else 0.0
+        return extend_behind(self.body_box, self.front, inside)
 
     def _box(self, points: np.ndarray) -> Box:
         return yaw_box(points) if self.config.geometry.box == "yaw" else oriented_box(points)
@@ -90,7 +97,7 @@ class AxisPipeline:
             return self._first(kept, index, t, view, timings)
         clock = time.perf_counter()
         moving = moving_part(
-            points, self.cut_box, margin_m=self.config.geometry.body_margin_m,
+            points, self.cut_box(), margin_m=self.config.geometry.body_margin_m,
             radius_m=self.filter.radius_m, eps=self.filter.eps,
         )
         timings["moving_part"] = (time.perf_counter() - clock) * 1e3
@@ -109,8 +116,7 @@ class AxisPipeline:
             self.body_box, _, self.handle_points = remove_handle(kept, view, box_fn=self._box)
         else:
             self.body_box = self._box(kept)
-        inside = self.config.geometry.inside_depth_m if self.joint is JointType.REVOLUTE else 0.0
-        self.cut_box = extend_behind(self.body_box, front_direction(self.body_box, view), inside)
+        self.front = front_direction(self.body_box, view)
         timings["body_box"] = (time.perf_counter() - clock) * 1e3
         return StepResult(index, t, NoAxis("first frame: body box fixed, waiting for motion"), len(kept), 0,
                           timings)

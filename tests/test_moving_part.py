@@ -60,6 +60,14 @@ def test_body_box_rotation_is_used():
     assert {tuple(p) for p in moving} == {tuple(p) for p in outside_rotated}
 
 
+def front_and_inside() -> tuple[np.ndarray, np.ndarray]:
+    """A cabinet's front (x = 0, all the first frame sees) and its inside 30 cm behind it."""
+    rng = np.random.default_rng(0)
+    front = np.c_[np.zeros(4000), rng.uniform(-0.3, 0.3, 4000), rng.uniform(0.0, 0.6, 4000)]
+    inside = np.c_[np.full(6000, -0.3), rng.uniform(-0.25, 0.25, 6000), rng.uniform(0.05, 0.55, 6000)]
+    return front, inside
+
+
 @pytest.mark.parametrize("joint, inside_depth_m, interior_counts",
                          [("revolute", 1.0, False), ("revolute", 0.0, True), ("prismatic", 1.0, True)])
 def test_the_cabinets_inside_revealed_by_a_door_is_not_the_moving_part(joint, inside_depth_m, interior_counts):
@@ -68,9 +76,7 @@ def test_the_cabinets_inside_revealed_by_a_door_is_not_the_moving_part(joint, in
     from deploy.axis_pipeline import AxisPipeline
     from deploy.config import Config
 
-    rng = np.random.default_rng(0)
-    front = np.c_[np.zeros(4000), rng.uniform(-0.3, 0.3, 4000), rng.uniform(0.0, 0.6, 4000)]
-    inside = np.c_[np.full(6000, -0.3), rng.uniform(-0.25, 0.25, 6000), rng.uniform(0.05, 0.55, 6000)]
+    front, inside = front_and_inside()
     config = Config().model_copy(update={
         "geometry": Config().geometry.model_copy(update={"inside_depth_m": inside_depth_m}),
         "estimator": Config().estimator.model_copy(update={"joint": joint})})
@@ -79,3 +85,18 @@ def test_the_cabinets_inside_revealed_by_a_door_is_not_the_moving_part(joint, in
     pipe.update(front, 0, 0.0, camera)
     step = pipe.update(np.vstack([front, inside]), 1, 0.1, camera)
     assert (step.moving_points > 5000 if interior_counts else step.moving_points == 0)
+
+
+def test_a_door_classified_after_the_first_frame_gets_the_deep_box():
+    """`--joint auto` sets the pipeline's joint once the probe pull has classified it."""
+    from deploy.axis_pipeline import AxisPipeline
+    from deploy.config import Config
+    from deploy.geometry.types import JointType
+
+    front, inside = front_and_inside()
+    pipe = AxisPipeline(Config())
+    camera = np.array([1.5, 0.2, 0.8])
+    pipe.update(front, 0, 0.0, camera)
+    assert pipe.update(np.vstack([front, inside]), 1, 0.1, camera).moving_points > 5000
+    pipe.joint = JointType.REVOLUTE
+    assert pipe.update(np.vstack([front, inside]), 2, 0.2, camera).moving_points == 0

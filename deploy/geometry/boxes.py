@@ -85,8 +85,8 @@ def front_direction(box: Box, viewpoint: np.ndarray) -> np.ndarray:
 
 
 def extend_behind(box: Box, front: np.ndarray, depth_m: float) -> Box:
-    """`box` reaching `depth_m` further behind its face whose outward normal is nearest `front`: the
-    cabinet's inside, which an opening door or drawer reveals and which does not move."""
+    """`box` reaching `depth_m` further behind its face whose outward normal is nearest `front` (to cover
+    a cabinet's inside, which an opening door reveals and which does not move)."""
     k = int(np.argmax(np.abs(box.rotation.T @ np.asarray(front, dtype=np.float64))))
     axis = box.rotation[:, k] * np.sign(box.rotation[:, k] @ front)
     extent = box.extent.copy()

@@ -58,12 +58,12 @@ class CanBus:
             ) from exc
         self._closed = False
 
-
     @classmethod
     def from_config(cls, can_config: CanConfig, pump: Callable[[], None] | None = None) -> CanBus:
         """The bus a robot config's [can] section names."""
         c = can_config
         return cls(c.channel, c.interface, c.bitrate, c.fd, c.data_bitrate, pump=pump)
+
     def send(self, arbitration_id: int, data: bytes) -> None:
         """Send one standard-id frame; CanBusError naming the cause when the bus refuses it."""
         msg = can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False, is_fd=self.fd,

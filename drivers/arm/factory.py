@@ -21,8 +21,7 @@ DRIVER_ARMS = ("can", "ideal")
 def open_arm(spec: str, config: RobotConfig) -> Arm:
     """An arm of kind `spec`, not yet connected: use it as a context manager (enter enables, exit stops)."""
     if spec == "can":
-        c = config.can
-        return CanArm(config, CanBus.from_config(c))
+        return CanArm(config, CanBus.from_config(config.can))
     if spec == "ideal":
         kin = config.kinematics()
         guard = SafetyGuard(config.safety_limits(kin), config.joint_names)

@@ -174,7 +174,8 @@ class ScrewEstimator(AxisEstimator):
         poses = np.array([self._motions[i].motion @ np.linalg.inv(start) for i in used[1:]])
         model = self._keyframe_points @ start[:3, :3].T + start[:3, 3]
         fitness = min([self._motions[i].fitness for i in used] + [0.9]) / 0.9
-        grips = {o.index: np.asarray(o.gripper_pose, float)[:3, 3] for o in window if o.gripper_pose is not None}
+        grips = {o.index: np.asarray(o.gripper_pose, float)[:3, 3]
+                 for o in window if o.gripper_pose is not None and self.use_gripper}
         at_used = np.array([grips[i] for i in used]) if all(i in grips for i in used) else None
         everywhere = np.array(list(grips.values())) if len(grips) >= 2 else None
         return self._fit(poses, model, clouds[usable[-1]].points, fitness, joint, at_used, everywhere)
@@ -337,9 +338,9 @@ class ScrewEstimator(AxisEstimator):
 
     def _tracks(self, sample: np.ndarray, moved: np.ndarray, path: np.ndarray | None) -> list[tuple[np.ndarray, float]]:
         """Positions to fit a joint to, each with its noise: the part's centroid at the start and after
-        each motion, and the gripper's when it is used."""
+        each motion, and the gripper's `path` when given (use_gripper)."""
         tracks = [(np.vstack([sample.mean(axis=0), moved.mean(axis=1)]), self.part_noise_m)]
-        return tracks + [(path, self.grip_noise_m)] if path is not None and self.use_gripper else tracks
+        return tracks if path is None else tracks + [(path, self.grip_noise_m)]
 
     def _prismatic(self, sample: np.ndarray, moved: np.ndarray, n: int, path: np.ndarray | None) -> _JointFit:
         """Points move by s_k d: d = principal direction of the tracks' positions (each about its mean,
