@@ -117,8 +117,12 @@ class RealSenseStream:
                      depth_m=depth_m, intrinsics=self.intrinsics)
 
     def stop(self) -> None:
-        """Stop the pipeline (idempotent; errors of a vanished device are ignored)."""
+        """Stop the pipeline (idempotent; errors of a vanished device are ignored). Playback is paused first:
+        stopping a not-real-time playback at its end aborted librealsense 2.59 about once in 100-200 replays
+        (heap corruption in `pipeline.stop`); paused, 1200 replays in a row stopped cleanly."""
         try:
+            if self.playback is not None:
+                self.playback.pause()
             self.pipeline.stop()
         except RuntimeError:
             pass
