@@ -18,10 +18,10 @@ from drivers.arm.can_arm import CanArm, scan_bus
 from drivers.arm.can_bus import CanBus
 from drivers.arm.damiao import Special, special
 from drivers.arm.motion import move_to_joints
-from drivers.arm.robot_config import RobotConfig, load_robot_config
+from drivers.arm.registry import open_arm
+from drivers.arm.robot_config import PANDA_SIM_CONFIG, RobotConfig, load_robot_config
 from drivers.arm.trajectory import MotionLimits, joint_trajectory
 from drivers.errors import ArmError
-from sim_fallback.arm_factory import PANDA_SIM_CONFIG, open_arm, sim_can_arm
 
 BRINGUP_SPEED = 0.2  # share of the velocity, acceleration and jerk limits used by bring-up moves
 
@@ -48,7 +48,7 @@ def load(robot: Path | None) -> RobotConfig:
 
 
 def make_arm(kind: str, config: RobotConfig) -> Arm:
-    """An arm of `kind` for the CLI ("sim" needs a world: not offered here)."""
+    """An arm of `kind` for the CLI, from the arm registry ("sim" needs a world: not offered here)."""
     return open_arm(kind, config)
 
 
@@ -56,6 +56,8 @@ def make_arm(kind: str, config: RobotConfig) -> Arm:
 def raw_bus(config: RobotConfig, kind: str) -> Iterator[CanBus]:
     """The config's CAN bus without an arm on top (sim-can: with its simulated motors answering); closed after."""
     if kind == "sim-can":
+        from sim_fallback.devices import sim_can_arm
+
         arm, motors = sim_can_arm(config)
         bus, close = arm.bus, motors.close
     elif kind == "can":

@@ -15,8 +15,8 @@ import numpy as np
 from deploy.config import Config
 from deploy.geometry.boxes import extend_behind, front_direction, oriented_box, remove_handle, yaw_box
 from deploy.geometry.cloud import depth_to_points
-from deploy.geometry.estimators import make_estimator
 from deploy.geometry.estimators.base import AxisEstimator, Observation
+from deploy.geometry.estimators.registry import make_estimator
 from deploy.geometry.moving_part import moving_part
 from deploy.geometry.radius_filter import radius_filter
 from deploy.geometry.types import AxisResult, Box, JointType, NoAxis
@@ -61,7 +61,7 @@ class AxisPipeline:
     def __init__(self, config: Config, estimator: AxisEstimator | None = None):
         self.config = config
         self.filter = config.filter.resolve()
-        self.estimator = estimator or make_estimator(config.estimator.name)
+        self.estimator = estimator or make_estimator(config.estimator.name, config.estimator)
         joint = config.estimator.joint
         self.joint = None if joint == "auto" else JointType(joint)
         self.window: deque[Observation] = deque(maxlen=config.estimator.window)

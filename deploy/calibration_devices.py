@@ -1,7 +1,7 @@
 """The camera and arm `deploy calibrate` runs on, chosen by --camera, --arm and --robot.
 
 - `--camera sim` with `--arm sim` (SimArm) or `--arm sim-can` (the real CAN driver on simulated Damiao motors that
-  move the same PyBullet Panda): the rig of deploy.bench.calibration, with its ground truth;
+  move the same PyBullet Panda): the simulated calibration scene of deploy.rig, with its ground truth;
 - `--camera d415[:SERIAL]` with `--arm can --robot CONFIG.toml`: a RealSense D415 and a Damiao arm.
 A recording (`replay:PATH`) is refused: calibration moves the arm, and a recording cannot show those motions.
 
@@ -14,7 +14,7 @@ stops the arm (damp, disable) and releases the camera.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from contextlib import ExitStack, contextmanager
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,16 +25,15 @@ from calibration.detect import BoardDetector
 from calibration.routine import RoutineConfig, plan_around_start
 from calibration.store import HandEyeRecord
 from deploy.errors import ConfigError
+from deploy.rig import BoardScene, RigSpec, open_rig
 from drivers.arm.base import Arm
 from drivers.arm.can_arm import CanArm
 from drivers.arm.kinematics import Kinematics
-from drivers.arm.robot_config import RobotConfig, load_robot_config
+from drivers.arm.robot_config import PANDA_SIM_CONFIG, RobotConfig, load_robot_config
 from drivers.arm.trajectory import MotionLimits, joint_trajectory
 from drivers.camera.base import Camera
 from drivers.errors import ArmError
-from sim_fallback.arm_factory import PANDA_SIM_CONFIG
 
-SIM_SERIAL = "sim-d415"  # the simulated camera's serial, naming its calibration files
 SIM_ARMS, REAL_ARMS = ("sim", "sim-can"), ("can",)
 CAMERAS = ("sim", "d415", "d415:SERIAL")
 SPEED_FRACTION = 0.5  # stations are visited at this share of the velocity, acceleration and jerk limits
@@ -52,6 +51,7 @@ class DeviceChoice:
     arm: str
     robot: RobotConfig
     pivot_mm: tuple[float, float, float] | None = None
+    robot_path: Path | None = None
 
     @property
     def simulated(self) -> bool:
@@ -84,7 +84,7 @@ def choose(camera: str, arm: str | None, robot: Path | None, pivot_mm: tuple[flo
     if arm in SIM_ARMS and config.joint_names != load_robot_config(PANDA_SIM_CONFIG).joint_names:
         raise ConfigError(f"robot config {config.name!r} is not the simulated Panda: use --robot "
                           f"{PANDA_SIM_CONFIG.relative_to(PANDA_SIM_CONFIG.parents[2])} (or none) with the simulation")
-    return DeviceChoice(camera, arm, config, pivot_mm)
+    return DeviceChoice(camera, arm, config, pivot_mm, robot)
 
 
 @dataclass(frozen=True)
@@ -193,45 +193,18 @@ def pivot_from_record(record: HandEyeRecord, T_base_tool: np.ndarray) -> tuple[f
 def open_devices(choice: DeviceChoice, setup: str = "eye-to-hand", board: BoardConfig | None = None,
                  seed: int = 0) -> Iterator[Devices]:
     """Connect the camera, then probe the arm (nothing enabled); on leaving, stop the arm and release both.
-    In simulation `setup` and `board` build the rig (board on the tool or on the table)."""
-    with ExitStack() as stack:
-        if choice.simulated:
-            devices = _simulated(choice, setup, board or BoardConfig(), seed, stack)
-        else:
-            devices = _hardware(choice, stack)
-        yield devices
+    In simulation `setup` and `board` build the calibration scene (board on the tool or on the table)."""
+    scene = BoardScene(setup, board or BoardConfig(), seed)  # type: ignore[arg-type]
+    with open_rig(RigSpec(camera=choice.camera, arm=choice.arm, robot=choice.robot_path, scene=scene)) as rig:
+        if isinstance(rig.arm, CanArm):
+            rig.arm.probe()
+        motors = None
+        if choice.simulated and isinstance(rig.arm, CanArm):
+            from sim_fallback.can_motors import motors_on
 
-
-def _simulated(choice: DeviceChoice, setup: str, board: BoardConfig, seed: int, stack: ExitStack) -> Devices:
-    from deploy.bench.calibration import sim_rig
-    from sim_fallback.arm_factory import sim_can_arm
-
-    rig = stack.enter_context(sim_rig(setup, board, seed=seed))
-    robot = choice.robot
-    if choice.arm == "sim":
-        arm, motors, kin = rig.arm, None, rig.arm.kin
-        stack.callback(arm.disconnect)
-    else:
-        arm, motors = sim_can_arm(robot, rig.world)
-        stack.callback(arm.disconnect)
-        arm.probe()
-        kin = arm.kin
-    return Devices(choice, rig.camera, arm, kin, SIM_SERIAL, motion_limits(robot, kin), rig, motors)
-
-
-def _hardware(choice: DeviceChoice, stack: ExitStack) -> Devices:
-    from drivers.arm.factory import open_arm
-    from drivers.camera.factory import open_camera
-
-    camera = open_camera(choice.camera)
-    camera.connect()
-    stack.callback(camera.disconnect)
-    serial = getattr(camera, "serial", None) or choice.camera
-    arm = open_arm(choice.arm, choice.robot)
-    stack.callback(arm.disconnect)
-    if isinstance(arm, CanArm):
-        arm.probe()
-    return Devices(choice, camera, arm, arm.kin, serial, motion_limits(choice.robot, arm.kin))
+            motors = motors_on(rig.arm.config.can.channel)
+        yield Devices(choice, rig.camera, rig.arm, rig.kin, rig.serial, motion_limits(choice.robot, rig.kin),
+                      rig.board, motors)
 
 
 def motion_limits(robot: RobotConfig, kin: Kinematics, fraction: float = SPEED_FRACTION) -> MotionLimits:

@@ -9,6 +9,13 @@ A file holds any subset of the sections below; everything has a default, so no f
     [estimator]
     name = "screw-grip"
     joint = "auto"
+    [estimator.screw]   # registration and joint-fit settings of screw / screw-grip
+    voxel_m = 0.005
+    [opening]           # the opening policy: task, target, steps, speeds, gates, timeouts
+    policy = "closed"
+    drawer_step_m = 0.08
+    [perception]        # segmenter prompts, models, first box, track-loss thresholds
+    object_prompt = "cabinet"
 """
 
 from __future__ import annotations
@@ -17,10 +24,18 @@ import sys
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from deploy.errors import ConfigError
+from deploy.geometry.estimators.screw_config import ScrewConfig
 from deploy.geometry.radius_filter import FILTER_PROFILES, FilterProfile
+from deploy.geometry.types import JointType
+from deploy.perception.config import PerceptionConfig
+
+Task = Literal["drawer", "door", "auto"]
+Policy = Literal["closed", "open", "paper"]
+Fusion = Literal["vision", "trajectory", "fused"]
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -74,27 +89,100 @@ class GeometryConfig(_Section):
 
 
 class EstimatorConfig(_Section):
-    """Which axis estimator runs, over how many frames, for which joint type."""
+    """Which axis estimator runs, over how many frames, for which joint type; the screw estimators' settings.
+
+    `screw-grip` fits the held handle's path as well when gripper poses come with the frames (a recording's
+    ee_pose, or the closed loop with `opening.fusion` other than "vision"); without them it is `screw`.
+    """
 
     name: Literal["paper-obb", "screw", "screw-grip", "trajectory"] = "screw-grip"
     joint: Literal["auto", "prismatic", "revolute"] = "auto"
     window: int = Field(default=10, ge=2, le=100)
+    screw: ScrewConfig = ScrewConfig()
+
+
+class OpeningConfig(_Section):
+    """How to open: task, target (m for a drawer, deg for a door), policy and motion sizes.
+
+    policy: "closed" re-estimates after every step, "open" keeps the first axis acted on, "paper" runs the
+    paper's straight steps with its estimator (`paper-obb`). fusion: "vision" acts on the camera's estimate
+    only; "trajectory" on a fit to the gripper's own path (FK) once it fits, vision before; "fused" on the
+    trajectory fit once the gripper has moved `trajectory_min_travel` (m or deg) and the fit is confident,
+    on vision otherwise and for the joint type. A vision estimate below `vision_min_confidence` (doors:
+    `door_vision_min_confidence`, and only past `vision_min_travel_deg`) is not acted on: the previous axis
+    is kept, at first the prior from the first frame (drawer: the front normal; door: the front's far edge).
+    """
+
+    task: Task = "drawer"
+    target_distance_m: float = Field(default=0.30, gt=0, le=1.0)
+    target_angle_deg: float = Field(default=45.0, gt=0, le=170)
+    policy: Policy = "closed"
+    fusion: Fusion = "vision"
+    first_pull_m: float = Field(default=0.05, gt=0, le=0.15)
+    probe_pull_m: float = Field(default=0.025, gt=0, le=0.1, description="task auto: straight pull that classifies")
+    drawer_step_m: float = Field(default=0.08, gt=0, le=0.3)
+    door_step_deg: float = Field(default=12.0, gt=0, le=45)
+    trajectory_min_travel_m: float = Field(default=0.05, gt=0)
+    trajectory_min_travel_deg: float = Field(default=10.0, gt=0)
+    trajectory_min_confidence: float = Field(default=0.5, ge=0, le=1)
+    vision_min_confidence: float = Field(default=0.5, ge=0, le=1)
+    door_vision_min_confidence: float = Field(default=0.2, ge=0, le=1)
+    vision_min_travel_deg: float = Field(default=20.0, ge=0, description="a door's vision axis is acted on "
+                                         "from this opening on: a small turn leaves the hinge's position loose")
+    max_steps: int = Field(default=12, ge=1)
+    timeout_s: float = Field(default=90.0, gt=0, description="arm-clock seconds for the whole episode")
+    camera_hz: float = Field(default=5.0, gt=0, le=60)
+    approach_m: float = Field(default=0.10, gt=0, le=0.3)
+    pull_speed_m_s: float = Field(default=0.08, gt=0, le=0.5)
+    pull_speed_deg_s: float = Field(default=12.0, gt=0, le=90)
+    min_mask_fraction: float = Field(default=0.2, gt=0, lt=1, description="tracking lost below this")
+
+    @property
+    def target(self) -> float:
+        """The target in SI units: metres (drawer) or radians (door)."""
+        return self.target_distance_m if self.task != "door" else float(np.radians(self.target_angle_deg))
+
+    def target_for(self, joint: JointType) -> float:
+        """The target for `joint`: metres (prismatic) or radians (revolute)."""
+        return self.target_distance_m if joint is JointType.PRISMATIC else float(np.radians(self.target_angle_deg))
+
+    def step_for(self, joint: JointType, k: int) -> float:
+        """Step k (0-based): m (drawer) or rad (door); the paper's schedule grows 0.10 -> 0.16 m / 0.07 -> 0.15
+        (metres of straight pull for both)."""
+        if self.policy == "paper":
+            start, end = (0.10, 0.16) if joint is JointType.PRISMATIC else (0.07, 0.15)
+            return min(start + 0.02 * k, end)
+        return self.drawer_step_m if joint is JointType.PRISMATIC else float(np.radians(self.door_step_deg))
 
 
 class Config(_Section):
+    """Everything a run reads: `[filter]`, `[geometry]`, `[estimator]` (with `[estimator.screw]`), `[opening]`
+    and `[perception]`."""
+
     filter: FilterConfig = FilterConfig()
     geometry: GeometryConfig = GeometryConfig()
     estimator: EstimatorConfig = EstimatorConfig()
+    opening: OpeningConfig = OpeningConfig()
+    perception: PerceptionConfig = PerceptionConfig()
+
+    def replace(self, **sections: dict[str, Any]) -> Config:
+        """A copy with fields of some sections changed and validated: `config.replace(opening={"task": "door"})`."""
+        data = self.model_dump()
+        for name, fields in sections.items():
+            data[name].update(fields)
+        return Config.model_validate(data)
 
 
 def _set_dotted(data: dict[str, Any], dotted: str, value: Any) -> None:
-    section, _, key = dotted.partition(".")
-    data.setdefault(section, {})[key] = value
+    *sections, key = dotted.split(".")
+    for section in sections:
+        data = data.setdefault(section, {})
+    data[key] = value
 
 
 def load_config(path: Path | None = None, overrides: dict[str, Any] | None = None) -> Config:
-    """Load `path` (TOML) if given, apply `overrides` ({"filter.radius": 1.3, ...}; None values are
-    skipped) and validate. Raises ConfigError naming the file, the field and the problem."""
+    """Load `path` (TOML) if given, apply `overrides` ({"filter.radius": 1.3, "opening.task": "door", ...};
+    None values are skipped) and validate. Raises ConfigError naming the file, the field and the problem."""
     data: dict[str, Any] = {}
     source = "command-line options"
     if path is not None:

@@ -1,6 +1,14 @@
 """One exception family per kind of failure; every message names the thing, the cause and the fix."""
 
-from drivers.errors import ArmError, CalibrationError, CameraError, CanBusError, DriverError, RecordingError
+from drivers.errors import (
+    ArmError,
+    CalibrationError,
+    CameraError,
+    CanBusError,
+    DriverError,
+    IKError,
+    RecordingError,
+)
 
 
 class AxisloopError(Exception):
@@ -29,5 +37,5 @@ USER_ERRORS = (AxisloopError, DriverError)
 
 __all__ = [
     "AxisloopError", "ConfigError", "PerceptionError", "ModelError", "JobError", "CalibrationError",
-    "ArmError", "CanBusError", "CameraError", "DriverError", "RecordingError", "USER_ERRORS",
+    "ArmError", "IKError", "CanBusError", "CameraError", "DriverError", "RecordingError", "USER_ERRORS",
 ]

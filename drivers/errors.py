@@ -17,6 +17,10 @@ class ArmError(DriverError):
     """An arm or CAN bus fault; the arm has been stopped when this is raised."""
 
 
+class IKError(ArmError):
+    """No joint configuration reaches a pose or follows a path (out of reach, a joint limit, a singularity)."""
+
+
 class CalibrationError(DriverError):
     """A calibration that cannot be computed, loaded or trusted: board, views, pose set, solve or file."""
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import threading
 import time
+import weakref
 from dataclasses import dataclass, field
 
 import can
@@ -154,6 +155,14 @@ def _joint(m: SimMotor, q_motor: float) -> float:
     return m.config.direction * q_motor + m.config.zero_offset
 
 
+_ON_CHANNEL: weakref.WeakValueDictionary[str, SimMotorBus] = weakref.WeakValueDictionary()
+
+
+def motors_on(channel: str) -> SimMotorBus | None:
+    """The simulated motors answering on virtual CAN `channel` (a sim-can arm's), if any: for fault injection."""
+    return _ON_CHANNEL.get(channel)
+
+
 class SimMotorBus:
     """The motors of `config` on their own python-can endpoint of `config.can` (interface and channel)."""
 
@@ -171,6 +180,7 @@ class SimMotorBus:
             self.backend.read(self.motors)
         self._by_id = {m.config.can_id: m for m in self.motors}
         self._bus = can.Bus(interface=config.can.interface, channel=config.can.channel)
+        _ON_CHANNEL[config.can.channel] = self
         self._rng = np.random.default_rng(seed)
         self._delayed: list[tuple[float, can.Message]] = []
         self._deferred: list[SimMotor] = []

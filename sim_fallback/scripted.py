@@ -16,6 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from drivers.arm.base import ArmState
+from drivers.arm.grasping import LIMIT_MARGIN_RAD, UP, pregrasp_pose
+from drivers.arm.grasping import grasp_pose as bar_grasp_pose
 from drivers.arm.kinematics import Kinematics, well_conditioned_start
 from drivers.arm.motion import (
     OnTick,
@@ -38,9 +40,6 @@ from sim_fallback.world import JointTruth, SimWorld
 
 log = logging.getLogger(__name__)
 
-GRASP_DEPTH_M = 0.01  # tool frame this far past the grip centre: the bar sits well inside the finger pads
-GRASP_PITCH_RAD = 0.25  # approach tilted down: keeps the Panda's wrist (joint 6) off its upper limit
-LIMIT_MARGIN_RAD = 0.1  # planned configurations stay this far inside the joint limits
 PREGRASP_M = 0.10  # straight approach along the gripper's axis over the last 10 cm
 GRIPPER_FORCE_N = 40.0
 CLOSE_TIME_S = 0.5
@@ -49,26 +48,12 @@ APPROACH_LIMITS = MotionLimits(0.10, 0.5, 5.0)  # m/s, m/s^2, m/s^3 along the ap
 OPEN_LIMITS = {"drawer": MotionLimits(0.10, 0.3, 3.0), "door": MotionLimits(0.25, 0.6, 6.0)}  # m or rad
 
 
-def grasp_pose(
-    handle_pose: np.ndarray,
-    vertical_bar: bool,
-    depth_m: float = GRASP_DEPTH_M,
-    pitch_rad: float = GRASP_PITCH_RAD,
-) -> np.ndarray:
-    """Tool pose grasping a handle from the front: approach (tool z) into the cabinet front, tilted down by
-    `pitch_rad`, fingers (tool y) across the bar (vertical-ish for a horizontal bar, horizontal for a
-    vertical one).
-
-    `handle_pose` is the handle frame (x out of the front, grip centre at the origin), 4x4 base frame.
-    """
-    up = np.array([0.0, 0.0, 1.0])
-    z = -np.cos(pitch_rad) * handle_pose[:3, 0] - np.sin(pitch_rad) * up
-    x = up - z * (z @ up) if vertical_bar else np.cross(z, up)
-    x /= np.linalg.norm(x)
-    T = np.eye(4)
-    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-    T[:3, 3] = handle_pose[:3, 3] + depth_m * z
-    return T
+def grasp_pose(handle_pose: np.ndarray, vertical_bar: bool) -> np.ndarray:
+    """Tool pose grasping the true handle from the front (`handle_pose`: x out of the front, grip centre at the
+    origin, 4x4 base frame)."""
+    normal = handle_pose[:3, 0]
+    bar = UP - normal * (normal @ UP) if vertical_bar else np.cross(normal, UP)
+    return bar_grasp_pose(handle_pose[:3, 3], normal, bar)
 
 
 def opening_path(T_start: np.ndarray, truth: JointTruth) -> PathFn:
@@ -84,9 +69,7 @@ def pregrasp_configuration(
     """Joint positions at the pre-grasp pose from which the approach and the opening path stay farthest
     from singularities (largest smallest singular value of the Jacobian along them); the Panda is
     redundant and per-tick IK near a singularity spins joints 1 and 3."""
-    T_pre = T_grasp.copy()
-    T_pre[:3, 3] -= PREGRASP_M * T_grasp[:3, 2]
-    poses = [T_pre, T_grasp, *(opening(s) for s in np.linspace(0.0, length, 12)[1:])]
+    poses = [pregrasp_pose(T_grasp, PREGRASP_M), T_grasp, *(opening(s) for s in np.linspace(0.0, length, 12)[1:])]
     best = well_conditioned_start(kin, poses, Q_START, LIMIT_MARGIN_RAD)
     if best is None:
         raise ArmError(f"scripted grasp: no arm configuration reaches the handle and follows the opening "

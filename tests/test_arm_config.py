@@ -6,11 +6,10 @@ import numpy as np
 import pytest
 
 from drivers.arm.can_arm import CanArm
-from drivers.arm.factory import open_arm
 from drivers.arm.ideal import IdealArm
+from drivers.arm.registry import open_arm
 from drivers.arm.robot_config import load_robot_config
 from drivers.errors import ArmError
-from sim_fallback.arm_factory import open_arm as open_any_arm
 
 EXAMPLES = sorted(Path("configs/robots").glob("*.toml"))
 
@@ -65,7 +64,7 @@ def test_missing_config():
         load_robot_config("configs/robots/nope.toml")
 
 
-def test_factory_builds_ideal_can_and_refuses_unknown():
+def test_registry_builds_every_arm_kind_and_refuses_unknown():
     config = load_robot_config("configs/robots/panda_sim.toml")
     ideal = open_arm("ideal", config)
     assert isinstance(ideal, IdealArm) and ideal.control_period_s == pytest.approx(1 / 240)
@@ -75,9 +74,10 @@ def test_factory_builds_ideal_can_and_refuses_unknown():
     with pytest.raises(ArmError, match="did not answer"):  # nothing answers on this channel
         can_arm.connect()
     can_arm.disconnect()
-    with pytest.raises(ArmError, match="sim_fallback"):
-        open_arm("sim-can", config)
+    sim_can = open_arm("sim-can", config)  # registered by sim_fallback's plug-in: simulated motors answer
+    with sim_can:
+        np.testing.assert_allclose(sim_can.state().q, config.q_ready, atol=1e-3)
     with pytest.raises(ArmError, match="needs a simulated world"):
-        open_any_arm("sim", config)
-    with pytest.raises(ArmError, match="not one of"):
-        open_any_arm("robot", config)
+        open_arm("sim", config)
+    with pytest.raises(ArmError, match="unknown arm 'robot': choose one of can, ideal, sim, sim-can"):
+        open_arm("robot", config)

@@ -3,15 +3,16 @@
 
 import numpy as np
 
+from deploy.config import Config
 from deploy.control.episode import run_episode
-from deploy.control.policy import OpenConfig
 from deploy.perception.oracle import OracleSegmenter
 from drivers.arm.can_arm import CanArm
 from drivers.arm.damiao import Status
+from drivers.arm.registry import open_arm
 from drivers.arm.robot_config import load_robot_config
 from drivers.arm.trajectory import MotionLimits
-from sim_fallback.arm_factory import open_arm, sim_can_arm
 from sim_fallback.camera import SimCamera, d415_intrinsics
+from sim_fallback.devices import sim_can_arm
 from sim_fallback.scenario import Scenario
 from sim_fallback.world import SimWorld
 
@@ -19,15 +20,15 @@ PANDA = load_robot_config("configs/robots/panda_sim.toml")
 
 
 def _episode(world, arm, target=0.2):
-    config = OpenConfig(task="drawer", target_distance_m=target)
-    camera = SimCamera(world, intrinsics=d415_intrinsics(640, 480), seed=0, fps=config.camera_hz)
+    config = Config().replace(opening={"task": "drawer", "target_distance_m": target})
+    camera = SimCamera(world, intrinsics=d415_intrinsics(640, 480), seed=0, fps=config.opening.camera_hz)
     return run_episode(camera, arm, arm.kin, OracleSegmenter(), config, None,
                        MotionLimits.for_robot(world.robot_spec, arm.kin, 0.3))
 
 
 def test_closed_loop_drawer_opening_through_the_can_driver():
     with SimWorld(Scenario.make("drawer", 0, "train")) as world:
-        arm = open_arm("sim-can", PANDA, world)
+        arm = open_arm("sim-can", PANDA, world=world)
         assert isinstance(arm, CanArm) and not arm.realtime
         with arm:
             q0 = arm.state().q

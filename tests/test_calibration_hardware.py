@@ -14,11 +14,11 @@ import deploy.calibration_devices as devices
 from calibration.poses import PoseConfig
 from calibration.routine import RoutineConfig
 from calibration.store import load_hand_eye
-from deploy.calibration_devices import PANDA_SIM_CONFIG, DeviceChoice, Devices, motion_limits, pivot_from_record
+from deploy.calibration_devices import DeviceChoice, Devices, motion_limits, pivot_from_record
 from deploy.cli import main
 from drivers.arm.can_arm import CanArm
 from drivers.arm.can_bus import CanBus
-from drivers.arm.robot_config import load_robot_config
+from drivers.arm.robot_config import PANDA_SIM_CONFIG, load_robot_config
 from sim_fallback.can_motors import SimMotorBus
 
 TARGET_MM, TARGET_DEG = 3.0, 0.3  # issue 10: 15 poses at 640x480

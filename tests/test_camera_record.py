@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from drivers.camera.base import Camera, Frame, Intrinsics
-from drivers.camera.factory import open_camera
 from drivers.camera.frames_dir import FramesRecording, FramesReplayCamera
 from drivers.camera.record import record
+from drivers.camera.registry import open_camera
 from drivers.errors import CameraError, RecordingError
 
 INTR = Intrinsics(16, 12, 20.0, 20.0, 7.5, 5.5)

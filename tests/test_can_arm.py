@@ -15,8 +15,8 @@ from drivers.arm.motion import move_to_joints
 from drivers.arm.robot_config import load_robot_config
 from drivers.arm.trajectory import MotionLimits
 from drivers.errors import ArmError, CanBusError
-from sim_fallback.arm_factory import sim_can_arm
 from sim_fallback.can_motors import MotorFaults
+from sim_fallback.devices import sim_can_arm
 
 PANDA = load_robot_config("configs/robots/panda_sim.toml")
 CONFIG = PANDA.model_copy(update={"control_rate_hz": 500.0})

@@ -10,7 +10,7 @@ import pytest
 
 from deploy.bench.open import bench_open, simulate_episode
 from deploy.config import Config
-from deploy.control import OpenConfig, run_episode
+from deploy.control import run_episode
 from deploy.estimate_recording import estimate_recording
 from deploy.perception.oracle import OracleSegmenter
 from sim_fallback.arm import GRASP_FORCE_LIMIT_N, SimArm
@@ -70,8 +70,8 @@ def _episode(setup, target=0.15, segmenter=None, scenario=None):
         arm = SimArm(world)
         camera = SimCamera(world, intrinsics=d415_intrinsics(320, 240), fps=5.0)
         setup(world, arm)
-        result = run_episode(camera, arm, arm.kin, segmenter or OracleSegmenter(), OpenConfig(task="drawer",
-                             target_distance_m=target))
+        config = Config().replace(opening={"task": "drawer", "target_distance_m": target})
+        result = run_episode(camera, arm, arm.kin, segmenter or OracleSegmenter(), config)
         q0 = arm.state().q
         world.clock.step(120)
         still = float(np.abs(arm.state().q - q0).max()) < 0.01

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from deploy.config import OpeningConfig
 from deploy.control.grasp import Handle, find_handle, grasp_pose, hinge_prior
-from deploy.control.policy import OpenConfig, choose_axis, opening, orient_axis, seen_opening
+from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
 from deploy.geometry.types import Axis, Box, JointType, NoAxis
 
 # a cabinet whose front faces -x (toward a robot at the origin), front face at x = 0.5
@@ -76,35 +77,37 @@ def test_opening_and_orientation():
     assert opening(door, start, start) == 0.0 and opening(door, np.zeros(3), start) == 0.0
 
 
-def test_choose_axis_rule():
-    cfg = OpenConfig(task="door", fusion="fused")
+def test_choose_axis_rule():  # openings in SI: rad for a door, m for a drawer
+    cfg = OpeningConfig(task="door", fusion="fused")
     vision = Axis(JointType.REVOLUTE, np.zeros(3), np.array([0, 0, 1.0]), confidence=0.5)
     traj = Axis(JointType.REVOLUTE, np.ones(3), np.array([0, 0, 1.0]), confidence=0.9)
-    assert choose_axis(vision, traj, JointType.REVOLUTE, 5.0, cfg)[1] == "none"  # too little travel for both
-    assert choose_axis(vision, traj, JointType.REVOLUTE, 20.0, cfg)[1] == "trajectory"
+    too_little = np.radians(5.0)  # for both
+    assert choose_axis(vision, traj, JointType.REVOLUTE, too_little, cfg)[1] == "none"
+    assert choose_axis(vision, traj, JointType.REVOLUTE, np.radians(20.0), cfg)[1] == "trajectory"
     vision_only = cfg.model_copy(update={"fusion": "vision"})
-    assert choose_axis(vision, traj, JointType.REVOLUTE, 20.0, vision_only)[1] == "vision"
-    assert choose_axis(vision, traj, JointType.REVOLUTE, 19.0, vision_only)[1] == "none"  # hinge still loose
+    assert choose_axis(vision, traj, JointType.REVOLUTE, np.radians(20.0), vision_only)[1] == "vision"
+    loose = np.radians(19.0)  # the hinge's position is still loose
+    assert choose_axis(vision, traj, JointType.REVOLUTE, loose, vision_only)[1] == "none"
     drawer = Axis(JointType.PRISMATIC, np.zeros(3), np.array([1.0, 0, 0]), confidence=0.5)
     assert choose_axis(drawer, NoAxis("x"), JointType.PRISMATIC, 0.01, vision_only)[1] == "vision"
     fair_door = Axis(JointType.REVOLUTE, np.zeros(3), np.array([0, 0, 1.0]), confidence=0.25)
     fair_drawer = Axis(JointType.PRISMATIC, np.zeros(3), np.array([1.0, 0, 0]), confidence=0.25)
-    assert choose_axis(fair_door, NoAxis("x"), JointType.REVOLUTE, 25.0, vision_only)[1] == "vision"
+    assert choose_axis(fair_door, NoAxis("x"), JointType.REVOLUTE, np.radians(25.0), vision_only)[1] == "vision"
     assert choose_axis(fair_drawer, NoAxis("x"), JointType.PRISMATIC, 0.1, vision_only)[1] == "none"
     weak = Axis(JointType.REVOLUTE, np.zeros(3), np.array([0, 0, 1.0]), confidence=0.01)
-    result, source = choose_axis(weak, NoAxis("x"), JointType.REVOLUTE, 20.0, cfg)
+    result, source = choose_axis(weak, NoAxis("x"), JointType.REVOLUTE, np.radians(20.0), cfg)
     assert source == "none" and "confidence 0.01" in result.reason
     wrong = Axis(JointType.PRISMATIC, np.zeros(3), np.array([1.0, 0, 0]), confidence=0.9)
-    assert choose_axis(wrong, NoAxis("x"), JointType.REVOLUTE, 20.0, cfg)[1] == "none"
+    assert choose_axis(wrong, NoAxis("x"), JointType.REVOLUTE, np.radians(20.0), cfg)[1] == "none"
 
 
 def test_config_targets_and_paper_schedule():
-    cfg = OpenConfig(task="door", target_angle_deg=45, policy="paper")
+    cfg = OpeningConfig(task="door", target_angle_deg=45, policy="paper")
     assert cfg.target == pytest.approx(np.radians(45))
     assert [cfg.step_for(JointType.PRISMATIC, k) for k in (0, 1, 5)] == pytest.approx([0.10, 0.12, 0.16])
     assert cfg.step_for(JointType.REVOLUTE, 10) == pytest.approx(0.15)
     with pytest.raises(ValueError):
-        OpenConfig(policy="sometimes")
+        OpeningConfig(policy="sometimes")
 
 
 def test_seen_opening_is_the_drawer_fronts_distance_out_of_the_cabinet_front():

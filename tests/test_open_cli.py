@@ -57,7 +57,7 @@ def test_hardware_path_on_a_recording_with_the_kinematic_arm(capsys, tmp_path):
     (("--camera", "d415", "--arm", "sim"), "--arm sim needs --camera sim"),
     (("--camera", "sim", "--arm", "can"), "--camera sim needs a simulated arm"),
     (("--camera", "replay:/nonexistent", "--arm", "can"), "--arm can needs --robot"),
-    (("--segmenter", "classical"), "renderer's segmentation"),
+    (("--segmenter", "classical"), "the classical segmenter needs the object's box on the first frame"),
     (("--camera", "webcam", "--arm", "ideal", "--robot", ROBOT), "unknown camera 'webcam'"),
     (("--camera", "d415", "--arm", "ideal", "--robot", ROBOT, "--segmenter", "oracle"),
      "no RealSense camera is connected"),

@@ -10,9 +10,10 @@ import pytest
 
 from deploy.cli import main
 from deploy.errors import PerceptionError
-from deploy.perception import PerceptionConfig, make_segmenter
 from deploy.perception.bench import bench_perception
 from deploy.perception.classical import fill_holes, keep_touching
+from deploy.perception.config import PerceptionConfig
+from deploy.perception.registry import make_segmenter
 from deploy.perception.track_health import box_of, mask_iou
 from deploy.synthetic import synthetic_sequence
 from drivers.camera.base import Frame, Intrinsics

@@ -12,9 +12,10 @@ from perception_tiny_models import save_tiny_edgetam_video, save_tiny_grounding_
 
 from deploy.cli import main
 from deploy.errors import ModelError, PerceptionError
-from deploy.perception import PerceptionConfig, make_segmenter
+from deploy.perception.config import PerceptionConfig
 from deploy.perception.gdino import GroundingDinoDetector
 from deploy.perception.models import check_models, load_detector, load_tracker, resolve_checkpoint
+from deploy.perception.registry import make_segmenter
 from deploy.perception.sam2_video import StreamingTracker
 from deploy.synthetic import synthetic_sequence, write_sequence
 from drivers.camera.base import Intrinsics

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from deploy.errors import ConfigError
-from deploy.perception import make_segmenter
 from deploy.perception.config import perception_config
 from deploy.perception.device import choose_device
 from deploy.perception.gdino import grounding_text
+from deploy.perception.registry import make_segmenter
 from deploy.perception.track_health import box_iou, box_of, mask_iou, track_lost
 
 

@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 
 from deploy.errors import PerceptionError
-from deploy.perception import make_segmenter
 from deploy.perception.oracle import OracleSegmenter
+from deploy.perception.registry import make_segmenter
 from drivers.camera.base import Frame, Intrinsics, SegLabel
 
 

@@ -4,10 +4,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 from scipy.spatial.transform import Rotation
 
+from deploy.config import EstimatorConfig
 from deploy.geometry.estimators.base import Observation
-from deploy.geometry.estimators.screw import ScrewEstimator, ScrewGripEstimator, _circle_centre
+from deploy.geometry.estimators.screw import ScrewEstimator, ScrewGripEstimator, open_screw, open_screw_grip
+from deploy.geometry.estimators.screw_config import ScrewConfig
+from deploy.geometry.estimators.screw_fit import circle_centre
 from deploy.geometry.types import Axis, Box, JointType, NoAxis
 
 # Cabinet frame: x out of the front face, z up. The body box includes the closed fronts.
@@ -329,7 +333,7 @@ def test_circle_centre_is_exact_on_noise_free_tracks():
     rotations = np.concatenate([np.eye(3)[None], turns])
     levers = [np.array([0.2, 0.1, 0.4]), np.array([-0.1, 0.3, 0.0])]
     tracks = [(a + rotations @ lever, sigma) for lever, sigma in zip(levers, (0.003, 0.001), strict=True)]
-    centre, misses = _circle_centre(w, turns, tracks, anchor=float(w @ a))
+    centre, misses = circle_centre(w, turns, tracks, anchor=float(w @ a))
     np.testing.assert_allclose(centre, a, atol=1e-9)
     np.testing.assert_allclose(misses, 0.0, atol=1e-9)
 
@@ -357,3 +361,29 @@ def test_a_held_drawer_handle_straightens_the_direction_and_a_wobbling_one_is_ig
     assert angle_deg(vision.direction, direction) > 0.8
     assert angle_deg(fused.direction, direction) < 0.4
     np.testing.assert_allclose(wobbling.direction, vision.direction, atol=1e-9)
+
+
+def test_the_config_reaches_both_estimators():
+    window, _, _ = make_window("drawer", DRAWER_10CM, seed=1)
+    strict = ScrewEstimator(ScrewConfig(min_points=100_000)).estimate(window)
+    assert isinstance(strict, NoAxis) and "need 100000" in strict.reason
+    patient = ScrewGripEstimator(ScrewConfig(min_travel_m=0.5, min_rotation_deg=45.0)).estimate(window)
+    assert isinstance(patient, NoAxis) and "of 500 mm" in patient.reason
+    assert ScrewEstimator().config == ScrewGripEstimator().config == ScrewConfig()
+
+
+def test_the_config_rejects_bad_values_unknown_keys_and_changes():
+    for bad in ({"voxel_m": 0.0}, {"min_fitness": 1.5}, {"max_source": 0}, {"use_gripper": True}):
+        with pytest.raises(ValidationError):
+            ScrewConfig(**bad)
+    with pytest.raises(ValidationError):
+        ScrewConfig().voxel_m = 0.01
+    assert all(field.description for field in ScrewConfig.model_fields.values())
+
+
+def test_the_registry_factories_read_the_screw_section():
+    section = ScrewConfig(voxel_m=0.01)
+    vision = open_screw("", EstimatorConfig(screw=section))
+    assert type(vision) is ScrewEstimator and vision.config is section
+    grip = open_screw_grip("", None)
+    assert type(grip) is ScrewGripEstimator and grip.config == ScrewConfig()

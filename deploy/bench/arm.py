@@ -10,7 +10,7 @@ import numpy as np
 from drivers.arm.robot_config import RobotConfig
 from drivers.arm.trajectory import MotionLimits, joint_trajectory
 from drivers.errors import ArmError
-from sim_fallback.arm_factory import sim_can_arm
+from sim_fallback.devices import sim_can_arm
 
 LIMIT_MARGIN_RAD = 0.1  # random reachable poses: FK of joints drawn this far inside the limits
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from deploy.axis_pipeline import AxisPipeline
 from deploy.config import Config
-from deploy.geometry.estimators import ESTIMATOR_NAMES
+from deploy.geometry.estimators.registry import ESTIMATORS
 from deploy.geometry.metrics import axis_angle_error_deg, axis_position_error_m
 from deploy.geometry.types import Axis, JointType
 from deploy.synthetic.sequence import SyntheticSequence, synthetic_sequence
@@ -115,11 +115,12 @@ def summarise(results: list[SequenceResult]) -> dict:
 
 
 def bench_axis(
-    n_per_kind: int = 20, seed: int = 0, estimators: tuple[str, ...] = ESTIMATOR_NAMES,
+    n_per_kind: int = 20, seed: int = 0, estimators: tuple[str, ...] | None = None,
     config: Config | None = None, progress: Callable[[int, int], None] | None = None,
 ) -> dict:
     """Run every estimator on the same synthetic sequences; returns the `--json` dict."""
     config = config or Config()
+    estimators = tuple(estimators or ESTIMATORS.names())
     seqs = make_sequences(n_per_kind, seed)
     results, default_steps = [], []
     total = len(seqs) * len(estimators)
@@ -143,4 +144,4 @@ def bench_axis(
 def demo_axis(seed: int = 0) -> list[SequenceResult]:
     """One noisy synthetic drawer and door, every estimator: the rows of `deploy axis demo`."""
     seqs = make_sequences(1, seed)
-    return [run_sequence(seq, name, Config()) for seq in seqs for name in ESTIMATOR_NAMES]
+    return [run_sequence(seq, name, Config()) for seq in seqs for name in ESTIMATORS.names()]

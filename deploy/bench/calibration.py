@@ -1,5 +1,5 @@
-"""Hand-eye calibration in simulation, against ground truth (`deploy bench calibration`, and the sim camera and
-arm of `deploy calibrate`): the same routine as on hardware, on a PyBullet rig from sim_fallback.board."""
+"""`deploy bench calibration`: hand-eye calibration in simulation against ground truth, the same routine as on
+hardware, on the simulated calibration scene of deploy.rig."""
 
 from __future__ import annotations
 
@@ -8,18 +8,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calibration.board import BoardConfig, render_board
+from calibration.board import BoardConfig
 from calibration.hand_eye import METHODS, SETUPS, HandEyeSolution, calibrate, solve
 from calibration.poses import PoseConfig
 from calibration.routine import HandEyeRun, RoutineConfig, Stations, plan_around_start, run_hand_eye
-from calibration.transforms import pose_error
+from deploy.evaluation import calibration_error
+from deploy.rig import BoardScene, board_scene
 from drivers.arm.trajectory import MotionLimits
 from drivers.camera.base import Intrinsics
-from drivers.camera.depth_noise import DepthNoise
-from sim_fallback.board import BoardTexture, CalibrationRig, build_rig
+from sim_fallback.board import CalibrationRig
 
-TEXTURE_PX_PER_M = 3000.0  # about 2 texels per image pixel where the board is nearest the camera
-TEXTURE_MARGIN_M = 0.01
 SPEED_FRACTION = 0.5
 POSE_COUNTS = (5, 10, 15, 20)
 AUTO = "auto"  # the routine's choice: most consistent method, refined on reprojection error
@@ -42,10 +40,7 @@ NOMINAL = NOISE_LEVELS[1]
 def sim_rig(setup: str, board: BoardConfig, resolution: tuple[int, int] = (640, 480), noise: NoiseLevel = NOMINAL,
             seed: int = 0) -> CalibrationRig:
     """A simulated calibration rig showing `board` (eye-to-hand: on the tool; eye-in-hand: on the table)."""
-    texture = BoardTexture(render_board(board, TEXTURE_PX_PER_M, TEXTURE_MARGIN_M), TEXTURE_PX_PER_M,
-                           (-TEXTURE_MARGIN_M, -TEXTURE_MARGIN_M))
-    return build_rig(setup, texture, board.center_m, resolution, None if noise.depth else DepthNoise.none(),
-                     noise.color_sigma, seed)
+    return board_scene(BoardScene(setup, board, seed, resolution, noise.depth, noise.color_sigma))  # type: ignore
 
 
 def routine_config(rig: CalibrationRig, poses: int, board: BoardConfig, seed: int = 0) -> RoutineConfig:
@@ -59,7 +54,7 @@ def limits(rig: CalibrationRig, fraction: float = SPEED_FRACTION) -> MotionLimit
 
 def truth_error(rig: CalibrationRig, solution: HandEyeSolution) -> tuple[float, float]:
     """(translation mm, rotation deg) of the solved camera transform against the rig's ground truth."""
-    return pose_error(solution.T_camera, rig.true_camera)
+    return calibration_error(rig, solution.T_camera)
 
 
 def simulated_hand_eye(rig: CalibrationRig, poses: int, board: BoardConfig, seed: int = 0,

@@ -1,9 +1,8 @@
-"""Opening episodes in simulation (`deploy bench open`): the policy sees the camera and the arm only;
-the world's truth is read AFTER each episode, for evaluation (success = true joint value >= target)."""
+"""`deploy bench open`: the success rate of simulated openings (success = the true joint value at the end >= the
+target, like the paper), with the failure causes. Each episode is a `deploy open*` request on a simulated rig."""
 
 from __future__ import annotations
 
-import time
 from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
@@ -12,84 +11,22 @@ from typing import Any
 import numpy as np
 
 from deploy.bench.executors import make_executor
-from deploy.control.episode import run_episode
-from deploy.control.policy import OpenConfig, Policy
-from deploy.control.viewer import RerunViewer
-from deploy.geometry.metrics import axis_angle_error_deg, axis_position_error_m
-from deploy.geometry.types import Axis, JointType
-from deploy.perception.oracle import OracleSegmenter
-from drivers.arm.base import Arm
-from drivers.arm.robot_config import load_robot_config
-from drivers.arm.trajectory import MotionLimits
-from sim_fallback.arm import SimArm
-from sim_fallback.arm_factory import PANDA_SIM_CONFIG, open_arm
-from sim_fallback.camera import SimCamera, d415_intrinsics
-from sim_fallback.scenario import Scenario
-from sim_fallback.world import SimWorld
-
-Hook = Callable[[SimWorld, SimArm], None]
+from deploy.control.session import OpenRequest, Setup, open_object
 
 
-def simulate_episode(
-    task: str,
-    seed: int,
-    split: str = "train",
-    target: float | None = None,
-    policy: Policy = "closed",
-    run_dir: str | Path | None = None,
-    resolution: tuple[int, int] = (640, 480),
-    setup: Hook | None = None,
-    auto_joint: bool = False,
-    view: bool = False,
-    arm_kind: str = "sim",
-    **options: Any,
-) -> dict:
-    """One episode of `task` ("drawer" | "door") on scenario `seed`; `target` in m (drawer) or deg (door).
-
-    arm_kind: "sim" (the PyBullet arm directly) or "sim-can" (the CAN driver talking to simulated Damiao
-    motors on a virtual bus, which move the same PyBullet arm; configs/robots/panda_sim.toml).
-    view: stream to a rerun viewer and save RUN/episode.rrd (needs run_dir).
-    auto_joint: the policy is not told the joint type and classifies it from the first pull.
-    `options` go to OpenConfig (e.g. fusion="vision"); `setup(world, arm)` may change the world before the
-    episode (tests: lock the joint, weaken the grasp). Returns the episode's JSON result plus the truth:
-    true_opened (m or deg), axis_angle_error_deg, axis_position_error_m, and success = true value >= target.
-    """
-    wall = time.perf_counter()
-    target_key = "target_distance_m" if task == "drawer" else "target_angle_deg"
-    config = OpenConfig(task="auto" if auto_joint else task, policy=policy,
-                        **({target_key: target} if target is not None else {}), **options)
-    with SimWorld(Scenario.make(task, seed, split)) as world, _sim_arm(arm_kind, world) as arm:
-        camera = SimCamera(world, intrinsics=d415_intrinsics(*resolution), seed=seed, fps=config.camera_hz)
-        if setup is not None:
-            setup(world, arm)
-        truth0 = world.truth()
-
-        def axis_error(axis: Axis) -> tuple[float, float]:  # evaluation only: drawn in the report
-            return (axis_angle_error_deg(truth0.direction, axis.direction),
-                    axis_position_error_m(truth0.origin, truth0.direction, axis.origin, axis.direction))
-
-        result = run_episode(camera, arm, arm.kin, OracleSegmenter(), config, run_dir,
-                             MotionLimits.for_robot(world.robot_spec, arm.kin, 0.3),
-                             axis_error, RerunViewer(Path(run_dir) / "episode.rrd") if view and run_dir else None)
-        true_value = world.truth().value
-    out = result.to_dict()
-    scale = 1.0 if task == "drawer" else float(np.degrees(1.0))
-    angle_err, position_err = axis_error(result.axis) if result.axis is not None else (None, None)
-    out.update({
-        "task": task, "seed": seed, "split": split, "policy": policy,
-        "true_opened": true_value * scale,
-        "success": bool(true_value >= config.target_for(JointType(truth0.joint_type))),
-        "estimated_success": result.success, "axis_angle_error_deg": angle_err,
-        "axis_position_error_m": position_err if task == "door" else None,
-        "seconds": time.perf_counter() - wall,
-    })
-    return out
-
-
-def _sim_arm(kind: str, world: SimWorld) -> Arm:
-    if kind == "sim":
-        return SimArm(world)
-    return open_arm(kind, load_robot_config(PANDA_SIM_CONFIG), world)
+def simulate_episode(task: str, seed: int, split: str = "train", target: float | None = None,
+                     policy: str = "closed", auto_joint: bool = False, arm: str = "sim",
+                     overrides: dict[str, Any] | None = None, run_dir: Path | None = None,
+                     setup: Setup | None = None, **options: Any) -> dict:
+    """One simulated episode of `task` ("drawer" | "door") on scenario `seed`, `target` in m (drawer) or deg
+    (door); `options` override `[opening]` settings, `overrides` any setting by dotted name; `setup(world, arm)`
+    changes the world first (tests). The episode's JSON with the truth-based fields."""
+    target_field = {"drawer": "distance_m", "door": "angle_deg"}[task]
+    request = OpenRequest(task="auto" if auto_joint else task, scene=task, seed=seed, split=split,  # type: ignore
+                          policy=policy, arm=arm, run_dir=run_dir,  # type: ignore[arg-type]
+                          overrides={**{f"opening.{k}": v for k, v in options.items()}, **(overrides or {})},
+                          **({target_field: target} if target is not None else {}))
+    return open_object(request, setup=setup, keep_run_dir=run_dir is not None)
 
 
 def bench_open(
@@ -97,7 +34,7 @@ def bench_open(
     target: float,
     episodes: int = 10,
     split: str = "test",
-    policy: Policy = "closed",
+    policy: str = "closed",
     seed: int = 0,
     workers: int = 1,
     progress: Callable[[dict], None] | None = None,

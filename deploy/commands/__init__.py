@@ -1,1 +1,2 @@
-"""Command modules of the `deploy` CLI, one per area; each has `register(app, bench_app)`."""
+"""The `deploy` command groups, one module each (deploy/cli.py assembles them); output.py and options.py are
+what they share."""

@@ -1,4 +1,4 @@
-"""`deploy calibrate board|intrinsics|hand-eye|check` and `deploy bench calibration` (registered by deploy/cli.py)."""
+"""`deploy calibrate board|intrinsics|hand-eye|check`: ChArUco board, intrinsics, hand-eye and its check."""
 
 from __future__ import annotations
 
@@ -7,6 +7,20 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+
+from deploy.commands.options import (
+    JsonOpt,
+    StationSeedOpt,
+    dry_run_option,
+    kind_option,
+    robot_option,
+    yes_option,
+)
+from deploy.commands.output import console, err_console, print_json, print_rows, print_table, progress_bar
+from drivers.arm.registry import ARMS
+from drivers.camera.registry import CAMERAS
+
+app = typer.Typer(help="Field calibration: ChArUco board, intrinsics, hand-eye, checks.", no_args_is_help=True)
 
 
 class SetupChoice(str, Enum):
@@ -20,22 +34,18 @@ class ExistingChoice(str, Enum):
     redo = "redo"
 
 
-JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object instead of a table.")]
-CameraOpt = Annotated[str, typer.Option("--camera", help="Camera: sim (PyBullet D415 rig), d415 or d415:SERIAL "
-                                        "(RealSense; its serial names the calibration file).")]
-ArmOpt = Annotated[str | None, typer.Option("--arm", help="Arm: sim (PyBullet Panda), sim-can (the CAN driver on "
-                                            "simulated Damiao motors) or can (hardware) (default: sim with the sim "
-                                            "camera, can with a D415).")]
-RobotOpt = Annotated[Path | None, typer.Option("--robot", help="Robot config TOML; its name names the calibration "
-                                               "file (required for --arm can; default for sim arms: "
-                                               "configs/robots/panda_sim.toml).")]
+CameraOpt = kind_option(CAMERAS, "--camera", " A D415's serial names the calibration file; a recording cannot "
+                        "calibrate.")
+ArmOpt = kind_option(ARMS, "--arm", " \\[default: sim with the sim camera, can with a D415].", optional=True)
+RobotOpt = robot_option("Robot config TOML; its name names the calibration file (required for --arm can; default "
+                        "for sim arms: configs/robots/panda_sim.toml).")
 PivotOpt = Annotated[tuple[float, float, float] | None, typer.Option(
     "--pivot-mm", help="Point (mm, tool frame) the stations turn about: eye-to-hand the board centre, eye-in-hand the "
     "point the wrist camera looks at (required on a real arm, except for check: from the stored calibration; "
     "sim: the rig's).")]
-YesOpt = Annotated[bool, typer.Option("--yes", "-y", help="Do not ask before a real arm moves.")]
-DryRunOpt = Annotated[bool, typer.Option("--dry-run", help="Open the camera, read the arm's joints, plan and print "
-                                         "the stations; enable and move nothing.")]
+YesOpt = yes_option("Do not ask before a real arm moves.")
+DryRunOpt = dry_run_option("Open the camera, read the arm's joints, plan and print the stations; enable and move "
+                           "nothing.")
 SetupOpt = Annotated[SetupChoice, typer.Option("--setup", help="eye-to-hand (fixed camera, board on the tool) or "
                                                "eye-in-hand (wrist camera, board fixed).")]
 PosesOpt = Annotated[int, typer.Option("--poses", min=1, help="Stations the arm visits.")]
@@ -46,7 +56,6 @@ SquareMmOpt = Annotated[float, typer.Option("--square-mm", min=1.0, help="Square
 MarkerMmOpt = Annotated[float, typer.Option("--marker-mm", min=1.0, help="Marker side as printed (mm).")]
 DictOpt = Annotated[str, typer.Option("--dictionary", help="OpenCV ArUco dictionary.")]
 LegacyOpt = Annotated[bool, typer.Option("--legacy", help="Board printed by OpenCV < 4.6 (legacy ChArUco pattern).")]
-SeedOpt = Annotated[int, typer.Option("--seed", help="Seed of the station generator (and sim noise).")]
 
 
 def _board(squares: str, square_mm: float, marker_mm: float, dictionary: str, legacy: bool):
@@ -60,240 +69,198 @@ def _board(squares: str, square_mm: float, marker_mm: float, dictionary: str, le
     return BoardConfig((cols, rows), square_mm / 1000, marker_mm / 1000, dictionary, legacy)
 
 
-def register(app: typer.Typer, bench_app: typer.Typer) -> None:
-    """Add this area's commands to the main app and to `deploy bench`."""
-    from deploy.cli import _print_json, console, err_console, print_rows
+@app.command("board")
+def board_cmd(
+    out: Annotated[Path, typer.Option("--out", help="PNG or PDF to write (true scale).")] = Path("board.pdf"),
+    squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0, marker_mm: MarkerMmOpt = 28.0,
+    dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False,
+    dpi: Annotated[float, typer.Option("--dpi", min=72.0, help="Print resolution.")] = 300.0,
+) -> None:
+    """Render a printable ChArUco board at true scale: print at 100 %, then measure one square.
 
-    calibrate_app = typer.Typer(help="Field calibration: ChArUco board, intrinsics, hand-eye, checks.",
-                                no_args_is_help=True)
-    app.add_typer(calibrate_app, name="calibrate")
+    Example: deploy calibrate board --out board.pdf --squares 5x7 --square-mm 38 --marker-mm 28
+    """
+    from calibration.board import write_board
 
-    def _progress(label: str):
-        from rich.progress import Progress
+    cfg = _board(squares, square_mm, marker_mm, dictionary, legacy)
+    write_board(cfg, out, dpi)
+    w, h = cfg.size_m
+    console.print(f"wrote {out}: {squares} squares of {square_mm:g} mm ({w * 1e3:.0f} x {h * 1e3:.0f} mm)")
 
-        bar = Progress(console=err_console, transient=True)
-        job = bar.add_task(label, total=None)
-        return bar, lambda done, total: bar.update(job, completed=done, total=total)
 
-    @calibrate_app.command("board")
-    def board_cmd(
-        out: Annotated[Path, typer.Option("--out", help="PNG or PDF to write (true scale).")] = Path("board.pdf"),
-        squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0, marker_mm: MarkerMmOpt = 28.0,
-        dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False,
-        dpi: Annotated[float, typer.Option("--dpi", min=72.0, help="Print resolution.")] = 300.0,
-    ) -> None:
-        """Render a printable ChArUco board at true scale: print at 100 %, then measure one square.
-
-        Example: deploy calibrate board --out board.pdf --squares 5x7 --square-mm 38 --marker-mm 28
-        """
-        from calibration.board import write_board
-
-        cfg = _board(squares, square_mm, marker_mm, dictionary, legacy)
-        write_board(cfg, out, dpi)
-        w, h = cfg.size_m
-        console.print(f"wrote {out}: {squares} squares of {square_mm:g} mm ({w * 1e3:.0f} x {h * 1e3:.0f} mm)")
-
-    def _prepare(dev, cfg, board, dry_run: bool, yes: bool, json_out: bool, record=None, note: str = "") -> bool:
-        """Plan the stations; dry run: print them and return False. Otherwise ask (real arm, unless --yes),
-        enable the arm and return True."""
-        plan = dev.plan(cfg)
-        if dry_run:
-            data = {"dry_run": True, "camera": dev.choice.camera, "serial": dev.serial, "arm": dev.choice.arm,
-                    "robot": dev.robot_id, "setup": cfg.setup, "pivot_tool_m": list(cfg.stations.pivot_tool_m),
-                    "board_visible": dev.board_visible(board, record), **plan.to_dict()}
-            if json_out:
-                _print_json(data)
-                return False
-            from rich.table import Table
-
-            table = Table(title=f"{len(plan.stations)} stations for {dev.robot_id} ({dev.choice.arm}), camera "
-                                f"{dev.serial}: dry run, nothing moved")
-            for col in ("#", "joints (rad)", "tool position (m)", "turn (deg)"):
-                table.add_column(col)
-            for i, s in enumerate(data["stations"]):
-                table.add_row(str(i + 1), " ".join(f"{v:+.3f}" for v in s["q"]),
-                              " ".join(f"{v:.3f}" for v in s["tool_position_m"]), f"{s['turn_deg']:.1f}")
-            console.print(table)
-            console.print(f"board visible at the start pose: {data['board_visible']}; about {plan.duration_s:.0f} s; "
-                          f"tool within {plan.max_shift_m * 100:.1f} cm and {plan.max_turn_deg:.1f} deg of its start")
+def _prepare(dev, cfg, board, dry_run: bool, yes: bool, json_out: bool, record=None, note: str = "") -> bool:
+    """Plan the stations; dry run: print them and return False. Otherwise ask (real arm, unless --yes),
+    enable the arm and return True."""
+    plan = dev.plan(cfg)
+    if dry_run:
+        data = {"dry_run": True, "camera": dev.choice.camera, "serial": dev.serial, "arm": dev.choice.arm,
+                "robot": dev.robot_id, "setup": cfg.setup, "pivot_tool_m": list(cfg.stations.pivot_tool_m),
+                "board_visible": dev.board_visible(board, record), **plan.to_dict()}
+        if json_out:
+            print_json(data)
             return False
-        dev.start(plan, None if yes else lambda message: typer.confirm(message + note, abort=True, err=True))
-        return True
+        print_table(f"{len(plan.stations)} stations for {dev.robot_id} ({dev.choice.arm}), camera {dev.serial}: "
+                    "dry run, nothing moved", ("#", "joints (rad)", "tool position (m)", "turn (deg)"),
+                    [(str(i + 1), " ".join(f"{v:+.3f}" for v in s["q"]),
+                      " ".join(f"{v:.3f}" for v in s["tool_position_m"]), f"{s['turn_deg']:.1f}")
+                     for i, s in enumerate(data["stations"])])
+        console.print(f"board visible at the start pose: {data['board_visible']}; about {plan.duration_s:.0f} s; "
+                      f"tool within {plan.max_shift_m * 100:.1f} cm and {plan.max_turn_deg:.1f} deg of its start")
+        return False
+    dev.start(plan, None if yes else lambda message: typer.confirm(message + note, abort=True, err=True))
+    return True
 
-    @calibrate_app.command("intrinsics")
-    def intrinsics_cmd(
-        camera: CameraOpt = "sim", arm: ArmOpt = None, robot: RobotOpt = None, pivot_mm: PivotOpt = None,
-        poses: PosesOpt = 12, setup: SetupOpt = SetupChoice.eye_to_hand,
-        squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0, marker_mm: MarkerMmOpt = 28.0,
-        dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False, directory: DirOpt = None,
-        yes: YesOpt = False, dry_run: DryRunOpt = False, seed: SeedOpt = 0, json_out: JsonOpt = False,
-    ) -> None:
-        """Fit the camera's own intrinsics from board views at N stations (default: RealSense factory values).
 
-        Example: deploy calibrate intrinsics --camera d415 --arm can --robot my_arm.toml --pivot-mm 0 0 30 --poses 12
-        """
-        from calibration.poses import PoseConfig
-        from calibration.routine import RoutineConfig, run_intrinsics
-        from calibration.store import IntrinsicsRecord, save_intrinsics
-        from deploy.calibration_devices import choose, open_devices
+@app.command("intrinsics")
+def intrinsics_cmd(
+    camera: CameraOpt = "sim", arm: ArmOpt = None, robot: RobotOpt = None, pivot_mm: PivotOpt = None,
+    poses: PosesOpt = 12, setup: SetupOpt = SetupChoice.eye_to_hand,
+    squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0, marker_mm: MarkerMmOpt = 28.0,
+    dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False, directory: DirOpt = None,
+    yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 0, json_out: JsonOpt = False,
+) -> None:
+    """Fit the camera's own intrinsics from board views at N stations (default: RealSense factory values).
 
-        choice = choose(camera, arm, robot, pivot_mm)
-        board = _board(squares, square_mm, marker_mm, dictionary, legacy)
-        with open_devices(choice, setup.value, board, seed) as dev:
-            cfg = RoutineConfig(setup.value, poses, board, PoseConfig(pivot_tool_m=dev.pivot(), seed=seed))
-            if not _prepare(dev, cfg, board, dry_run, yes, json_out):
-                return
-            bar, progress = _progress("intrinsics")
-            with bar:
-                result = run_intrinsics(dev.camera, dev.arm, dev.kin, cfg, dev.limits, progress)
-            factory, serial = dev.camera.intrinsics, dev.serial
-        path = save_intrinsics(IntrinsicsRecord(serial, result.intrinsics, result.distortion, result.rms_px,
-                                                result.views), directory)
-        data = {"file": str(path), "views": result.views, "rms_px": result.rms_px, **result.intrinsics.to_dict(),
-                "distortion": result.distortion.tolist(), "factory": factory.to_dict()}
-        if json_out:
-            _print_json(data)
-        else:
-            print_rows(f"intrinsics of {serial}", {k: v for k, v in data.items() if k not in ("factory",)}, digits=4)
+    Example: deploy calibrate intrinsics --camera d415 --arm can --robot my_arm.toml --pivot-mm 0 0 30 --poses 12
+    """
+    from calibration.poses import PoseConfig
+    from calibration.routine import RoutineConfig, run_intrinsics
+    from calibration.store import IntrinsicsRecord, save_intrinsics
+    from deploy.calibration_devices import choose, open_devices
 
-    @calibrate_app.command("hand-eye")
-    def hand_eye_cmd(
-        setup: SetupOpt = SetupChoice.eye_to_hand, poses: PosesOpt = 15, camera: CameraOpt = "sim", arm: ArmOpt = None,
-        robot: RobotOpt = None, pivot_mm: PivotOpt = None, squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0,
-        marker_mm: MarkerMmOpt = 28.0, dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False,
-        existing: Annotated[ExistingChoice, typer.Option("--existing", help="When a calibration exists: ask, reuse "
-                                                         "it, or redo it.")] = ExistingChoice.ask,
-        directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: SeedOpt = 0,
-        json_out: JsonOpt = False,
-    ) -> None:
-        """Hand-eye: move through N diverse poses, detect the board, solve, refine and save the calibration.
-
-        Several solvers run; the most consistent one is refined on the corners' reprojection error. The file is
-        one per camera serial and robot config name; an existing one is offered for reuse first. A real arm asks
-        before it moves (--yes skips); --dry-run prints the stations and moves nothing.
-
-        Example: deploy calibrate hand-eye --camera d415 --arm can --robot my_arm.toml --pivot-mm 0 0 30 --poses 15
-        """
-        from calibration.poses import PoseConfig
-        from calibration.routine import RoutineConfig, run_hand_eye
-        from calibration.store import hand_eye_path, load_for, load_intrinsics_for
-        from deploy.bench.calibration import truth_error
-        from deploy.calibration_devices import choose, open_devices
-
-        choice = choose(camera, arm, robot, pivot_mm)
-        board = _board(squares, square_mm, marker_mm, dictionary, legacy)
-        with open_devices(choice, setup.value, board, seed) as dev:
-            serial, robot_id = dev.serial, dev.robot_id
-            old = load_for(serial, robot_id, directory) if existing != ExistingChoice.redo and not dry_run else None
-            if old is not None and (existing == ExistingChoice.reuse or typer.confirm(
-                    f"{hand_eye_path(serial, robot_id, directory)} exists ({old.setup}, {old.method}, "
-                    f"{old.created:%Y-%m-%d}, spread {old.spread_mm:.1f} mm): reuse it?", default=True,
-                    err=True)):
-                data = {"file": str(hand_eye_path(serial, robot_id, directory)), "reused": True}
-                if json_out:
-                    _print_json(data)
-                else:
-                    console.print(f"reusing {data['file']}")
-                return
-            own = load_intrinsics_for(serial, directory)  # else the camera's factory values
-            cfg = RoutineConfig(setup.value, poses, board, PoseConfig(pivot_tool_m=dev.pivot(), seed=seed))
-            if not _prepare(dev, cfg, board, dry_run, yes, json_out):
-                return
-            bar, progress = _progress(f"hand-eye {setup.value}")
-            with bar:
-                run = run_hand_eye(dev.camera, dev.arm, dev.kin, cfg, dev.limits, own and own.intrinsics,
-                                   own and own.distortion, progress)
-            path = _save(run, dev, board, directory)
-            data = _hand_eye_summary(run, path) | {"camera_serial": serial, "robot_id": robot_id}
-            if dev.rig is not None:
-                err_mm, err_deg = truth_error(dev.rig, run.best)
-                data |= {"true_error_mm": err_mm, "true_error_deg": err_deg}
-        if json_out:
-            _print_json(data)
-        else:
-            rows = {k: v for k, v in data.items() if k != "methods"}
-            print_rows(f"hand-eye {setup.value} ({serial} on {robot_id})", rows, digits=4)
-
-    @calibrate_app.command("check")
-    def check_cmd(
-        camera: CameraOpt = "sim", arm: ArmOpt = None, robot: RobotOpt = None, pivot_mm: PivotOpt = None,
-        poses: PosesOpt = 6,
-        max_age_days: Annotated[float, typer.Option("--max-age-days", help="Warn when older.")] = 30.0,
-        point: Annotated[bool, typer.Option("--point", help="Eye-in-hand: move the tool tip to 2 cm in front of "
-                                            "the board's centre corner.")] = False,
-        directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: SeedOpt = 1,
-        json_out: JsonOpt = False,
-    ) -> None:
-        """Check the stored calibration: spread of the fixed frame over fresh poses, a one-shot test, warnings.
-
-        Example: deploy calibrate check --camera d415 --arm can --robot my_arm.toml --poses 6 --json
-        """
-        import numpy as np
-
-        from calibration.poses import PoseConfig
-        from calibration.routine import RoutineConfig, point_at_board, run_check
-        from calibration.store import load_for
-        from deploy.calibration_devices import SIM_SERIAL, choose, open_devices
-        from deploy.errors import CalibrationError
-
-        def stored(serial: str, robot_id: str):
-            record = load_for(serial, robot_id, directory)
-            if record is None:
-                raise CalibrationError(f"no hand-eye calibration for camera {serial} on robot {robot_id}: run "
-                                       "`deploy calibrate hand-eye` first")
-            return record
-
-        choice = choose(camera, arm, robot, pivot_mm, pivot_from_record=True)
-        record = stored(SIM_SERIAL, choice.robot.name) if choice.simulated else None  # the rig needs its setup
-        with open_devices(choice, record.setup if record else "eye-to-hand", record and record.board, seed) as dev:
-            record = record or stored(dev.serial, dev.robot_id)
-            cfg = RoutineConfig(record.setup, poses, record.board,  # type: ignore[arg-type]
-                                PoseConfig(pivot_tool_m=dev.pivot(record), seed=seed))
-            note = " Then the tool tip goes to 2 cm in front of the board's centre corner." if point else ""
-            if not _prepare(dev, cfg, record.board, dry_run, yes, json_out, record, note):
-                return
-            bar, progress = _progress("check")
-            with bar:
-                report = run_check(dev.camera, dev.arm, dev.kin, record, cfg, dev.limits, dev.serial, max_age_days,
-                                   progress)
-            data = report.to_dict()
-            if point:
-                pointed = point_at_board(dev.camera, dev.arm, dev.kin, record, dev.limits)
-                data |= {"point_corner_m": pointed.corner.tolist(), "point_reached_m": pointed.reached.tolist(),
-                         "point_tracking_mm": float(np.linalg.norm(pointed.reached - pointed.target) * 1e3)}
-                if dev.rig is not None:
-                    data["point_true_error_mm"] = float(np.linalg.norm(pointed.corner
-                                                                       - _true_corner(dev.rig, record.board)) * 1e3)
-        for warning in report.warnings:
-            err_console.print(f"[yellow]warning:[/] {warning}", highlight=False)
-        if json_out:
-            _print_json(data)
-        else:
-            print_rows(f"check of {record.setup} calibration ({record.created:%Y-%m-%d})", data, digits=4)
-
-    @bench_app.command("calibration")
-    def bench_calibration_cmd(seed: SeedOpt = 0, json_out: JsonOpt = False) -> None:
-        """Hand-eye error against simulated truth vs number of poses, depth/colour noise and method (640x480).
-
-        Example: deploy bench calibration --json
-        """
-        from rich.table import Table
-
-        from deploy.bench.calibration import bench_calibration
-
-        with err_console.status("bench calibration") as status:
-            data = bench_calibration(seed=seed, progress=lambda what: status.update(f"bench calibration: {what}"))
-        if json_out:
-            _print_json(data)
+    choice = choose(camera, arm, robot, pivot_mm)
+    board = _board(squares, square_mm, marker_mm, dictionary, legacy)
+    with open_devices(choice, setup.value, board, seed) as dev:
+        cfg = RoutineConfig(setup.value, poses, board, PoseConfig(pivot_tool_m=dev.pivot(), seed=seed))
+        if not _prepare(dev, cfg, board, dry_run, yes, json_out):
             return
-        table = Table(title="hand-eye error vs truth (mm / deg), simulated D415 at 640x480")
-        for col in ("setup", "noise", "method", "poses", "mm", "deg"):
-            table.add_column(col)
-        for r in data["results"]:
-            table.add_row(r["setup"], r["noise"], r["method"], str(r["poses"]), f"{r['translation_mm']:.2f}",
-                          f"{r['rotation_deg']:.3f}")
-        console.print(table)
-        console.print(f"best at 15 poses: {data['best_at_15_poses']}")
+        with progress_bar("intrinsics") as bar:
+            result = run_intrinsics(dev.camera, dev.arm, dev.kin, cfg, dev.limits, bar.counts)
+        factory, serial = dev.camera.intrinsics, dev.serial
+    path = save_intrinsics(IntrinsicsRecord(serial, result.intrinsics, result.distortion, result.rms_px,
+                                            result.views), directory)
+    data = {"file": str(path), "views": result.views, "rms_px": result.rms_px, **result.intrinsics.to_dict(),
+            "distortion": result.distortion.tolist(), "factory": factory.to_dict()}
+    if json_out:
+        print_json(data)
+    else:
+        print_rows(f"intrinsics of {serial}", {k: v for k, v in data.items() if k not in ("factory",)}, digits=4)
+
+
+@app.command("hand-eye")
+def hand_eye_cmd(
+    setup: SetupOpt = SetupChoice.eye_to_hand, poses: PosesOpt = 15, camera: CameraOpt = "sim", arm: ArmOpt = None,
+    robot: RobotOpt = None, pivot_mm: PivotOpt = None, squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0,
+    marker_mm: MarkerMmOpt = 28.0, dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False,
+    existing: Annotated[ExistingChoice, typer.Option("--existing", help="When a calibration exists: ask, reuse "
+                                                     "it, or redo it.")] = ExistingChoice.ask,
+    directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 0,
+    json_out: JsonOpt = False,
+) -> None:
+    """Hand-eye: move through N diverse poses, detect the board, solve, refine and save the calibration.
+
+    Several solvers run; the most consistent one is refined on the corners' reprojection error. The file is
+    one per camera serial and robot config name; an existing one is offered for reuse first. A real arm asks
+    before it moves (--yes skips); --dry-run prints the stations and moves nothing.
+
+    Example: deploy calibrate hand-eye --camera d415 --arm can --robot my_arm.toml --pivot-mm 0 0 30 --poses 15
+    """
+    from calibration.poses import PoseConfig
+    from calibration.routine import RoutineConfig, run_hand_eye
+    from calibration.store import hand_eye_path, load_for, load_intrinsics_for
+    from deploy.calibration_devices import choose, open_devices
+    from deploy.evaluation import calibration_error
+
+    choice = choose(camera, arm, robot, pivot_mm)
+    board = _board(squares, square_mm, marker_mm, dictionary, legacy)
+    with open_devices(choice, setup.value, board, seed) as dev:
+        serial, robot_id = dev.serial, dev.robot_id
+        old = load_for(serial, robot_id, directory) if existing != ExistingChoice.redo and not dry_run else None
+        if old is not None and (existing == ExistingChoice.reuse or typer.confirm(
+                f"{hand_eye_path(serial, robot_id, directory)} exists ({old.setup}, {old.method}, "
+                f"{old.created:%Y-%m-%d}, spread {old.spread_mm:.1f} mm): reuse it?", default=True,
+                err=True)):
+            data = {"file": str(hand_eye_path(serial, robot_id, directory)), "reused": True}
+            if json_out:
+                print_json(data)
+            else:
+                console.print(f"reusing {data['file']}")
+            return
+        own = load_intrinsics_for(serial, directory)  # else the camera's factory values
+        cfg = RoutineConfig(setup.value, poses, board, PoseConfig(pivot_tool_m=dev.pivot(), seed=seed))
+        if not _prepare(dev, cfg, board, dry_run, yes, json_out):
+            return
+        with progress_bar(f"hand-eye {setup.value}") as bar:
+            run = run_hand_eye(dev.camera, dev.arm, dev.kin, cfg, dev.limits, own and own.intrinsics,
+                               own and own.distortion, bar.counts)
+        path = _save(run, dev, board, directory)
+        data = _hand_eye_summary(run, path) | {"camera_serial": serial, "robot_id": robot_id}
+        if dev.rig is not None:
+            err_mm, err_deg = calibration_error(dev.rig, run.best.T_camera)
+            data |= {"true_error_mm": err_mm, "true_error_deg": err_deg}
+    if json_out:
+        print_json(data)
+    else:
+        rows = {k: v for k, v in data.items() if k != "methods"}
+        print_rows(f"hand-eye {setup.value} ({serial} on {robot_id})", rows, digits=4)
+
+
+@app.command("check")
+def check_cmd(
+    camera: CameraOpt = "sim", arm: ArmOpt = None, robot: RobotOpt = None, pivot_mm: PivotOpt = None,
+    poses: PosesOpt = 6,
+    max_age_days: Annotated[float, typer.Option("--max-age-days", help="Warn when older.")] = 30.0,
+    point: Annotated[bool, typer.Option("--point", help="Eye-in-hand: move the tool tip to 2 cm in front of "
+                                        "the board's centre corner.")] = False,
+    directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 1,
+    json_out: JsonOpt = False,
+) -> None:
+    """Check the stored calibration: spread of the fixed frame over fresh poses, a one-shot test, warnings.
+
+    Example: deploy calibrate check --camera d415 --arm can --robot my_arm.toml --poses 6 --json
+    """
+    import numpy as np
+
+    from calibration.poses import PoseConfig
+    from calibration.routine import RoutineConfig, point_at_board, run_check
+    from calibration.store import load_for
+    from deploy.calibration_devices import choose, open_devices
+    from deploy.errors import CalibrationError
+    from deploy.rig import SIM_SERIAL
+
+    def stored(serial: str, robot_id: str):
+        record = load_for(serial, robot_id, directory)
+        if record is None:
+            raise CalibrationError(f"no hand-eye calibration for camera {serial} on robot {robot_id}: run "
+                                   "`deploy calibrate hand-eye` first")
+        return record
+
+    choice = choose(camera, arm, robot, pivot_mm, pivot_from_record=True)
+    record = stored(SIM_SERIAL, choice.robot.name) if choice.simulated else None  # the rig needs its setup
+    with open_devices(choice, record.setup if record else "eye-to-hand", record and record.board, seed) as dev:
+        record = record or stored(dev.serial, dev.robot_id)
+        cfg = RoutineConfig(record.setup, poses, record.board,  # type: ignore[arg-type]
+                            PoseConfig(pivot_tool_m=dev.pivot(record), seed=seed))
+        note = " Then the tool tip goes to 2 cm in front of the board's centre corner." if point else ""
+        if not _prepare(dev, cfg, record.board, dry_run, yes, json_out, record, note):
+            return
+        with progress_bar("check") as bar:
+            report = run_check(dev.camera, dev.arm, dev.kin, record, cfg, dev.limits, dev.serial, max_age_days,
+                               bar.counts)
+        data = report.to_dict()
+        if point:
+            pointed = point_at_board(dev.camera, dev.arm, dev.kin, record, dev.limits)
+            data |= {"point_corner_m": pointed.corner.tolist(), "point_reached_m": pointed.reached.tolist(),
+                     "point_tracking_mm": float(np.linalg.norm(pointed.reached - pointed.target) * 1e3)}
+            if dev.rig is not None:
+                data["point_true_error_mm"] = float(np.linalg.norm(pointed.corner
+                                                                   - _true_corner(dev.rig, record.board)) * 1e3)
+    for warning in report.warnings:
+        err_console.print(f"[yellow]warning:[/] {warning}", highlight=False)
+    if json_out:
+        print_json(data)
+    else:
+        print_rows(f"check of {record.setup} calibration ({record.created:%Y-%m-%d})", data, digits=4)
 
 
 def _save(run, dev, board, directory: Path | None) -> Path:

@@ -1,4 +1,4 @@
-"""`deploy` commands for the perception area: `track`, `models check`, `bench perception`."""
+"""`deploy track` and `deploy models check`: segment and track recordings, and check the model weights."""
 
 from __future__ import annotations
 
@@ -8,7 +8,12 @@ from typing import Annotated
 
 import typer
 
-JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object instead of a table.")]
+from deploy.commands.options import JsonOpt
+from deploy.commands.output import print_json, print_rows, print_table
+
+top_level = typer.Typer()  # its commands sit directly under `deploy`
+models_app = typer.Typer(help="Model weights: what is present, where, and how to fetch the rest.", no_args_is_help=True)
+
 DeviceOpt = Annotated[str, typer.Option(help="auto (cuda, then mps, then cpu), cuda, mps or cpu.")]
 DetectorOpt = Annotated[str | None, typer.Option(
     help="Grounding DINO: local directory or cached repo id (default IDEA-Research/grounding-dino-tiny).")]
@@ -21,6 +26,7 @@ class SegmenterChoice(str, Enum):
     classical = "classical"
 
 
+@top_level.command("track")
 def track(
     recording: Annotated[Path, typer.Argument(help="Frames directory (docs/recording-format.md).")],
     prompt: Annotated[str, typer.Option(help="What to segment (Grounding DINO text prompt).")] = "cabinet",
@@ -41,9 +47,8 @@ def track(
       deploy track runs/rec --prompt cabinet --out runs/rec-masks
       deploy track runs/rec --segmenter classical --box 112 79 468 362 --out runs/rec-classical --json
     """
-    from deploy.cli import _print_json, print_rows
-    from deploy.perception import make_segmenter
     from deploy.perception.config import perception_config
+    from deploy.perception.registry import make_segmenter
     from deploy.perception.track_recording import track_recording
     from drivers.camera.frames_dir import FramesRecording
 
@@ -52,11 +57,12 @@ def track(
                                detector=detector, tracker=tracker, device=device)
     data = track_recording(recording, make_segmenter(segmenter.value, config), prompt, out)
     if json_out:
-        _print_json(data)
+        print_json(data)
         return
     print_rows(f"{data['segmenter']} on {recording}", data, digits=None)
 
 
+@models_app.command("check")
 def models_check(
     detector: DetectorOpt = None,
     tracker: TrackerOpt = None,
@@ -68,7 +74,6 @@ def models_check(
 
     Example: deploy models check --tracker ~/models/sam2.1-hiera-small --json
     """
-    from deploy.cli import _print_json, console
     from deploy.perception.config import EDGETAM_TRACKER, perception_config
     from deploy.perception.device import choose_device
     from deploy.perception.models import check_models
@@ -81,61 +86,11 @@ def models_check(
     statuses = check_models(wanted, name)
     rows = [dict(s.to_dict(), required=i < 2) for i, s in enumerate(statuses)]
     if json_out:
-        _print_json({"device": name, "models": rows})
+        print_json({"device": name, "models": rows})
     else:
-        from rich.table import Table
-
-        table = Table(title=f"models (loaded on {name})")
-        for col in ("role", "model", "required", "where", "loads", "message"):
-            table.add_column(col, overflow="fold")
-        for r in rows:
-            table.add_row(r["role"], r["source"], "yes" if r["required"] else "optional (EdgeTAM)", r["location"],
-                          "[green]yes[/]" if r["loads"] else "[red]no[/]", r["message"])
-        console.print(table)
+        print_table(f"models (loaded on {name})", ("role", "model", "required", "where", "loads", "message"),
+                    [(r["role"], r["source"], "yes" if r["required"] else "optional (EdgeTAM)", r["location"],
+                      "[green]yes[/]" if r["loads"] else "[red]no[/]", r["message"]) for r in rows], overflow="fold")
     if not all(r["loads"] for r in rows if r["required"]):
         raise typer.Exit(1)
 
-
-def bench_perception_cmd(
-    seeds: Annotated[int, typer.Option(help="Scenario seeds (a drawer and a door recording each).")] = 1,
-    fps: Annotated[float, typer.Option(help="Frames per second of the simulated recordings.")] = 10.0,
-    json_out: JsonOpt = False,
-) -> None:
-    """Per-frame latency of each segmenter backend and its mask IoU against the simulator's oracle masks.
-
-    gdino-sam2 / gdino-edgetam are measured only where their weights are in the local cache (else skipped).
-    Example: deploy bench perception --seeds 2 --json
-    """
-    from rich.progress import Progress
-
-    from deploy.cli import _print_json, console, err_console
-    from deploy.perception.bench import bench_perception
-
-    with Progress(console=err_console, transient=True) as bar:
-        job = bar.add_task("bench perception", total=None)
-        data = bench_perception(seeds, fps, progress=lambda what: bar.update(job, description=what))
-    if json_out:
-        _print_json(data)
-        return
-    from rich.table import Table
-
-    table = Table(title=f"segmenters on {data['recordings']} simulated recordings ({data['device']})")
-    for col in ("backend", "track ms median", "track ms p90", "start ms", "IoU median", "IoU min", "frames"):
-        table.add_column(col)
-    for name, r in data["backends"].items():
-        if "skipped" in r:
-            table.add_row(name, f"skipped: {r['skipped']}", "", "", "", "", "0")
-            continue
-        table.add_row(name, f"{r['latency_ms_median']:.1f}", f"{r['latency_ms_p90']:.1f}",
-                      f"{r['start_ms_median']:.0f}", f"{r['iou_median']:.3f}", f"{r['iou_min']:.3f}", str(r["frames"]))
-    console.print(table)
-
-
-def register(app: typer.Typer, bench_app: typer.Typer) -> None:
-    """Add this area's commands to the main app and to `deploy bench`."""
-    app.command("track")(track)
-    models_app = typer.Typer(help="Model weights: what is present, where, and how to fetch the rest.",
-                             no_args_is_help=True)
-    models_app.command("check")(models_check)
-    app.add_typer(models_app, name="models")
-    bench_app.command("perception")(bench_perception_cmd)

@@ -1,6 +1,6 @@
 """The opening policy: grasp the handle, pull, estimate the joint axis, step along it until the target."""
 
-from deploy.control.episode import EpisodeResult, run_episode
-from deploy.control.policy import OpenConfig
+from deploy.control.episode import run_episode
+from deploy.control.state import EpisodeResult, StopReason
 
-__all__ = ["EpisodeResult", "OpenConfig", "run_episode"]
+__all__ = ["EpisodeResult", "StopReason", "run_episode"]

@@ -9,17 +9,15 @@ import open3d as o3d
 
 from deploy.geometry.boxes import front_direction
 from deploy.geometry.types import Axis, Box, JointType
+from drivers.arm.grasping import GRASP_DEPTH_M, GRASP_PITCH_RAD, LIMIT_MARGIN_RAD, UP, pregrasp_pose
+from drivers.arm.grasping import grasp_pose as bar_grasp_pose
 from drivers.arm.kinematics import Kinematics, well_conditioned_start
-from drivers.errors import ArmError
+from drivers.errors import IKError
 
-UP = np.array([0.0, 0.0, 1.0])
-GRASP_DEPTH_M = 0.01  # tool frame this far past the grip centre: the bar sits inside the finger pads
-GRASP_PITCH_RAD = 0.25  # approach tilted down: keeps the Panda's wrist (joint 6) off its upper limit
 BAR_HALF_THICKNESS_M = 0.008  # the grip centre lies this far behind the bar's front surface
 BAR_ELONGATION = 2.0  # principal spread ratio above which the handle is a bar with a direction
 MIN_HANDLE_POINTS = 5
 MIN_PLANNED_PULL_M = 0.05  # the shortest pull a pre-grasp configuration is planned for
-LIMIT_MARGIN_RAD = 0.1  # planned configurations stay this far inside the joint limits
 FRONT_RADIUS_M = 0.15  # the front face is fitted to object points this close to the handle
 MIN_FRONT_POINTS = 30
 PLANE_TOLERANCE_M = 0.004  # RANSAC inlier distance of the front plane
@@ -106,28 +104,8 @@ def protruding_points(
 
 
 def grasp_pose(handle: Handle, depth_m: float = GRASP_DEPTH_M, pitch_rad: float = GRASP_PITCH_RAD) -> np.ndarray:
-    """Tool pose (4x4) grasping the handle from the front: approach (tool z) into the front tilted down by
-    `pitch_rad`, fingers (tool y) across the bar, tool x along it (up for a vertical bar, to the tool's
-    left-hand side for a horizontal one, which keeps the Panda's last joint mid-range)."""
-    z = -np.cos(pitch_rad) * handle.normal - np.sin(pitch_rad) * UP
-    x = handle.bar - z * (z @ handle.bar)
-    if np.linalg.norm(x) < 1e-6:  # bar along the approach: any finger direction across it
-        x = np.cross(z, UP)
-    x /= np.linalg.norm(x)
-    reference = UP if abs(handle.bar @ UP) > np.sqrt(0.5) else np.cross(z, UP)
-    if x @ reference < 0:
-        x = -x
-    T = np.eye(4)
-    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-    T[:3, 3] = handle.center + depth_m * z
-    return T
-
-
-def pregrasp_pose(T_grasp: np.ndarray, distance_m: float) -> np.ndarray:
-    """The grasp pose backed off `distance_m` along the approach axis."""
-    T = np.array(T_grasp, float)
-    T[:3, 3] -= distance_m * T[:3, 2]
-    return T
+    """Tool pose (4x4) grasping the handle from the front (drivers.arm.grasping.grasp_pose)."""
+    return bar_grasp_pose(handle.center, handle.normal, handle.bar, depth_m, pitch_rad)
 
 
 def pregrasp_configuration(
@@ -137,7 +115,7 @@ def pregrasp_configuration(
     stay farthest from singularities (largest smallest singular value of the Jacobian along them) and
     inside the joint limits; the Panda is redundant, so a few elbow seeds facing the handle are tried.
     When no seed carries the whole pull, the best for a shorter one (halved down to 5 cm) is taken.
-    Raises ArmError when none works."""
+    Raises IKError when none works."""
     T_pre = pregrasp_pose(T_grasp, approach_m)
     length = float(np.linalg.norm(pull))
     while True:
@@ -149,7 +127,7 @@ def pregrasp_configuration(
             return best
         if length <= MIN_PLANNED_PULL_M:
             p = T_grasp[:3, 3]
-            raise ArmError(
+            raise IKError(
                 f"handle at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m is out of reach: no arm configuration reaches "
                 "it and pulls it clear of joint limits and singularities; move the cabinet or the robot closer"
             )

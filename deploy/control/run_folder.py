@@ -44,11 +44,9 @@ class RunFolder:
         self.motions.append({"label": label, "reason": result.reason, "t": result.t.tolist(),
                              "commanded": result.planned.tolist(), "measured": result.measured.tolist()})
 
-    def finish(
-        self, result: EpisodeResult, first_frame: Frame | None,
-        axis_error: Callable[[Axis], tuple[float, float]] | None = None,
-    ) -> None:
-        """Close the recording and write steps.json and report.png (errors only with `axis_error`)."""
+    def finish(self, result: EpisodeResult, axis_error: Callable[[Axis], tuple[float, float]] | None = None) -> None:
+        """Close the recording and write steps.json and report.png (axis errors only with `axis_error`, which
+        evaluation passes in simulation)."""
         if self._writer is not None:
             self._writer.close()
         errors = [None if e["axis"] is None or axis_error is None else axis_error(_axis(e["axis"]))
@@ -58,7 +56,7 @@ class RunFolder:
                  for e, err in zip(result.estimates, errors, strict=True)]
         (self.path / "steps.json").write_text(json.dumps(
             {"result": result.to_dict(), "steps": steps, "motions": self.motions}, indent=1) + "\n")
-        write_report(self.path / "report.png", result, first_frame, errors)
+        write_report(self.path / "report.png", result, errors)
 
 
 def _axis(d: dict) -> Axis:
@@ -74,15 +72,14 @@ def project(points: np.ndarray, frame: Frame) -> np.ndarray:
     return uv + [frame.intrinsics.cx, frame.intrinsics.cy]
 
 
-def write_report(
-    path: Path, result: EpisodeResult, first_frame: Frame | None, errors: list[tuple[float, float] | None]
-) -> None:
+def write_report(path: Path, result: EpisodeResult, errors: list[tuple[float, float] | None]) -> None:
     """Three panels: axis per step over the first frame, opening vs time, axis error per step."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    first_frame = result.first_frame
     fig, (ax_img, ax_open, ax_err) = plt.subplots(1, 3, figsize=(15, 4.2))
     axes = [(e["step"], e["axis"]) for e in result.estimates if e["axis"] is not None]
     if first_frame is not None:
@@ -101,8 +98,8 @@ def write_report(
     ax_img.axis("off")
     if result.opening_curve:
         t, opened = np.array(result.opening_curve).T
-        ax_open.plot(t, opened, "o-")
-    ax_open.axhline(result.target, color="k", ls="--", lw=1)
+        ax_open.plot(t, opened * result.scale, "o-")
+    ax_open.axhline(result.target * result.scale, color="k", ls="--", lw=1)
     unit = "deg" if result.joint_type == "revolute" else "m"
     ax_open.set(xlabel="arm time (s)", ylabel=f"estimated opening ({unit})", title="opening vs time")
     rows = [(e["step"], err) for e, err in zip(result.estimates, errors, strict=True) if err is not None]

@@ -29,7 +29,7 @@ BACKENDS: dict[str, tuple[str, dict]] = {
 
 def _run(name: str, overrides: dict, recordings: list[Path]) -> dict:
     """Latencies and IoUs of one backend over the recordings."""
-    from deploy.perception import make_segmenter
+    from deploy.perception.registry import make_segmenter
 
     start_ms, track_ms, ious, frames = [], [], [], 0
     for path in recordings:

@@ -199,3 +199,7 @@ class ClassicalSegmenter(Segmenter):
             f"{self.config.max_redetections} re-segmentation(s). Keep the object in view and unoccluded, "
             "give a tighter --box, or use the gdino-sam2 segmenter"
         )
+
+
+def open_classical(_argument: str, config: PerceptionConfig) -> ClassicalSegmenter:
+    return ClassicalSegmenter(config)

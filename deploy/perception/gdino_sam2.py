@@ -125,3 +125,7 @@ class GdinoSam2Segmenter(Segmenter):
 
 def _fmt(box: Box) -> str:
     return "(" + ", ".join(f"{v:.0f}" for v in box) + ")"
+
+
+def open_gdino_sam2(_argument: str, config: PerceptionConfig) -> GdinoSam2Segmenter:
+    return GdinoSam2Segmenter.from_config(config)

@@ -1,5 +1,2 @@
-"""Arms: one protocol (`Arm`); kinematics, trajectories and safety shared by every implementation."""
-
-from drivers.arm.base import Arm, ArmState
-
-__all__ = ["Arm", "ArmState"]
+"""Arms: one protocol (`drivers.arm.base.Arm`), kinds chosen by a string (`drivers.arm.registry`); kinematics,
+trajectories, safety and motion code shared by every implementation."""

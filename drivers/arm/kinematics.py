@@ -10,7 +10,7 @@ import numpy as np
 import pinocchio as pin
 
 from drivers.arm.robots import RobotSpec, panda
-from drivers.errors import ArmError
+from drivers.errors import ArmError, IKError
 
 IK_STEP_LIMIT = 1.0  # rad: largest joint change per iteration, keeps early steps from overshooting
 IK_DAMPING = 1e-6  # damped least squares J^T (J J^T + lambda I)^-1: lambda away from singularities ...
@@ -116,7 +116,7 @@ class Kinematics:
         that grows near singularities and, in the null space of the pose, a pull of the arm's redundancy
         toward `q_rest` (default: the seed). When the seed does not converge, up to `restarts` random
         seeds within the limits are tried without that pull (from `rng`, default a fixed seed, so equal
-        inputs give equal answers). Raises ArmError when none converges.
+        inputs give equal answers). Raises IKError when none converges.
         """
         oMdes = self._target(T_target)
         q = np.clip(np.asarray(q_seed, float), self.q_min, self.q_max)
@@ -133,7 +133,7 @@ class Kinematics:
             if pos_err < best_pos_err:
                 best_pos_err, best_rot_err = pos_err, rot_err
         p = oMdes.translation
-        raise ArmError(
+        raise IKError(
             f"target pose unreachable: tool at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m in the base frame "
             f"(position error {best_pos_err * 1e3:.1f} mm, rotation error {np.degrees(best_rot_err):.1f} deg "
             f"after {restarts + 1} attempts); move the object closer or change the grasp orientation"
@@ -159,7 +159,7 @@ class Kinematics:
         way, saturating smoothly at TRACK_POSTURE_SHARE of max_step, times `posture_scale` (e.g. the path
         speed relative to its limit, so that this step starts and stops with the motion). This keeps the
         redundancy from drifting tick after tick. Then damped least squares within the limits and the step
-        box. Raises ArmError starting with "ik:" when the pose is not reached, or only with a joint moving
+        box. Raises IKError starting with "ik:" when the pose is not reached, or only with a joint moving
         onto a position limit or at its step limit.
         """
         oMdes = self._target(T_target)
@@ -186,7 +186,7 @@ class Kinematics:
                    f"{np.degrees(rot_err):.4f} deg left)")
         else:
             return q
-        raise ArmError(
+        raise IKError(
             f"ik: the tool pose {why}: the path passes near a singularity or a joint limit; slow the motion "
             "down, start from another arm configuration or shorten the path"
         )
@@ -247,7 +247,7 @@ class Kinematics:
 
         The redundancy is pulled toward q_seed all along (or `q_rest` in ik_options). Only the first
         waypoint may use random restarts; later ones must follow continuously, so a waypoint that does
-        not converge or that needs a jump of more than PATH_MAX_JOINT_STEP_RAD raises ArmError naming it.
+        not converge or that needs a jump of more than PATH_MAX_JOINT_STEP_RAD raises IKError naming it.
         """
         qs = np.empty((len(poses), self.dof))
         q = np.asarray(q_seed, float)
@@ -257,11 +257,11 @@ class Kinematics:
             try:
                 q_next = self.ik(pose, q, **options)
             except ArmError as exc:
-                raise ArmError(f"path waypoint {i} of {len(poses)} is not reachable: {exc}") from exc
+                raise IKError(f"path waypoint {i} of {len(poses)} is not reachable: {exc}") from exc
             jump = np.abs(q_next - q)
             if i > 0 and jump.max() > PATH_MAX_JOINT_STEP_RAD:
                 j = int(jump.argmax())
-                raise ArmError(
+                raise IKError(
                     f"path waypoint {i} of {len(poses)} needs joint {self.joint_names[j]} to jump "
                     f"{jump[j]:.2f} rad (IK changed branch): the path passes near a singularity or a joint "
                     "limit; start from another arm configuration or shorten the path"

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from enum import Enum
 
 import numpy as np
 import pinocchio as pin
@@ -18,7 +19,7 @@ import pinocchio as pin
 from drivers.arm.base import Arm, ArmState
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.trajectory import JointTrajectory, MotionLimits, PathProfile, joint_trajectory
-from drivers.errors import ArmError
+from drivers.errors import ArmError, IKError
 
 OnTick = Callable[[ArmState, float], bool | None]
 PathFn = Callable[[float], np.ndarray]
@@ -28,22 +29,34 @@ TRACKING_TOL_POS_M, TRACKING_TOL_ROT_RAD = 1e-6, 1e-5  # per-tick IK: tight, so 
 POSTURE_GAIN_PER_S = 1.0  # per-tick IK: null-space pull toward the rest posture, 1/s at the path's top speed
 
 
+class Outcome(Enum):
+    """How a Cartesian motion ended."""
+
+    COMPLETED = "completed"
+    STOPPED = "stopped by on_tick"
+    BLOCKED = "blocked"  # the tracking error exceeded its limit: something holds the tool back
+
+
 @dataclass(frozen=True)
 class PathResult:
     """How a Cartesian motion went, sampled every few ticks (and at the last one).
 
     `planned` and `measured` are tool poses (N, 4, 4): commanded, and FK of the measured joints.
-    `reason` is "completed", "stopped by on_tick" or "blocked: ..." (tracking error over the limit).
+    `reason` describes the `outcome` ("blocked: tracking error ... at s = ...").
     """
 
     t: np.ndarray
     s: np.ndarray
     planned: np.ndarray
     measured: np.ndarray
-    stopped_early: bool
+    outcome: Outcome
     reason: str
     max_tracking_error_m: float
     s_reached: float
+
+    @property
+    def stopped_early(self) -> bool:
+        return self.outcome is not Outcome.COMPLETED
 
 
 def follow_joint_trajectory(arm: Arm, traj: JointTrajectory, on_tick: OnTick | None = None) -> bool:
@@ -151,7 +164,7 @@ def follow_cartesian_path(
 
     samples: list[tuple[float, float, np.ndarray, np.ndarray]] = []
     braking: PathProfile | None = None
-    t_brake, s, reason, max_error = 0.0, 0.0, "completed", 0.0
+    t_brake, s, outcome, reason, max_error = 0.0, 0.0, Outcome.COMPLETED, "completed", 0.0
     k, done = 0, len(plan_s) == 0
     try:
         while not done:
@@ -175,7 +188,8 @@ def follow_cartesian_path(
             max_error = max(max_error, error)
             keep_going = on_tick is None or on_tick(state, t) is not False
             if braking is None and (error > max_tracking_error_m or not keep_going):
-                reason = "stopped by on_tick" if not keep_going else (
+                outcome = Outcome.STOPPED if not keep_going else Outcome.BLOCKED
+                reason = outcome.value if not keep_going else (
                     f"blocked: tracking error {error * 1e3:.1f} mm > {max_tracking_error_m * 1e3:.1f} mm "
                     f"at s = {s:.4f}"
                 )
@@ -189,7 +203,7 @@ def follow_cartesian_path(
         T = path_fn(0.0)
         samples.append((0.0, 0.0, T, kin.fk(arm.state().q)))
     t_s, s_s, planned, measured = (np.array(x) for x in zip(*samples, strict=True))
-    return PathResult(t_s, s_s, planned, measured, braking is not None, reason, max_error, float(s_s[-1]))
+    return PathResult(t_s, s_s, planned, measured, outcome, reason, max_error, float(s_s[-1]))
 
 
 @dataclass(frozen=True)
@@ -211,9 +225,9 @@ class _Tracker:
         try:
             return self.kin.track(self.path_fn(s), q, self.max_step, self.q_rest, self.posture_gain, speed,
                                   TRACKING_TOL_POS_M, TRACKING_TOL_ROT_RAD)
-        except ArmError as exc:
+        except IKError as exc:
             where = f"ik: lost the Cartesian path at s = {s:.4f} of {self.length:.4f}"
-            raise ArmError(f"{where}: {str(exc).removeprefix('ik: ')}") from exc
+            raise IKError(f"{where}: {str(exc).removeprefix('ik: ')}") from exc
 
     def plan(self, profile: PathProfile, dt: float, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(s, joints) at every control tick of `profile` (t = dt, 2 dt, ... up to its end), from joints q."""

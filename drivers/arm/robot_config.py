@@ -210,3 +210,7 @@ def load_robot_config(path: str | Path) -> RobotConfig:
         where = ".".join(str(x) for x in first["loc"]) or "(top level)"
         raise ArmError(f"robot config {path}: {where}: {first['msg']} ({exc.error_count()} problem(s)): "
                        "fix the field (docs/arm.md lists them)") from exc
+
+
+PANDA_SIM_CONFIG = Path(__file__).resolve().parents[2] / "configs" / "robots" / "panda_sim.toml"
+"""The simulated Franka Panda's robot config (the default robot of the simulated arms)."""

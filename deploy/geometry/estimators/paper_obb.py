@@ -172,3 +172,7 @@ def _midline_crossing(a: Box, b: Box) -> np.ndarray:
 def _rms_to_surface(box: Box, points: np.ndarray) -> float:
     inside = np.min(box.extent / 2 - np.abs(box.to_local(points)), axis=1)
     return float(np.sqrt(np.mean(np.clip(inside, 0.0, None) ** 2)))
+
+
+def open_paper_obb(_argument: str, _config: object = None) -> PaperOBBEstimator:
+    return PaperOBBEstimator()

@@ -416,3 +416,7 @@ class TrajectoryEstimator(AxisEstimator):
             return NoAxis("gripper poses contain NaN or inf")
         quaternions = Rotation.from_matrix(poses_array[:, :3, :3]).as_quat()
         return fit_trajectory(poses_array[:, :3, 3], quaternions, joint)
+
+
+def open_trajectory(_argument: str, _config: object = None) -> TrajectoryEstimator:
+    return TrajectoryEstimator()

@@ -1,45 +1,52 @@
-"""Build any arm by name: "can" and "ideal" (drivers), "sim" (SimArm) and "sim-can" (CanArm on simulated motors).
+"""The simulated devices behind the camera and arm registries (registered by sim_fallback/plugin.py).
 
-sim-can runs the CanArm in lockstep with the simulated motors (one motor step per control cycle, on the caller's
-clock): deterministic and unaffected by machine load. Without a world the motors are unloaded integrated joints;
-with one they are the world's Panda (one physics step per cycle, faster than real time). `lockstep=False` gives
-the motors their own thread and the CanArm its realtime loop, exactly as on hardware (benchmarks, loop tests).
+- camera `sim`: a D415 rendered in the PyBullet world of the rig;
+- arm `sim`: the world's Panda (`SimArm`);
+- arm `sim-can`: the real CAN driver (`CanArm`) talking to simulated Damiao motors on a virtual bus. In lockstep
+  (default) the motors step with the CanArm's cycles on the caller's clock: deterministic and unaffected by
+  machine load. Without a world the motors are unloaded integrated joints; with one they are the world's Panda
+  (one physics step per cycle). `lockstep=False` gives the motors their own thread and the CanArm its realtime
+  loop, exactly as on hardware (benchmarks, loop tests).
 """
 
 from __future__ import annotations
 
 import itertools
-from pathlib import Path
 
-from drivers.arm.base import Arm
 from drivers.arm.can_arm import CanArm
 from drivers.arm.can_bus import CanBus
-from drivers.arm.factory import DRIVER_ARMS
-from drivers.arm.factory import open_arm as open_driver_arm
 from drivers.arm.robot_config import RobotConfig
+from drivers.camera.base import Intrinsics
+from drivers.camera.depth_noise import DepthNoise
 from drivers.errors import ArmError
 from sim_fallback.arm import SimArm
+from sim_fallback.camera import SimCamera, d415_intrinsics
 from sim_fallback.can_motors import MotorFaults, PyBulletMotors, SimMotorBus
 from sim_fallback.world import SimWorld
 
-ARMS = (*DRIVER_ARMS, "sim", "sim-can")
-PANDA_SIM_CONFIG = Path(__file__).resolve().parents[1] / "configs" / "robots" / "panda_sim.toml"  # the simulated Panda
 _channels = itertools.count()
 
 
-def open_arm(spec: str, config: RobotConfig, world: SimWorld | None = None) -> Arm:
-    """An arm of kind `spec` ("can", "ideal", "sim", "sim-can"); "sim" needs `world`. SimArm is connected on
-    construction; the others are connected by `with arm:` (or `connect()`)."""
-    if spec in DRIVER_ARMS:
-        return open_driver_arm(spec, config)
-    if spec == "sim":
-        if world is None:
-            raise ArmError("arm 'sim' needs a simulated world: use it from `deploy open-*`, or use --arm sim-can")
-        _check_panda(config, world)
-        return SimArm(world, config.kinematics())
-    if spec == "sim-can":
-        return sim_can_arm(config, world)[0]
-    raise ArmError(f"arm {spec!r} is not one of {', '.join(ARMS)}: pick one with --arm")
+def open_sim_camera(_argument: str, world: SimWorld | None = None, width: int = 640, height: int = 480,
+                    fps: float = 10.0, seed: int = 0, noise: DepthNoise | None = None,
+                    intrinsics: Intrinsics | None = None) -> SimCamera:
+    """The simulated D415 of `world` at width x height (D415 field of view), `fps` on the simulated clock."""
+    if world is None:
+        raise ArmError("camera 'sim' needs a simulated world: use it from a rig (`deploy open-* --camera sim`)")
+    return SimCamera(world, intrinsics=intrinsics or d415_intrinsics(width, height), noise=noise, seed=seed, fps=fps)
+
+
+def open_sim_arm(_argument: str, robot: RobotConfig, world: SimWorld | None = None) -> SimArm:
+    """The world's Panda, connected on construction."""
+    if world is None:
+        raise ArmError("arm 'sim' needs a simulated world: use it with --camera sim, or use --arm sim-can")
+    _check_panda(robot, world)
+    return SimArm(world, robot.kinematics())
+
+
+def open_sim_can_arm(_argument: str, robot: RobotConfig, world: SimWorld | None = None) -> CanArm:
+    """A CanArm on simulated Damiao motors, in lockstep (the world's Panda when `world` is given)."""
+    return sim_can_arm(robot, world)[0]
 
 
 def sim_can_arm(config: RobotConfig, world: SimWorld | None = None, faults: dict[str, MotorFaults] | None = None,

@@ -1,0 +1,95 @@
+"""What every stage of an episode works with (`Episode`): the devices, the run's settings, the observer, the
+state record, and one pull with frames grabbed on the way."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from deploy.config import Config
+from deploy.control.observer import Observer
+from deploy.control.run_folder import RunFolder
+from deploy.control.state import EpisodeState
+from deploy.perception.base import Segmenter
+from drivers.arm.base import Arm, ArmState
+from drivers.arm.kinematics import Kinematics
+from drivers.arm.motion import PathFn, PathResult, follow_cartesian_path
+from drivers.arm.trajectory import MotionLimits
+from drivers.camera.base import Camera
+
+MIN_GRASP_WIDTH_M = 0.003  # a closed gripper narrower than this holds nothing
+SETTLE_S = 0.3  # after a motion the arm settles on its last command (a new motion starts from the
+# measured joints, and the safety layer refuses a jump from the last command to them)
+
+
+@dataclass
+class Episode:
+    """What every stage works with: the devices, the run's settings, the observer and the state."""
+
+    camera: Camera
+    arm: Arm
+    kin: Kinematics
+    segmenter: Segmenter
+    config: Config
+    joint_limits: MotionLimits
+    observer: Observer
+    state: EpisodeState
+    folder: RunFolder | None = None
+
+    def tool(self) -> np.ndarray:
+        """The measured tool pose (4x4, base frame)."""
+        return self.kin.fk(self.arm.state().q)
+
+    def now(self) -> float:
+        """Arm-clock seconds since the episode started."""
+        return self.arm.time() - self.state.t0
+
+    def wait(self, duration_s: float) -> None:
+        """Hold the last command for `duration_s` of arm time."""
+        for _ in range(int(round(duration_s / self.arm.control_period_s))):
+            self.arm.sync()
+
+    def line_limits(self) -> MotionLimits:
+        v = self.config.opening.pull_speed_m_s
+        return MotionLimits(v, 4 * v, 40 * v)
+
+    def arc_limits(self) -> MotionLimits:
+        v = float(np.radians(self.config.opening.pull_speed_deg_s))
+        return MotionLimits(v, 4 * v, 40 * v)
+
+    def target(self) -> float:
+        """The target opening of the joint acted on (m or rad)."""
+        return self.config.opening.target_for(self.state.joint_type())
+
+    def gripping(self) -> bool:
+        return self.arm.state().gripper_width_m > MIN_GRASP_WIDTH_M
+
+    def pull(self, path: PathFn, length: float, label: str, limits: MotionLimits | None = None,
+             step: bool = False) -> PathResult:
+        """One compliant motion along `path` with frames grabbed on the way (an axis-guided `step` is counted
+        once it has moved), then the frames processed. The caller decides what a slip or a block means."""
+        clock = time.perf_counter()
+
+        def on_tick(state: ArmState, _t: float) -> bool:
+            self.observer.capture(state)
+            return state.gripper_width_m > MIN_GRASP_WIDTH_M
+
+        self.arm.set_compliance(True)
+        try:
+            result = follow_cartesian_path(self.arm, self.kin, path, max(length, 1e-4),
+                                           limits or self.line_limits(), on_tick)
+            self.wait(SETTLE_S)
+        finally:
+            self.arm.set_compliance(False)
+        self.observer.next_frame_t = 0.0
+        self.observer.capture(self.arm.state())  # the settled end of the motion
+        self.state.timings["motion_s"] += time.perf_counter() - clock
+        self.state.steps += step
+        self.state.commanded.extend(result.planned)
+        self.state.measured.extend(result.measured)
+        if self.folder is not None:
+            self.folder.add_motion(label, result)
+        self.observer.process()
+        return result

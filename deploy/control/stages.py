@@ -1,0 +1,311 @@
+"""The stages of an opening episode, in order; each reads and updates `episode.state` (SI units) and ends the
+episode by raising `EpisodeStop` with a `StopReason`."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from deploy.axis_pipeline import frame_points, viewpoint
+from deploy.control.classify import classify_joint, front_shift_m, front_turn_deg
+from deploy.control.context import MIN_GRASP_WIDTH_M, SETTLE_S, Episode
+from deploy.control.grasp import (
+    REGRASP_RADIUS_M,
+    Handle,
+    find_handle,
+    grasp_pose,
+    hinge_prior,
+    pregrasp_configuration,
+    pregrasp_pose,
+    protruding_points,
+)
+from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
+from deploy.control.state import EpisodeStop, StopReason, display_scale
+from deploy.geometry.estimators.trajectory import fit_trajectory
+from deploy.geometry.types import Axis, JointType, NoAxis
+from drivers.arm.motion import (
+    Outcome,
+    PathFn,
+    arc_path,
+    follow_cartesian_path,
+    line_path,
+    move_to_joints,
+    move_to_pose,
+)
+from drivers.arm.trajectory import MotionLimits
+
+GRIPPER_FORCE_N = 40.0
+CLOSE_TIME_S = 0.5
+OPEN_MARGIN_M = 0.005  # a gripper within this of fully open did not close on anything
+MAX_DRAWER_LAG_M = 0.03  # how far a drawer may lag the gripper's travel (a stretched grasp)
+OVERSHOOT = {JointType.PRISMATIC: 0.015, JointType.REVOLUTE: float(np.radians(5.0))}  # past the target
+RETREAT_M = 0.05  # re-grasp: back off this far along the approach and come back
+MIN_DOOR_RADIUS_M = 0.1  # the first arc's radius is taken as at least this
+PLANNED_DOOR_REACH_M = 0.1  # a door's pre-grasp is planned for this much straight pull
+
+
+def run(episode: Episode, dry_run: bool = False) -> tuple[StopReason, str]:
+    """All stages; returns how the episode ended when it did not stop early (EpisodeStop)."""
+    handle = perceive(episode)
+    if dry_run:
+        return plan(episode, handle)
+    grasp(episode, handle)
+    if episode.state.joint is None:  # `--joint auto`
+        probe_and_classify(episode, handle)
+    first_pull(episode, handle)
+    while True:
+        axis, source = estimate(episode, handle.normal)
+        if episode.state.opened >= episode.target():
+            return StopReason.TARGET_REACHED, f"opened {_shown(episode, episode.state.opened):.3f} of " \
+                                              f"{_shown(episode, episode.target()):.3f}"
+        step(episode, axis, source)
+
+
+def perceive(episode: Episode) -> Handle:
+    """The first frame: the object's mask and body box, the handle (its own mask when the segmenter tells it
+    apart, else the points protruding from the body box's front)."""
+    clock = time.perf_counter()
+    observer, state = episode.observer, episode.state
+    frame, _ = observer.first(episode.arm.state)
+    handle_mask = episode.segmenter.handle_mask(frame)
+    pipeline = observer.pipeline
+    points = pipeline.handle_points if handle_mask is None else frame_points(frame, handle_mask, pipeline.config)
+    handle = None if pipeline.body_box is None else find_handle(
+        points, observer.first_points, pipeline.body_box, viewpoint(frame), state.joint is JointType.REVOLUTE)
+    state.timings["perceive_s"] += time.perf_counter() - clock
+    if handle is None:
+        raise EpisodeStop(StopReason.NO_HANDLE, "no handle found on the first frame (too few points protrude "
+                          "from the front): check the camera view and the mask")
+    state.handle = handle
+    return handle
+
+
+def plan(episode: Episode, handle: Handle) -> tuple[StopReason, str]:
+    """`--dry-run`: the grasp, approach and first pull planned and checked by IK, nothing commanded."""
+    state, kin = episode.state, episode.kin
+    T_grasp = grasp_pose(handle)
+    q_pre = pregrasp_configuration(kin, episode.arm.state().q, T_grasp, _planned_reach(episode) * handle.normal,
+                                   episode.config.opening.approach_m)
+    state.axis = _prior(episode, handle)
+    state.commanded.extend([kin.fk(q_pre), T_grasp])
+    state.estimates.append({"step": 0, "t": 0.0, "source": "plan (prior)", "axis": state.axis.to_dict(),
+                            "opened": 0.0, "vision": "dry run"})
+    p = T_grasp[:3, 3]
+    return StopReason.DRY_RUN, (f"planned: handle at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m, pre-grasp joints "
+                                f"{np.round(q_pre, 3).tolist()}, {state.joint_type().value} prior axis; nothing moved")
+
+
+def grasp(episode: Episode, handle: Handle) -> None:
+    """Open the gripper, move to the pre-grasp configuration, approach straight and close on the handle."""
+    clock = time.perf_counter()
+    arm, kin, state = episode.arm, episode.kin, episode.state
+    approach = episode.config.opening.approach_m
+    T_grasp = grasp_pose(handle)
+    q_pre = pregrasp_configuration(kin, arm.state().q, T_grasp, _planned_reach(episode) * handle.normal, approach)
+    arm.set_gripper(1.0)  # fully open (clipped to the gripper's width)
+    move_to_joints(arm, q_pre, episode.joint_limits)
+    open_width = arm.state().gripper_width_m
+    T = episode.tool()
+    follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), approach, episode.line_limits())
+    _close_and_check(episode, open_width, StopReason.GRASP_FAILED)
+    state.open_width_m = open_width
+    state.p_grasp = episode.tool()[:3, 3]
+    state.timings["grasp_s"] += time.perf_counter() - clock
+
+
+def probe_and_classify(episode: Episode, handle: Handle) -> None:
+    """`--joint auto`: a short straight pull, then drawer or door from how the front turned and moved."""
+    state, observer = episode.state, episode.observer
+    probe = episode.config.opening.probe_pull_m
+    _pull(episode, line_path(episode.tool(), handle.normal), probe, "probe pull")
+    if observer.last_seen is None:
+        raise EpisodeStop(StopReason.TRACKING_LOST, "no frame was seen during the probe pull: check the camera")
+    frame, mask = observer.last_seen
+    pipeline = observer.pipeline
+    after = frame_points(frame, mask, pipeline.config)
+    turn = front_turn_deg(handle.normal, after, episode.tool()[:3, 3], pipeline.body_box, viewpoint(frame))
+    shift = front_shift_m(observer.first_points, after, handle.center, handle.normal)
+    state.joint = pipeline.joint = classify_joint(turn, shift, probe)
+    if state.joint is JointType.REVOLUTE:  # the straight probe slips on a door's arc: count the turn seen
+        state.p_grasp, state.opened_before = episode.tool()[:3, 3], float(np.radians(turn))
+    state.estimates.append({"step": 0, "t": episode.now(), "source": "probe pull", "axis": None,
+                            "classified": state.joint.value, "front_turn_deg": turn, "front_shift_m": shift})
+
+
+def first_pull(episode: Episode, handle: Handle) -> None:
+    """A first opening before any estimate: straight out along the front normal (drawer, and the paper's
+    policy), or a small arc about the door's likely hinge (the front's far edge)."""
+    state, opening_cfg = episode.state, episode.config.opening
+    if state.joint is JointType.REVOLUTE:
+        state.axis = hinge_prior(handle, episode.observer.first_points, episode.observer.pipeline.body_box)
+    if state.joint is JointType.REVOLUTE and opening_cfg.policy != "paper":
+        axis = state.axis
+        radius = max(float(np.linalg.norm(np.cross(axis.direction, state.p_grasp - axis.origin))),
+                     MIN_DOOR_RADIUS_M)
+        _pull(episode, arc_path(episode.tool(), axis.origin, axis.direction), opening_cfg.first_pull_m / radius,
+              "first pull", episode.arc_limits())
+    else:
+        _pull(episode, line_path(episode.tool(), handle.normal), opening_cfg.first_pull_m, "first pull")
+
+
+def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
+    """The axis to act on and where it came from; updates the opening. The open-loop policy keeps its first
+    estimate. Before any usable estimate: the door's hinge prior, or a line along the front normal."""
+    clock = time.perf_counter()
+    state, vision = episode.state, episode.observer.vision
+    if state.estimated and episode.config.opening.policy == "open":
+        chosen, source = state.axis, "fixed"
+    else:
+        poses = np.array(state.measured)
+        joint = state.joint or (vision.joint_type if isinstance(vision, Axis) else None)
+        trajectory = fit_trajectory(poses[:, :3, 3], Rotation.from_matrix(poses[:, :3, :3]).as_quat(), joint)
+        result, source = choose_axis(vision, trajectory, state.joint, state.opened, episode.config.opening)
+        chosen = orient_axis(result, _measured_pull(episode, pull), state.p_grasp) \
+            if isinstance(result, Axis) else None
+        state.estimated |= chosen is not None
+        if chosen is None:
+            chosen = state.axis if state.axis is not None else Axis(JointType.PRISMATIC, state.p_grasp, pull,
+                                                                    confidence=0.0)
+            source = f"prior ({source})"
+    state.axis = chosen
+    state.opened = state.opened_before + opening(chosen, state.p_grasp, episode.tool()[:3, 3])
+    _read_drawer_lag(episode, chosen)
+    _log_estimate(episode, chosen, source)
+    state.timings["estimate_s"] += time.perf_counter() - clock
+    return chosen, source
+
+
+def step(episode: Episode, axis: Axis, source: str) -> None:
+    """One axis-guided step, after checking the step count and the time left."""
+    state, cfg = episode.state, episode.config.opening
+    if state.steps >= cfg.max_steps:
+        raise EpisodeStop(StopReason.MAX_STEPS, f"{cfg.max_steps} steps made, opened "
+                          f"{_shown(episode, state.opened):.3f}")
+    if episode.now() > cfg.timeout_s:
+        raise EpisodeStop(StopReason.TIMEOUT, f"{cfg.timeout_s:.0f} s of arm time used, opened "
+                          f"{_shown(episode, state.opened):.3f}")
+    path, length, limits = _step_path(episode, axis)
+    _pull(episode, path, length, f"step {state.steps}: {source}", limits, step=True)
+
+
+def regrasp(episode: Episode) -> None:
+    """Open, back off along the approach, find the handle again in a fresh frame near where it was held,
+    approach it and close. The opening measured before the slipping pull is kept (the slipping pull's share
+    is not counted: the arm errs toward opening further); later travel counts from the new grip."""
+    arm, kin, state = episode.arm, episode.kin, episode.state
+    held = episode.tool()[:3, 3]
+    arm.set_gripper(state.open_width_m)
+    episode.wait(CLOSE_TIME_S)
+    T = episode.tool()
+    follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), RETREAT_M, episode.line_limits())
+    frame, points = episode.observer.look()
+    handle = find_handle(protruding_points(points, held, viewpoint(frame)), points,
+                         episode.observer.pipeline.body_box, viewpoint(frame),
+                         state.joint_type() is JointType.REVOLUTE)
+    if handle is None:
+        raise EpisodeStop(StopReason.GRASP_LOST, f"the handle slipped out of the gripper and was not found again "
+                          f"within {REGRASP_RADIUS_M * 100:.0f} cm of where it was held: check the view of the handle")
+    T_grasp = grasp_pose(handle)
+    move_to_pose(arm, kin, pregrasp_pose(T_grasp, RETREAT_M), episode.joint_limits)
+    episode.wait(SETTLE_S)
+    T = episode.tool()
+    follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), RETREAT_M, episode.line_limits())
+    _close_and_check(episode, state.open_width_m, StopReason.GRASP_LOST, "re-grasp after a slip failed: ")
+    state.opened_before, state.p_grasp = state.opened, episode.tool()[:3, 3]
+
+
+# --- helpers ---------------------------------------------------------------------------------------------
+
+
+def _pull(episode: Episode, path: PathFn, length: float, label: str, limits: MotionLimits | None = None,
+          step: bool = False) -> None:
+    """A pull, then its checks: a slip re-grasps once (a second one is "grasp lost"); a blocked motion stops."""
+    result = episode.pull(path, length, label, limits, step)
+    if not episode.gripping():
+        if episode.state.regrasped:
+            raise EpisodeStop(StopReason.GRASP_LOST, f"the handle slipped out of the gripper again during "
+                              f"{label}, after one re-grasp: the pull needs more force than the grasp holds")
+        episode.state.regrasped = True
+        regrasp(episode)
+    elif result.outcome is Outcome.BLOCKED:
+        raise EpisodeStop(StopReason.BLOCKED, f"no more motion during {label} ({result.reason}): the joint is at "
+                          "its limit or locked")
+
+
+def _close_and_check(episode: Episode, open_width: float, failure: StopReason, context: str = "") -> None:
+    episode.arm.set_gripper(0.0, GRIPPER_FORCE_N)
+    episode.wait(CLOSE_TIME_S)
+    width = episode.arm.state().gripper_width_m
+    if not MIN_GRASP_WIDTH_M < width < open_width - OPEN_MARGIN_M:
+        raise EpisodeStop(failure, f"{context}gripper closed to {width * 1e3:.1f} mm (open {open_width * 1e3:.1f} "
+                          "mm): it missed the handle; check the handle detection and the camera calibration")
+
+
+def _planned_reach(episode: Episode) -> float:
+    """How far the pre-grasp configuration must be able to pull straight (m)."""
+    if episode.state.joint is JointType.REVOLUTE:
+        return PLANNED_DOOR_REACH_M
+    return episode.config.opening.target_distance_m + OVERSHOOT[JointType.PRISMATIC]
+
+
+def _prior(episode: Episode, handle: Handle) -> Axis:
+    """The axis before any motion: a door's likely hinge, or a line along the front normal."""
+    if episode.state.joint is JointType.REVOLUTE:
+        return hinge_prior(handle, episode.observer.first_points, episode.observer.pipeline.body_box)
+    return Axis(JointType.PRISMATIC, handle.center, handle.normal, confidence=0.0)
+
+
+def _measured_pull(episode: Episode, pull: np.ndarray) -> np.ndarray:
+    """The direction the grip point actually moved since the grasp, or the front normal before that."""
+    moved = episode.tool()[:3, 3] - episode.state.p_grasp
+    return moved if np.linalg.norm(moved) > 0.01 else pull
+
+
+def _read_drawer_lag(episode: Episode, axis: Axis) -> None:
+    """A drawer lags a stretched grasp: trust the camera's reading of the opening when it is a little short of
+    the gripper's (more than MAX_DRAWER_LAG_M short is a misreading, not a lag)."""
+    window = episode.observer.pipeline.window
+    if axis.joint_type is not JointType.PRISMATIC or not window:
+        return
+    state = episode.state
+    seen = seen_opening(window[-1].moving, episode.observer.first_points, axis.direction)
+    if seen is not None and state.opened - MAX_DRAWER_LAG_M <= seen < state.opened:
+        state.opened = seen
+
+
+def _log_estimate(episode: Episode, axis: Axis, source: str) -> None:
+    state, vision = episode.state, episode.observer.vision
+    shown = _shown(episode, state.opened)
+    state.opening_curve.append((episode.now(), state.opened))
+    if episode.observer.viewer is not None:
+        episode.observer.viewer.axis(episode.now(), axis, shown)
+    state.estimates.append({
+        "step": state.steps, "t": episode.now(), "source": source, "axis": axis.to_dict(), "opened": shown,
+        "vision": vision.reason if isinstance(vision, NoAxis)
+        else f"{vision.joint_type.value}, confidence {vision.confidence:.3f}"})
+
+
+def _step_path(episode: Episode, axis: Axis) -> tuple[PathFn, float, MotionLimits]:
+    """The next step: a line (drawer, or the paper's straight steps) or an arc about the axis (door)."""
+    state, cfg = episode.state, episode.config.opening
+    remaining = episode.target() - state.opened + OVERSHOOT[axis.joint_type]
+    size = cfg.step_for(axis.joint_type, state.steps)
+    T = episode.tool()
+    if cfg.policy == "paper":  # straight lines along the line or the arc's tangent, in metres
+        if axis.joint_type is JointType.PRISMATIC:
+            direction, length = axis.direction, min(size, remaining)
+        else:
+            direction = np.cross(axis.direction, T[:3, 3] - axis.origin)
+            radius = max(float(np.linalg.norm(direction)), 0.05)
+            length = min(size, remaining * radius)
+        return line_path(T, direction), length, episode.line_limits()
+    if axis.joint_type is JointType.PRISMATIC:
+        return line_path(T, axis.direction), min(size, remaining), episode.line_limits()
+    return arc_path(T, axis.origin, axis.direction), min(size, remaining), episode.arc_limits()
+
+
+def _shown(episode: Episode, value: float) -> float:
+    """An opening in the units users read: m for a drawer, deg for a door."""
+    return value * display_scale(episode.state.joint_type())

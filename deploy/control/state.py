@@ -1,0 +1,109 @@
+"""What an opening episode knows and how it ended: one state record in SI units (m, rad), stop reasons as an
+enum, and the exception a stage raises to end the episode."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from pathlib import Path
+
+import numpy as np
+
+from deploy.control.grasp import Handle
+from deploy.geometry.types import Axis, JointType
+from drivers.camera.base import Frame
+
+
+class StopReason(str, Enum):
+    """Why an episode ended (the `stop_reason` of its JSON)."""
+
+    TARGET_REACHED = "target reached"
+    DRY_RUN = "dry run"
+    BLOCKED = "blocked"
+    GRASP_LOST = "grasp lost"
+    GRASP_FAILED = "grasp failed"
+    TRACKING_LOST = "tracking lost"
+    IK_INFEASIBLE = "ik infeasible"
+    ARM_ERROR = "arm error"
+    TIMEOUT = "timeout"
+    MAX_STEPS = "max steps"
+    NO_HANDLE = "no handle"
+    NO_OBJECT = "no object"
+    INTERRUPTED = "interrupted"
+
+
+class EpisodeStop(Exception):
+    """Raised by a stage to end the episode with `reason` and a message saying what happened and what to do."""
+
+    def __init__(self, reason: StopReason, message: str) -> None:
+        super().__init__(message)
+        self.reason, self.message = reason, message
+
+
+@dataclass
+class EpisodeState:
+    """Everything the episode has learnt so far. Openings are m (prismatic) or rad (revolute) along or about
+    `axis`; `opened` = `opened_before` (up to the last grasp) + the grip point's travel since `p_grasp`."""
+
+    t0: float
+    joint: JointType | None = None  # told by the task, or classified by the probe pull
+    handle: Handle | None = None
+    axis: Axis | None = None  # the axis acted on
+    estimated: bool = False  # an estimate (not a prior) has been acted on
+    opened: float = 0.0
+    opened_before: float = 0.0
+    p_grasp: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    open_width_m: float = 0.0
+    steps: int = 0
+    regrasped: bool = False
+    estimates: list[dict] = field(default_factory=list)
+    commanded: list[np.ndarray] = field(default_factory=list)
+    measured: list[np.ndarray] = field(default_factory=list)
+    opening_curve: list[tuple[float, float]] = field(default_factory=list)  # (arm time s, opening SI)
+    timings: dict[str, float] = field(default_factory=lambda: {
+        "perceive_s": 0.0, "grasp_s": 0.0, "motion_s": 0.0, "estimate_s": 0.0})
+
+    def joint_type(self) -> JointType:
+        """The joint acted on: told or classified, else the axis's, else prismatic."""
+        return self.joint or (self.axis.joint_type if self.axis is not None else JointType.PRISMATIC)
+
+
+def display_scale(joint_type: JointType | str | None) -> float:
+    """Factor from SI to the units shown to users: degrees for a revolute joint, metres otherwise."""
+    return float(np.degrees(1.0)) if JointType(joint_type or "prismatic") is JointType.REVOLUTE else 1.0
+
+
+@dataclass
+class EpisodeResult:
+    """How an episode ended. `opened` / `target` in SI units (m or rad, by `joint_type`); the JSON shows
+    metres or degrees. `first_frame` is kept for the report."""
+
+    success: bool
+    opened: float
+    target: float
+    steps: int
+    joint_type: str | None
+    axis: Axis | None
+    stop_reason: StopReason
+    message: str
+    run_dir: Path | None
+    timings: dict[str, float]
+    regrasped: bool = False
+    estimates: list[dict] = field(default_factory=list)
+    commanded: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
+    measured: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
+    opening_curve: list[tuple[float, float]] = field(default_factory=list)
+    first_frame: Frame | None = None
+
+    @property
+    def scale(self) -> float:
+        return display_scale(self.joint_type)
+
+    def to_dict(self) -> dict:
+        """The JSON result of `deploy open --json` (openings in m for a drawer, deg for a door)."""
+        axis = None if self.axis is None else {
+            k: v for k, v in self.axis.to_dict().items() if k in ("joint_type", "origin", "direction")}
+        return {"success": self.success, "opened": self.opened * self.scale, "target": self.target * self.scale,
+                "steps": self.steps, "axis": axis, "stop_reason": self.stop_reason.value, "message": self.message,
+                "regrasped": self.regrasped, "run_dir": None if self.run_dir is None else str(self.run_dir),
+                "timings": self.timings}

@@ -1,0 +1,44 @@
+"""Scoring a simulated episode against the world's ground truth: for benchmarks and reports only, never read by
+the controller (the episode has finished when `score` reads the world)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from deploy.config import OpeningConfig
+from deploy.control.state import EpisodeResult
+from deploy.geometry.metrics import axis_angle_error_deg, axis_position_error_m
+from deploy.geometry.types import Axis, JointType
+
+
+def calibration_error(scene, T_camera: np.ndarray) -> tuple[float, float]:
+    """(translation mm, rotation deg) of a solved hand-eye camera transform against a simulated calibration
+    scene's truth (`Rig.board`: T_base_camera eye-to-hand, T_tool_camera eye-in-hand)."""
+    from calibration.transforms import pose_error
+
+    return pose_error(T_camera, scene.true_camera)
+
+
+class Evaluation:
+    """The truth of `world` (sim_fallback.world.SimWorld) at the start of an episode, and the scoring after it."""
+
+    def __init__(self, world) -> None:
+        self.world = world
+        self.truth0 = world.truth()
+        self.joint = JointType(self.truth0.joint_type)
+
+    def axis_error(self, axis: Axis) -> tuple[float, float]:
+        """(angle deg, position m) of `axis` against the true joint axis."""
+        t = self.truth0
+        return (axis_angle_error_deg(t.direction, axis.direction),
+                axis_position_error_m(t.origin, t.direction, axis.origin, axis.direction))
+
+    def score(self, result: EpisodeResult, opening: OpeningConfig) -> dict:
+        """Truth-based fields of the episode's JSON: true_opened (m or deg), success = true value >= target,
+        the controller's own verdict, and the final axis's errors (position only for a hinge)."""
+        value = self.world.truth().value
+        scale = float(np.degrees(1.0)) if self.joint is JointType.REVOLUTE else 1.0
+        angle, position = self.axis_error(result.axis) if result.axis is not None else (None, None)
+        return {"true_opened": value * scale, "success": bool(value >= opening.target_for(self.joint)),
+                "estimated_success": result.success, "axis_angle_error_deg": angle,
+                "axis_position_error_m": position if self.joint is JointType.REVOLUTE else None}

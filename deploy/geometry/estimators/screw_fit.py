@@ -1,0 +1,222 @@
+"""The joint that best explains a part's registered rigid motions: prismatic or revolute, chosen by BIC.
+
+Stateless numpy functions (base frame, metres). `poses` (K,4,4) are the part's motions relative to the
+window start; `sample` (M,3) are model points of the part at the start and `moved` (K,M,3) the same
+points after each motion. A track is a pair (positions (K+1,3) or (N,3), noise_m): the part's centroid
+at the start and after each motion, or the gripper's path; each track weighs 1 / its noise in the fits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from deploy.geometry.estimators.screw_config import ScrewConfig
+from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
+
+Track = tuple[np.ndarray, float]
+
+_MODEL_POINTS = 200
+_FULL_FITNESS = 0.9
+_FULL_TRAVEL_M, _FULL_ROTATION_DEG = 0.05, 10.0
+_HALF_CONFIDENCE_RMS_M = 0.002
+_MAX_HINGE_TILT_DEG = 30.0  # a hinge lies in its door's plane: within this, w is projected into the plate
+
+
+@dataclass(frozen=True)
+class JointFit:
+    """A fitted joint: the line through `point` along unit `direction`, the RMS distance (m) between the
+    registered and the joint's positions of the model points, and the fit's BIC."""
+
+    direction: np.ndarray
+    point: np.ndarray
+    rms_m: float
+    bic: float
+
+
+def fit_screw_joint(
+    poses: np.ndarray, start: np.ndarray, latest_centre: np.ndarray, fitness: float, joint: JointType | None,
+    config: ScrewConfig, grip_at_poses: np.ndarray | None = None, grip_path: np.ndarray | None = None,
+) -> AxisResult:
+    """The joint axis from the motions `poses` (K,4,4) of the window-start points `start` (M,3).
+
+    `latest_centre` is the centroid of the latest frame's part, `fitness` the lowest registration
+    fitness of the frames used. The gripper's positions, when known: `grip_at_poses` (K+1,3) at the
+    start and after each motion (for a hinge, which needs the turns), `grip_path` (N,3) in every frame
+    of the window (for a line). NoAxis when the part moved less than config.min_travel_m and turned
+    less than config.min_rotation_deg.
+
+    Prismatic (`fit_prismatic`): origin = centroid of the model points at the window start. Revolute
+    (`fit_revolute`): origin = the axis point nearest `latest_centre`, radius_m = distance from it to
+    the axis. residual_m = the fit's RMS; confidence = fitness (1 from 90 %) x motion (1 from 5 cm or
+    10 deg) x 1 / (1 + (residual / 2 mm)^2).
+
+    Joint type when `joint` is None: BIC = n ln(rms^2 + sigma0^2) + k ln n with n = 6 per pose (what a
+    registration measures), k = poses + 2 (prismatic) or poses + 4 (revolute), sigma0 =
+    config.noise_floor_m; the lower wins, except that a revolute axis farther than config.max_radius_m
+    from the part means prismatic.
+    """
+    sample = start[np.linspace(0, len(start) - 1, min(len(start), _MODEL_POINTS)).astype(int)]
+    moved = np.einsum("kij,mj->kmi", poses[:, :3, :3], sample) + poses[:, None, :3, 3]
+    centroid = sample.mean(axis=0)
+    travel_m = float(np.max(np.linalg.norm(moved.mean(axis=1) - centroid, axis=1)))
+    rotation_deg = float(np.degrees(np.max(Rotation.from_matrix(poses[:, :3, :3]).magnitude())))
+    if travel_m < config.min_travel_m and rotation_deg < config.min_rotation_deg:
+        return NoAxis(
+            f"not enough motion yet: {travel_m * 1000:.1f} mm of {config.min_travel_m * 1000:.0f} mm "
+            f"and {rotation_deg:.1f} deg of {config.min_rotation_deg:.0f} deg",
+            {"travel_m": travel_m, "rotation_deg": rotation_deg},
+        )
+    fits = {}
+    if joint is not JointType.REVOLUTE:
+        tracks = part_and_grip_tracks(sample, moved, grip_path, config.part_noise_m, config.grip_noise_m)
+        fits[JointType.PRISMATIC] = fit_prismatic(sample, moved, tracks, config.grip_gate_m, config.noise_floor_m)
+    if joint is not JointType.PRISMATIC:
+        tracks = part_and_grip_tracks(sample, moved, grip_at_poses, config.part_noise_m, config.grip_noise_m)
+        fits[JointType.REVOLUTE] = fit_revolute(
+            poses[:, :3, :3], sample, moved, tracks, config.grip_gate_m, config.noise_floor_m)
+    radius_m = distance_to_line(latest_centre, fits[JointType.REVOLUTE]) if JointType.REVOLUTE in fits else 0.0
+    far = radius_m > config.max_radius_m
+    if joint is None:
+        joint = JointType.PRISMATIC if far else min(fits, key=lambda j: fits[j].bic)
+    elif joint is JointType.REVOLUTE and far:
+        return NoAxis(
+            f"the motion is too straight to locate a hinge: the fitted axis is more than "
+            f"{config.max_radius_m:.1f} m from the moving part",
+            {"radius_m": radius_m},
+        )
+    fit = fits[joint]
+    motion = min(1.0, max(travel_m / _FULL_TRAVEL_M, rotation_deg / _FULL_ROTATION_DEG))
+    trust = min(fitness, _FULL_FITNESS) / _FULL_FITNESS
+    confidence = float(np.clip(trust * motion / (1 + (fit.rms_m / _HALF_CONFIDENCE_RMS_M) ** 2), 0.0, 1.0))
+    if joint is JointType.PRISMATIC:
+        return Axis(joint, centroid, fit.direction, confidence=confidence, residual_m=fit.rms_m)
+    origin = fit.point + ((latest_centre - fit.point) @ fit.direction) * fit.direction
+    return Axis(joint, origin, fit.direction, confidence=confidence, residual_m=fit.rms_m, radius_m=radius_m)
+
+
+def part_and_grip_tracks(
+    sample: np.ndarray, moved: np.ndarray, grip: np.ndarray | None, part_noise_m: float, grip_noise_m: float
+) -> list[Track]:
+    """The tracks to fit a joint to: the part's centroid at the start and after each motion, and the
+    gripper's positions `grip` when given."""
+    tracks = [(np.vstack([sample.mean(axis=0), moved.mean(axis=1)]), part_noise_m)]
+    return tracks if grip is None else tracks + [(grip, grip_noise_m)]
+
+
+def fit_prismatic(
+    sample: np.ndarray, moved: np.ndarray, tracks: list[Track], grip_gate_m: float, noise_floor_m: float
+) -> JointFit:
+    """Points move by s_k d: d = principal direction of the tracks' positions (`principal_direction`),
+    signed along the motion; a second (gripper) track farther than `grip_gate_m` RMS from its line is
+    left out. The line passes through the model points' centroid."""
+    d = principal_direction(tracks)
+    if len(tracks) > 1 and line_miss(tracks[1][0], d) > grip_gate_m:
+        d = principal_direction(tracks[:1])
+    shifts = moved.mean(axis=1) - sample.mean(axis=0)
+    travel = shifts @ d
+    if travel[np.argmax(np.abs(travel))] < 0:
+        d, travel = -d, -travel
+    predicted = sample[None] + travel[:, None, None] * d
+    rms = float(np.sqrt(np.mean(np.sum((moved - predicted) ** 2, axis=2))))
+    return JointFit(d, sample.mean(axis=0), rms, bic(rms, 6 * len(moved), len(moved) + 2, noise_floor_m))
+
+
+def fit_revolute(
+    rotations: np.ndarray, sample: np.ndarray, moved: np.ndarray, tracks: list[Track], grip_gate_m: float,
+    noise_floor_m: float,
+) -> JointFit:
+    """Rotation about the line (w, a), from the registered `rotations` (K,3,3).
+
+    w: least squares over R_k w = w; projected into the plane of a plate-shaped part (a door panel)
+    when within 30 deg of it, since a hinge lies in its door's plane and the rotation about a plate's
+    normal is what registration measures worst; signed so the motion turns positively. The turns are
+    the rotations' angles about w (what registration measures best). a: the centre of the circles the
+    tracks run through at those turns (`circle_centre`), level with the model points; a second
+    (gripper) track missing its circle by more than `grip_gate_m` RMS (the grasp slipped) is left out.
+    """
+    m = rotations - np.eye(3)
+    w = np.linalg.eigh(np.einsum("kji,kjl->il", m, m))[1][:, 0]
+    plate = plate_normal(sample)
+    if plate is not None and abs(w @ plate) < np.sin(np.radians(_MAX_HINGE_TILT_DEG)):
+        w = w - (w @ plate) * plate
+        w = w / np.linalg.norm(w)
+    rotvecs = Rotation.from_matrix(rotations).as_rotvec()
+    if rotvecs.sum(axis=0) @ w < 0:
+        w = -w
+    turns = Rotation.from_rotvec(np.outer(rotvecs @ w, w)).as_matrix()
+    anchor = w @ sample.mean(axis=0)
+    a, misses = circle_centre(w, turns, tracks, anchor)
+    if len(tracks) > 1 and misses[1] > grip_gate_m:
+        a, _ = circle_centre(w, turns, tracks[:1], anchor)
+    predicted = np.einsum("kij,mj->kmi", turns, sample - a) + a
+    rms = float(np.sqrt(np.mean(np.sum((moved - predicted) ** 2, axis=2))))
+    return JointFit(w, a, rms, bic(rms, 6 * len(moved), len(moved) + 4, noise_floor_m))
+
+
+def bic(rms_m: float, n: int, k: int, noise_floor_m: float) -> float:
+    """Bayesian information criterion of a fit with RMS residual `rms_m` over n measurements and k
+    parameters; residuals below `noise_floor_m` count as noise."""
+    return float(n * np.log(rms_m**2 + noise_floor_m**2) + k * np.log(n))
+
+
+def circle_centre(
+    w: np.ndarray, turns: np.ndarray, tracks: list[Track], anchor: float
+) -> tuple[np.ndarray, list[float]]:
+    """The point a of the axis (direction w, a @ w = anchor) about which each track of positions
+    p_0..p_K (start, then after each of the K `turns`) moves: p_k = a + R_k v, one lever v per track,
+    every track weighted by 1 / its noise (m). Returns a and each track's RMS residual (m)."""
+    rotations = np.concatenate([np.eye(3)[None], turns])
+    cols = 3 + 3 * len(tracks)
+    rows, rhs = [], []
+    for j, (positions, sigma) in enumerate(tracks):
+        block = np.zeros((len(rotations), 3, cols))
+        block[:, :, :3] = np.eye(3)
+        block[:, :, 3 + 3 * j: 6 + 3 * j] = rotations
+        rows.append(block.reshape(-1, cols) / sigma)
+        rhs.append(np.asarray(positions).ravel() / sigma)
+    rows.append(np.append(w, np.zeros(cols - 3))[None] * 1e3)  # a @ w = anchor: the tracks leave a free along w
+    rhs.append([anchor * 1e3])
+    x = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
+    a = x[:3]
+    rms = [
+        float(np.sqrt(np.mean(np.sum((positions - a - rotations @ x[3 + 3 * j: 6 + 3 * j]) ** 2, axis=1))))
+        for j, (positions, _) in enumerate(tracks)
+    ]
+    return a, rms
+
+
+def principal_direction(tracks: list[Track]) -> np.ndarray:
+    """The unit direction along which the tracks' positions spread most (each about its own mean,
+    weighted by 1 / its noise)."""
+    centred = np.vstack([(positions - positions.mean(axis=0)) / sigma for positions, sigma in tracks])
+    return np.linalg.svd(centred, full_matrices=False)[2][0]
+
+
+def line_miss(positions: np.ndarray, direction: np.ndarray) -> float:
+    """RMS distance (m) of positions from the line through their mean along `direction`."""
+    offsets = positions - positions.mean(axis=0)
+    return float(np.sqrt(np.mean(np.sum((offsets - np.outer(offsets @ direction, direction)) ** 2, axis=1))))
+
+
+def distance_to_line(point: np.ndarray, fit: JointFit) -> float:
+    """Distance (m) from `point` to the fitted joint's line."""
+    offset = point - fit.point
+    return float(np.linalg.norm(offset - (offset @ fit.direction) * fit.direction))
+
+
+def plate_normal(points: np.ndarray) -> np.ndarray | None:
+    """Normal of the plate the points mostly lie on (trimmed PCA), None when they are not a plate:
+    less than 60 % of them within 3 median distances (at least 2 mm) of the plane, or a thickness
+    spread over 10 % of the width spread."""
+    kept = points
+    for _ in range(3):
+        centre = kept.mean(axis=0)
+        _, spread, axes = np.linalg.svd(kept - centre, full_matrices=False)
+        distance = np.abs((points - centre) @ axes[2])
+        kept = points[distance <= max(3 * np.median(distance), 0.002)]
+    if len(kept) < 0.6 * len(points) or spread[2] > 0.1 * spread[1]:
+        return None
+    return axes[2]

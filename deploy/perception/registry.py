@@ -1,0 +1,27 @@
+"""Segmenter backends, chosen by name (`--segmenter`): `make_segmenter(name, config)`."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from deploy.errors import ConfigError
+from drivers.registry import Registry
+
+if TYPE_CHECKING:
+    from deploy.perception.base import Segmenter
+    from deploy.perception.config import PerceptionConfig
+
+SEGMENTERS: Registry[Segmenter] = Registry("segmenter", ConfigError)
+SEGMENTERS.register("gdino-sam2", "deploy.perception.gdino_sam2:open_gdino_sam2",
+                    "Grounding DINO + SAM2 (needs model weights)")
+SEGMENTERS.register("classical", "deploy.perception.classical:open_classical",
+                    "no weights: a first box tracked by depth and colour")
+SEGMENTERS.register("oracle", "deploy.perception.oracle:open_oracle",
+                    "ablation: simulator labels or stored masks")
+
+
+def make_segmenter(name: str, config: PerceptionConfig | None = None) -> Segmenter:
+    """A fresh segmenter of kind `name` with `config` (default settings when None)."""
+    from deploy.perception.config import PerceptionConfig
+
+    return SEGMENTERS.open(name, config or PerceptionConfig())

@@ -1,0 +1,221 @@
+"""One place that builds a rig: camera, arm, segmenter and the camera's pose in the arm's base frame, for
+`deploy open*`, `calibrate`, `record` and arm bring-up, in simulation and on hardware alike.
+
+Kinds come from the registries (`--camera`, `--arm`, `--segmenter`). When the camera is simulated the rig
+builds the PyBullet scene both devices live in: an opening scenario (a cabinet, `SimScene`) or a calibration
+scene (a ChArUco board on the tool or the table, `BoardScene`). The scene's ground truth (`Rig.world`) is for
+evaluation and test set-up only: the rig hands the controller the camera, the arm, the kinematics and the
+segmenter, never the world.
+
+A camera whose frames do not carry their pose gets it from the hand-eye calibration: `--calibration FILE`, or
+the file saved for this camera's serial and robot (`deploy calibrate hand-eye`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+
+from deploy.errors import CalibrationError, ConfigError
+from deploy.perception.base import Segmenter
+from deploy.perception.config import PerceptionConfig
+from deploy.perception.registry import SEGMENTERS
+from drivers.arm.base import Arm
+from drivers.arm.kinematics import Kinematics
+from drivers.arm.registry import ARMS
+from drivers.arm.robot_config import PANDA_SIM_CONFIG, RobotConfig, load_robot_config
+from drivers.arm.trajectory import MotionLimits
+from drivers.camera.base import Camera
+from drivers.camera.posed import PosedCamera
+from drivers.camera.registry import CAMERAS
+
+if TYPE_CHECKING:
+    from calibration.board import BoardConfig
+    from sim_fallback.world import SimWorld
+
+JOINT_SPEED_SHARE = 0.3  # free-space moves at this share of the robot's joint velocity limits
+SIM_SERIAL = "sim-d415"  # the simulated camera's serial, naming its calibration files
+
+
+@dataclass(frozen=True)
+class SimScene:
+    """The simulated opening scenario: a cabinet with a drawer or a door (`Scenario.make(task, seed, split)`)."""
+
+    task: Literal["drawer", "door"] = "drawer"
+    seed: int = 0
+    split: Literal["train", "test"] = "train"
+
+
+@dataclass(frozen=True)
+class BoardScene:
+    """The simulated calibration scene: a ChArUco `board` on the tool (eye-to-hand, a fixed camera) or on the
+    table (eye-in-hand, a wrist camera). `noise`: "d415" depth noise or "none"; `color_sigma` grey levels."""
+
+    setup: Literal["eye-to-hand", "eye-in-hand"]
+    board: BoardConfig
+    seed: int = 0
+    resolution: tuple[int, int] = (640, 480)
+    depth_noise: bool = True
+    color_sigma: float = 0.0
+
+
+@dataclass(frozen=True)
+class RigSpec:
+    """What to open. camera / arm: registry specs (None: no such device); robot: config TOML (default: the
+    simulated Panda's for simulated arms; required for hardware arms); segmenter: registry name (None: none).
+    camera_options go to the camera's factory (width, height, fps, ...)."""
+
+    camera: str | None = "sim"
+    arm: str | None = "sim"
+    robot: Path | None = None
+    calibration: Path | None = None
+    segmenter: str | None = None
+    perception: PerceptionConfig = PerceptionConfig()
+    scene: SimScene | BoardScene = SimScene()
+    camera_options: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class Rig:
+    """Open devices. `world` (simulation only) and `board` (a calibration scene's) are for evaluation and test
+    set-up, never for the controller."""
+
+    spec: RigSpec
+    robot: RobotConfig
+    kin: Kinematics
+    camera: Camera | None = None
+    arm: Arm | None = None
+    segmenter: Segmenter | None = None
+    serial: str | None = None
+    world: SimWorld | None = None
+    board: Any = None  # sim_fallback.board.CalibrationRig of a BoardScene
+
+    @property
+    def simulated(self) -> bool:
+        return self.world is not None
+
+    @property
+    def real_arm(self) -> bool:
+        """A physical arm: asked for before its first motion."""
+        return self.spec.arm is not None and ARMS.entry(self.spec.arm)[0].hardware
+
+    def motion_limits(self, fraction: float = JOINT_SPEED_SHARE) -> MotionLimits:
+        """`fraction` of the robot's safety limits for planned free-space moves."""
+        return self.robot.motion_limits(self.kin, fraction)
+
+
+def check_spec(spec: RigSpec) -> None:
+    """Refuse combinations that cannot work, before anything opens: ConfigError naming the fix."""
+    camera = CAMERAS.entry(spec.camera)[0] if spec.camera is not None else None
+    arm = ARMS.entry(spec.arm)[0] if spec.arm is not None else None
+    if spec.segmenter is not None:
+        SEGMENTERS.entry(spec.segmenter)
+    if camera is not None and arm is not None and arm.simulated and not camera.simulated:
+        raise ConfigError(f"--arm {spec.arm} needs --camera sim (a simulated arm cannot act on what a real camera "
+                          f"sees): use --arm can with --camera {spec.camera}")
+    if camera is not None and arm is not None and camera.simulated and not arm.simulated:
+        raise ConfigError(f"--camera {spec.camera} needs a simulated arm (--arm sim or sim-can), not {spec.arm!r}: "
+                          "the simulated camera sees only the simulated Panda")
+    if arm is not None and not arm.simulated and spec.robot is None:
+        raise ConfigError(f"--arm {spec.arm} needs --robot CONFIG.toml: your arm's config "
+                          "(configs/robots/damiao_6dof.toml is the template; docs/arm.md)")
+
+
+@contextmanager
+def open_rig(spec: RigSpec) -> Iterator[Rig]:
+    """Open what `spec` names (camera connected; arm built but not enabled: `with rig.arm:` or `connect()`);
+    on leaving, stop the arm and release everything."""
+    check_spec(spec)
+    robot = load_robot_config(spec.robot or PANDA_SIM_CONFIG)
+    with ExitStack() as stack:
+        rig = Rig(spec, robot, robot.kinematics())
+        camera_entry = CAMERAS.entry(spec.camera)[0] if spec.camera is not None else None
+        if camera_entry is not None and camera_entry.simulated:
+            _open_simulated(rig, stack)
+        else:
+            _open_hardware(rig, stack)
+        if spec.segmenter is not None:
+            rig.segmenter = SEGMENTERS.open(spec.segmenter, spec.perception)
+        yield rig
+
+
+def _open_simulated(rig: Rig, stack: ExitStack) -> None:
+    spec = rig.spec
+    if isinstance(spec.scene, BoardScene):
+        board_rig = stack.enter_context(board_scene(spec.scene))
+        rig.world, rig.board, camera = board_rig.world, board_rig, board_rig.camera
+    else:
+        from sim_fallback.scenario import Scenario
+        from sim_fallback.world import SimWorld
+
+        scene = spec.scene
+        rig.world = stack.enter_context(SimWorld(Scenario.make(scene.task, scene.seed, scene.split)))
+        camera = CAMERAS.open(spec.camera, world=rig.world, seed=scene.seed, **spec.camera_options)
+    rig.camera, rig.serial = camera, SIM_SERIAL
+    if spec.arm is None:
+        return
+    if spec.arm == "sim" and rig.board is not None:
+        rig.arm = rig.board.arm
+    else:
+        rig.arm = ARMS.open(spec.arm, rig.robot, world=rig.world)
+    stack.callback(rig.arm.disconnect)
+    rig.kin = getattr(rig.arm, "kin", rig.kin)
+
+
+def _open_hardware(rig: Rig, stack: ExitStack) -> None:
+    """Camera first (its serial names the calibration file), then the arm (built, not enabled)."""
+    spec = rig.spec
+    camera = None
+    if spec.camera is not None:
+        camera = CAMERAS.open(spec.camera, **spec.camera_options)
+        camera.connect()
+        stack.callback(camera.disconnect)
+        rig.serial = getattr(camera, "serial", None) or spec.camera
+        rig.camera = camera
+    if spec.arm is not None:
+        rig.arm = ARMS.open(spec.arm, rig.robot)
+        stack.callback(rig.arm.disconnect)
+        rig.kin = getattr(rig.arm, "kin", rig.kin)
+        if camera is not None:
+            rig.camera = PosedCamera(camera, _calibrated_pose(rig))
+
+
+def _calibrated_pose(rig: Rig) -> Callable[[], np.ndarray]:
+    """T_base_camera for frames that do not carry it: --calibration, or this camera's saved calibration."""
+    from calibration.store import load_for, load_hand_eye
+
+    spec, serial = rig.spec, rig.serial
+    real_serial = serial if serial != spec.camera else None
+    record = (load_hand_eye(spec.calibration) if spec.calibration is not None
+              else load_for(real_serial, rig.robot.name) if real_serial else None)
+
+    def pose() -> np.ndarray:
+        if record is None:
+            raise CalibrationError(
+                f"no hand-eye calibration for camera {serial} on robot {rig.robot.name!r}: run "
+                "`deploy calibrate hand-eye` or give --calibration FILE")
+        return record.T_base_camera(rig.kin.fk(rig.arm.state().q))
+
+    return pose
+
+
+TEXTURE_PX_PER_M = 3000.0  # about 2 texels per image pixel where the board is nearest the camera
+TEXTURE_MARGIN_M = 0.01
+
+
+def board_scene(scene: BoardScene):
+    """The simulated calibration scene (sim_fallback.board.CalibrationRig, a context manager) for `scene`."""
+    from calibration.board import render_board
+    from drivers.camera.depth_noise import DepthNoise
+    from sim_fallback.board import BoardTexture, build_rig
+
+    board = scene.board
+    texture = BoardTexture(render_board(board, TEXTURE_PX_PER_M, TEXTURE_MARGIN_M), TEXTURE_PX_PER_M,
+                           (-TEXTURE_MARGIN_M, -TEXTURE_MARGIN_M))
+    return build_rig(scene.setup, texture, board.center_m, scene.resolution,
+                     None if scene.depth_noise else DepthNoise.none(), scene.color_sigma, scene.seed)

@@ -1,0 +1,45 @@
+"""The arm kinds (`--arm`): Damiao motors over CAN and an ideal kinematic arm; other packages add theirs (the
+simulated Panda and the CAN driver on simulated motors register from sim_fallback).
+
+`open_arm(spec, robot)` builds one, not yet connected: use it as a context manager (enter enables, exit stops).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from drivers.errors import ArmError
+from drivers.registry import Registry
+
+if TYPE_CHECKING:
+    from drivers.arm.base import Arm
+    from drivers.arm.robot_config import RobotConfig
+
+ARMS: Registry[Arm] = Registry("arm", ArmError)  # factories: factory(argument, robot, **options)
+ARMS.register("can", "drivers.arm.registry:open_can", "Damiao motors over CAN (hardware)",
+              hardware=True)
+ARMS.register("ideal", "drivers.arm.registry:open_ideal", "kinematic, no bus")
+
+
+def open_arm(spec: str, robot: RobotConfig, **options: object) -> Arm:
+    """The arm named by `spec` for `robot`; `options` go to its factory (simulated kinds take `world`)."""
+    return ARMS.open(spec, robot, **options)
+
+
+def open_can(_argument: str, robot: RobotConfig) -> Arm:
+    from drivers.arm.can_arm import CanArm
+    from drivers.arm.can_bus import CanBus
+
+    return CanArm(robot, CanBus.from_config(robot.can))
+
+
+def open_ideal(_argument: str, robot: RobotConfig) -> Arm:
+    import numpy as np
+
+    from drivers.arm.ideal import IdealArm
+    from drivers.arm.safety import SafetyGuard
+
+    kin = robot.kinematics()
+    guard = SafetyGuard(robot.safety_limits(kin), robot.joint_names)
+    width = robot.gripper.max_width_m if robot.gripper else 0.0
+    return IdealArm(kin, guard, np.array(robot.q_ready), robot.control_period_s, width)

@@ -1,0 +1,36 @@
+"""A camera whose frames get their pose in the arm's base frame from a function (the hand-eye calibration)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from drivers.camera.base import Camera, Frame, Intrinsics
+
+
+class PosedCamera(Camera):
+    """Wraps `camera`: a frame that does not carry its `T_base_camera` (a recording may) gets it from `pose()`."""
+
+    def __init__(self, camera: Camera, pose: Callable[[], np.ndarray]) -> None:
+        self.camera, self.pose = camera, pose
+
+    @property
+    def intrinsics(self) -> Intrinsics:
+        return self.camera.intrinsics
+
+    @property
+    def serial(self) -> str | None:
+        return getattr(self.camera, "serial", None)
+
+    def connect(self) -> None:
+        self.camera.connect()
+
+    def disconnect(self) -> None:
+        self.camera.disconnect()
+
+    def read(self, timeout_s: float = 2.0) -> Frame:
+        frame = self.camera.read(timeout_s)
+        if frame.T_base_camera is None:
+            frame.T_base_camera = self.pose()
+        return frame
