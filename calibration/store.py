@@ -127,6 +127,8 @@ def load_hand_eye(path: str | Path) -> HandEyeRecord:
                                 r.string("board_dictionary"), bool(r.real("board_legacy")))
         except CalibrationError as exc:
             raise CalibrationError(f"calibration file {path}: {exc}") from exc
+        except (ValueError, TypeError, OverflowError, cv2.error) as exc:  # a value OpenCV cannot make a board of
+            raise r._bad(f"has a board OpenCV cannot build ({exc})") from exc
         return HandEyeRecord(
             camera_serial=r.string("camera_serial"), robot_id=r.string("robot_id"), setup=setup,
             method=r.string("method"), T_camera=r.pose("T_camera"), T_board=r.pose("T_board"),

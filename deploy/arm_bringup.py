@@ -1,14 +1,17 @@
 """Arm bring-up operations behind `deploy arm ...`: scan, status, enable/disable/zero, and planned joint moves
-(home, jog, move to a pose) that are shown before they run.
+(home, jog, move to a pose) that are shown before they run; and the `--sim-fault` injections of the simulated CAN
+arm, which every command that takes `--arm sim-can` offers.
 """
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -17,11 +20,17 @@ from drivers.arm.base import Arm
 from drivers.arm.can_arm import CanArm, scan_bus
 from drivers.arm.can_bus import CanBus
 from drivers.arm.damiao import Special, special
+from drivers.arm.disable import disable_and_confirm
+from drivers.arm.disable import motor_states as disable_states
 from drivers.arm.motion import move_to_joints
+from drivers.arm.motor_channels import MotorChannel
 from drivers.arm.registry import open_arm
 from drivers.arm.robot_config import PANDA_SIM_CONFIG, RobotConfig, load_robot_config
 from drivers.arm.trajectory import MotionLimits, joint_trajectory
 from drivers.errors import ArmError
+
+if TYPE_CHECKING:
+    from sim_fallback.sim_faults import SimFault
 
 BRINGUP_SPEED = 0.2  # share of the velocity, acceleration and jerk limits used by bring-up moves
 
@@ -52,13 +61,61 @@ def make_arm(kind: str, config: RobotConfig) -> Arm:
     return open_arm(kind, config)
 
 
+def parse_sim_faults(kind: str, texts: list[str] | None) -> list[SimFault]:
+    """The `--sim-fault` values; ConfigError when one is malformed or the arm is not the simulated CAN arm."""
+    if not texts:
+        return []
+    from deploy.errors import ConfigError
+    from sim_fallback.sim_faults import SimFault
+
+    if kind != "sim-can":
+        raise ConfigError(f"--sim-fault breaks the simulated CAN arm: use it with --arm sim-can, not --arm {kind}")
+    try:
+        return [SimFault.parse(text) for text in texts]
+    except ValueError as exc:
+        raise ConfigError(f"--sim-fault {exc}") from None
+
+
+def inject_sim_faults(arm: Arm, faults: list[SimFault]) -> None:
+    """Schedule `faults` on the simulated motors of the sim-can `arm` (found by its CAN channel)."""
+    if not faults:
+        return
+    from sim_fallback.can_motors import motors_on
+
+    motors = motors_on(arm.config.can.channel)
+    if motors is None:
+        raise ArmError(f"no simulated motors answer on CAN channel {arm.config.can.channel!r}: --sim-fault needs "
+                       "--arm sim-can")
+    for fault in faults:
+        fault.schedule(motors)
+
+
+def motor_states(arm: Arm) -> list[dict]:
+    """The final state of every motor of a CAN arm (name, CAN id, enabled, status); [] for other arms."""
+    return arm.motor_states() if isinstance(arm, CanArm) else []
+
+
 @contextmanager
-def raw_bus(config: RobotConfig, kind: str) -> Iterator[CanBus]:
-    """The config's CAN bus without an arm on top (sim-can: with its simulated motors answering); closed after."""
+def released(arm: Arm) -> Iterator[Arm]:
+    """Disconnect `arm` when an exception leaves (it then carries the motors' final states as `motors`)."""
+    try:
+        yield arm
+    except BaseException as exc:
+        arm.disconnect()
+        exc.motors = motor_states(arm)
+        raise
+
+
+@contextmanager
+def raw_bus(config: RobotConfig, kind: str, faults: list[SimFault] | None = None) -> Iterator[CanBus]:
+    """The config's CAN bus without an arm on top (sim-can: with its simulated motors answering, `faults`
+    injected); closed after."""
     if kind == "sim-can":
         from sim_fallback.devices import sim_can_arm
 
         arm, motors = sim_can_arm(config)
+        for fault in faults or []:
+            fault.schedule(motors)
         bus, close = arm.bus, motors.close
     elif kind == "can":
         bus, close = CanBus.from_config(config.can), None
@@ -72,9 +129,9 @@ def raw_bus(config: RobotConfig, kind: str) -> Iterator[CanBus]:
             close()
 
 
-def scan(kind: str, config: RobotConfig, ids: range) -> list[dict]:
+def scan(kind: str, config: RobotConfig, ids: range, faults: list[SimFault] | None = None) -> list[dict]:
     """Motors that answer on the config's bus (sim-can: the simulated motors of the config)."""
-    with raw_bus(config, kind) as bus:
+    with raw_bus(config, kind, faults) as bus:
         return [m.to_dict() for m in scan_bus(bus, ids)]
 
 
@@ -93,20 +150,22 @@ def status(arm: Arm) -> dict:
     return data
 
 
-def disable_all(config: RobotConfig, kind: str) -> int:
-    """Send disable to every configured motor (works without connecting); returns how many."""
-    with raw_bus(config, kind) as bus:
-        for m in config.motors:
-            bus.send(m.can_id, special(Special.DISABLE))
-    return len(config.motors)
+def disable_all(config: RobotConfig, kind: str, faults: list[SimFault] | None = None) -> list[dict]:
+    """Send disable to every configured motor (works without connecting) and wait for each one's answer; the
+    motors' states (drivers/arm/disable.py: `enabled` where no answer came)."""
+    channels = [MotorChannel(getattr(m, "name", "gripper"), m, m.default_limits) for m in config.motors]
+    with raw_bus(config, kind, faults) as bus:
+        unconfirmed = disable_and_confirm(bus, channels, config.watchdog.reply_timeout_s, threading.RLock(),
+                                          time.perf_counter)
+    return disable_states(channels, {c.name for c in unconfirmed})
 
 
-def set_zero(config: RobotConfig, kind: str, joint: str) -> dict:
+def set_zero(config: RobotConfig, kind: str, joint: str, faults: list[SimFault] | None = None) -> dict:
     """Make motor `joint`'s current position its zero (the motor must be disabled; it stores the zero)."""
     motors = {getattr(m, "name", "gripper"): m for m in config.motors}
     if joint not in motors:
         raise ArmError(f"joint {joint!r} is not in robot config {config.name!r}: joints are {', '.join(motors)}")
-    with raw_bus(config, kind) as bus:
+    with raw_bus(config, kind, faults) as bus:
         bus.send(motors[joint].can_id, special(Special.DISABLE))
         bus.send(motors[joint].can_id, special(Special.SET_ZERO))
     return {"joint": joint, "can_id": motors[joint].can_id, "zeroed": True}

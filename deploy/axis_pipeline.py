@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from deploy.config import Config
-from deploy.geometry.boxes import extend_behind, front_direction, oriented_box, remove_handle, yaw_box
+from deploy.geometry.boxes import extend_behind, front_box, front_direction, oriented_box, remove_handle, yaw_box
 from deploy.geometry.cloud import depth_to_points
 from deploy.geometry.estimators.base import AxisEstimator, Observation
 from deploy.geometry.estimators.registry import make_estimator
@@ -76,8 +76,11 @@ class AxisPipeline:
         inside = self.config.geometry.inside_depth_m if self.joint is JointType.REVOLUTE else 0.0
         return extend_behind(self.body_box, self.front, inside)
 
-    def _box(self, points: np.ndarray) -> Box:
-        return yaw_box(points) if self.config.geometry.box == "yaw" else oriented_box(points)
+    def _box(self, points: np.ndarray, view: np.ndarray) -> Box:
+        kind = self.config.geometry.box
+        if kind == "front":
+            return front_box(points, view)
+        return yaw_box(points) if kind == "yaw" else oriented_box(points)
 
     def update(
         self, points: np.ndarray, index: int, t: float, view: np.ndarray, gripper_pose: np.ndarray | None = None
@@ -113,9 +116,9 @@ class AxisPipeline:
                               len(kept), 0, timings)
         clock = time.perf_counter()
         if self.config.geometry.remove_handle:
-            self.body_box, _, self.handle_points = remove_handle(kept, view, box_fn=self._box)
+            self.body_box, _, self.handle_points = remove_handle(kept, view, box_fn=lambda p: self._box(p, view))
         else:
-            self.body_box = self._box(kept)
+            self.body_box = self._box(kept, view)
         self.front = front_direction(self.body_box, view)
         timings["body_box"] = (time.perf_counter() - clock) * 1e3
         return StepResult(index, t, NoAxis("first frame: body box fixed, waiting for motion"), len(kept), 0,

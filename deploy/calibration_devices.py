@@ -8,7 +8,7 @@ A recording (`replay:PATH`) is refused: calibration moves the arm, and a recordi
 Opening order: specs and the robot config are checked first, then the camera is connected (its serial names the
 calibration file), then the arm is probed (joints read, nothing enabled) so the stations can be planned and shown.
 `Devices.start` asks before a real arm's first motion and only then enables it; leaving `open_devices` always
-stops the arm (damp, disable) and releases the camera.
+stops the arm (damp, disable) and releases the camera; an exception leaving it carries the motors' final states.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from calibration.board import BoardConfig
 from calibration.detect import BoardDetector
 from calibration.routine import RoutineConfig, plan_around_start
 from calibration.store import HandEyeRecord
+from deploy.arm_bringup import released
 from deploy.errors import ConfigError
 from deploy.rig import BoardScene, RigSpec, open_rig
 from drivers.arm.base import Arm
@@ -195,7 +196,8 @@ def open_devices(choice: DeviceChoice, setup: str = "eye-to-hand", board: BoardC
     """Connect the camera, then probe the arm (nothing enabled); on leaving, stop the arm and release both.
     In simulation `setup` and `board` build the calibration scene (board on the tool or on the table)."""
     scene = BoardScene(setup, board or BoardConfig(), seed)  # type: ignore[arg-type]
-    with open_rig(RigSpec(camera=choice.camera, arm=choice.arm, robot=choice.robot_path, scene=scene)) as rig:
+    with open_rig(RigSpec(camera=choice.camera, arm=choice.arm, robot=choice.robot_path, scene=scene)) as rig, \
+            released(rig.arm):
         if isinstance(rig.arm, CanArm):
             rig.arm.probe()
         motors = None

@@ -3,9 +3,9 @@
 A file holds any subset of the sections below; everything has a default, so no file is needed:
 
     [filter]            # radius outlier filter of the object cloud (profile "sim" or "sparse")
-    profile = "sim"
+    profile = "sparse"  # default: follows the camera (simulation "sim", real cameras and recordings "sparse")
     [geometry]
-    box = "yaw"         # body box: "yaw" (paper) or "oriented" (full 3D)
+    box = "front"       # body box: "front" (turned to the front plane), "yaw" (paper) or "oriented" (3D)
     [estimator]
     name = "screw-grip"
     joint = "auto"
@@ -20,7 +20,9 @@ A file holds any subset of the sections below; everything has a default, so no f
 
 from __future__ import annotations
 
+import math
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Literal
 
@@ -44,22 +46,24 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 
 class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class FilterConfig(_Section):
     """Radius outlier filter: keep a point with at least `eps` other points within `radius` `unit`s.
 
-    `profile` fills in whichever of radius / eps / unit is not given.
+    `profile` fills in whichever of radius / eps / unit is not given; None follows the camera
+    (`Config.for_camera`): the paper's real-camera setting "sparse" for real cameras and their recordings, its
+    simulation setting "sim" in simulation (and where no camera is known).
     """
 
-    profile: Literal["sim", "sparse"] = "sim"
+    profile: Literal["sim", "sparse"] | None = None
     radius: float | None = Field(default=None, gt=0)
     eps: int | None = Field(default=None, ge=1)
     unit: Literal["m", "cm", "mm"] | None = None
 
     def resolve(self) -> FilterProfile:
-        base = FILTER_PROFILES[self.profile]
+        base = FILTER_PROFILES[self.profile or "sim"]
         return FilterProfile(
             radius=base.radius if self.radius is None else self.radius,
             eps=base.eps if self.eps is None else self.eps,
@@ -70,7 +74,9 @@ class FilterConfig(_Section):
 class GeometryConfig(_Section):
     """Body box and moving-part extraction."""
 
-    box: Literal["yaw", "oriented"] = "yaw"
+    box: Literal["front", "yaw", "oriented"] = Field(
+        default="front", description="body box: front (vertical sides turned to the front face's plane), yaw (the "
+        "paper's smallest top-view box) or oriented (3D)")
     remove_handle: bool = True
     body_margin_m: float = Field(default=0.01, ge=0, le=0.1)
     inside_depth_m: float = Field(
@@ -104,13 +110,14 @@ class EstimatorConfig(_Section):
 class OpeningConfig(_Section):
     """How to open: task, target (m for a drawer, deg for a door), policy and motion sizes.
 
-    policy: "closed" re-estimates after every step, "open" keeps the first axis acted on, "paper" runs the
-    paper's straight steps with its estimator (`paper-obb`). fusion: "vision" acts on the camera's estimate
-    only; "trajectory" on a fit to the gripper's own path (FK) once it fits, vision before; "fused" on the
-    trajectory fit once the gripper has moved `trajectory_min_travel` (m or deg) and the fit is confident,
-    on vision otherwise and for the joint type. A vision estimate below `vision_min_confidence` (doors:
-    `door_vision_min_confidence`, and only past `vision_min_travel_deg`) is not acted on: the previous axis
-    is kept, at first the prior from the first frame (drawer: the front normal; door: the front's far edge).
+    policy: "closed" re-estimates after every step, "open" estimates once after the first pull and keeps that
+    axis, "paper" runs the paper's straight steps with its estimator (`paper-obb`). fusion: "vision" acts on
+    the camera's estimate only; "trajectory" on a fit to the gripper's own path (FK) once it fits, vision
+    before; "fused" on the trajectory fit once the gripper has moved `trajectory_min_travel` (m or deg) and the
+    fit is confident, on vision otherwise and for the joint type. A vision estimate below
+    `vision_min_confidence` (doors: `door_vision_min_confidence`, and only past `vision_min_travel_deg`) is not
+    acted on: the previous axis is kept, at first the prior from the first frame (drawer: the front normal;
+    door: the front's far edge).
     """
 
     task: Task = "drawer"
@@ -165,6 +172,12 @@ class Config(_Section):
     opening: OpeningConfig = OpeningConfig()
     perception: PerceptionConfig = PerceptionConfig()
 
+    def for_camera(self, camera: str) -> Config:
+        """This config with the filter profile of camera `camera` (a registry spec) where none was chosen."""
+        if self.filter.profile is not None:
+            return self
+        return self.replace(filter={"profile": filter_profile_for(camera)})
+
     def replace(self, **sections: dict[str, Any]) -> Config:
         """A copy with fields of some sections changed and validated: `config.replace(opening={"task": "door"})`."""
         data = self.model_dump()
@@ -173,11 +186,31 @@ class Config(_Section):
         return Config.model_validate(data)
 
 
+def filter_profile_for(camera: str) -> Literal["sim", "sparse"]:
+    """The filter profile for frames of camera `camera`: "sim" for a simulated camera or a recording made in
+    simulation, "sparse" (the paper's real-camera setting) for a real camera and its recordings."""
+    from drivers.camera.registry import simulated_source
+
+    return "sim" if simulated_source(camera) else "sparse"
+
+
 def _set_dotted(data: dict[str, Any], dotted: str, value: Any) -> None:
     *sections, key = dotted.split(".")
     for section in sections:
         data = data.setdefault(section, {})
     data[key] = value
+
+
+def _numbers(data: Any, where: str = "") -> Iterator[tuple[str, float]]:
+    """Every float in nested dicts and lists, with its dotted name."""
+    if isinstance(data, float):
+        yield where, data
+    elif isinstance(data, dict):
+        for key, value in data.items():
+            yield from _numbers(value, f"{where}.{key}" if where else str(key))
+    elif isinstance(data, (list, tuple)):
+        for i, value in enumerate(data):
+            yield from _numbers(value, f"{where}[{i}]")
 
 
 def load_config(path: Path | None = None, overrides: dict[str, Any] | None = None) -> Config:
@@ -191,12 +224,20 @@ def load_config(path: Path | None = None, overrides: dict[str, Any] | None = Non
         if not path.is_file():
             raise ConfigError(f"config file {path} not found: check the path or omit --config to use defaults")
         try:
-            data = tomllib.loads(path.read_text())
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except UnicodeDecodeError as exc:
+            raise ConfigError(f"config file {path} is not UTF-8 text ({exc.reason} at byte {exc.start}): give a "
+                              "TOML file (docs/cli.md shows the sections)") from None
+        except OSError as exc:
+            raise ConfigError(f"config file {path} cannot be read ({exc.strerror}): check its permissions") from None
         except tomllib.TOMLDecodeError as exc:
             raise ConfigError(f"config file {path} is not valid TOML: {exc}") from exc
     for dotted, value in (overrides or {}).items():
         if value is not None:
             _set_dotted(data, dotted, value)
+    for where, value in _numbers(data):
+        if not math.isfinite(value):
+            raise ConfigError(f"invalid configuration in {source}: {where} is {value}: give a finite number")
     try:
         return Config.model_validate(data)
     except ValidationError as exc:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -13,10 +15,15 @@ from deploy.geometry.types import Axis
 from drivers.camera.frames_dir import FramesRecording
 
 
-def estimate_recording(path: Path, config: Config) -> dict:
-    """Every frame through the pipeline, in order; returns the final axis and the estimate per step.
+def estimate_recording(path: Path, config: Config, progress: Callable[[float, float], None] | None = None,
+                       viewer: Any = None) -> dict:
+    """Every frame through the pipeline, in order; returns the final axis, the estimate per step and the filter
+    used (`filter`: radius_m, eps). The gripper's path (frames.jsonl `ee_pose`, e.g. from `deploy record --arm`)
+    goes in with the frames where recorded.
 
-    Axes are in the base frame when the recording has `T_base_camera`, else in the camera frame.
+    Axes are in the base frame when the recording has `T_base_camera`, else in the camera frame. progress(done,
+    total) follows the frames; `viewer` (deploy.control.viewer.RerunViewer) is shown every frame, its mask and
+    the axis estimated at it, and is closed at the end.
     """
     recording = FramesRecording(path)
     if not recording.has_masks:
@@ -26,25 +33,44 @@ def estimate_recording(path: Path, config: Config) -> dict:
         )
     pipe = AxisPipeline(config)
     steps, final = [], None
-    for i in range(len(recording)):
-        frame = recording.frame(i)
-        pose = recording.records[i].get("ee_pose")
-        step = pipe.update_frame(frame, frame.mask, None if pose is None else np.asarray(pose))
-        final = step.result
-        entry = {"frame": frame.index, "joint_type": None, "origin": None, "direction": None,
-                 "moving_points": step.moving_points}
-        if isinstance(step.result, Axis):
-            entry.update({k: v for k, v in step.result.to_dict().items() if k in ("joint_type", "origin", "direction")})
-        else:
-            entry["reason"] = step.result.reason
-        steps.append(entry)
+    try:
+        for i in range(len(recording)):
+            frame = recording.frame(i)
+            pose = recording.records[i].get("ee_pose")
+            pose = None if pose is None else np.asarray(pose)
+            step = pipe.update_frame(frame, frame.mask, pose)
+            final = step.result
+            steps.append(_entry(frame.index, step))
+            if viewer is not None:
+                viewer.frame(frame.t, frame, frame.mask, pose)
+                if isinstance(step.result, Axis):
+                    viewer.axis(frame.t, step.result, None, "vision", i)
+            if progress is not None:
+                progress(i + 1, len(recording))
+    finally:
+        if viewer is not None:
+            viewer.close()
+    used = config.filter.resolve()
     out = {
         "estimator": config.estimator.name, "joint_type": None, "origin": None, "direction": None,
         "radius": None, "residual_m": None, "n_samples": len(recording),
-        "frame": "base" if recording.T_base_camera is not None else "camera", "steps": steps,
+        "frame": "base" if recording.T_base_camera is not None else "camera",
+        "gripper_path": any("ee_pose" in r for r in recording.records),
+        "filter": {"profile": config.filter.profile, "radius_m": used.radius_m, "eps": used.eps}, "steps": steps,
     }
     if isinstance(final, Axis):
         out.update(final.to_dict())
     else:
         out["reason"] = final.reason if final is not None else "recording has no frames"
     return out
+
+
+def _entry(index: int, step) -> dict:
+    """One frame's estimate for the JSON."""
+    entry = {"frame": index, "joint_type": None, "origin": None, "direction": None,
+             "moving_points": step.moving_points}
+    if isinstance(step.result, Axis):
+        entry.update({k: v for k, v in step.result.to_dict().items() if k in ("joint_type", "origin", "direction")})
+    else:
+        entry["reason"] = step.result.reason
+    return entry

@@ -27,6 +27,11 @@ class Evaluation:
         self.truth0 = world.truth()
         self.joint = JointType(self.truth0.joint_type)
 
+    def true_axis(self) -> Axis:
+        """The true joint axis at the start (base frame), for the viewer."""
+        t = self.truth0
+        return Axis(self.joint, np.asarray(t.origin, float), np.asarray(t.direction, float))
+
     def axis_error(self, axis: Axis) -> tuple[float, float]:
         """(angle deg, position m) of `axis` against the true joint axis."""
         t = self.truth0
@@ -34,11 +39,13 @@ class Evaluation:
                 axis_position_error_m(t.origin, t.direction, axis.origin, axis.direction))
 
     def score(self, result: EpisodeResult, opening: OpeningConfig) -> dict:
-        """Truth-based fields of the episode's JSON: true_opened (m or deg), success = true value >= target,
-        the controller's own verdict, and the final axis's errors (position only for a hinge)."""
+        """Truth-based fields of the episode's JSON: true_opened_m (drawer) or true_opened_deg (door),
+        success = true value >= target, the controller's own verdict, and the final axis's errors (position only
+        for a hinge)."""
         value = self.world.truth().value
-        scale = float(np.degrees(1.0)) if self.joint is JointType.REVOLUTE else 1.0
+        revolute = self.joint is JointType.REVOLUTE
         angle, position = self.axis_error(result.axis) if result.axis is not None else (None, None)
-        return {"true_opened": value * scale, "success": bool(value >= opening.target_for(self.joint)),
+        key, shown = ("true_opened_deg", float(np.degrees(value))) if revolute else ("true_opened_m", value)
+        return {key: shown, "success": bool(value >= opening.target_for(self.joint)),
                 "estimated_success": result.success, "axis_angle_error_deg": angle,
                 "axis_position_error_m": position if self.joint is JointType.REVOLUTE else None}

@@ -8,7 +8,9 @@ evaluation and test set-up only: the rig hands the controller the camera, the ar
 segmenter, never the world.
 
 A camera whose frames do not carry their pose gets it from the hand-eye calibration: `--calibration FILE`, or
-the file saved for this camera's serial and robot (`deploy calibrate hand-eye`).
+the file saved for this camera's serial and robot (`deploy calibrate hand-eye`). The simulated camera's pose
+comes from a simulated calibration: the true pose off by `calibration_error` (translation mm, rotation deg)
+in a random direction drawn from the scene's seed, as a field calibration is.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from drivers.camera.registry import CAMERAS
 
 if TYPE_CHECKING:
     from calibration.board import BoardConfig
+    from deploy.perception.self_filter import SelfFilter
     from sim_fallback.world import SimWorld
 
 JOINT_SPEED_SHARE = 0.3  # free-space moves at this share of the robot's joint velocity limits
@@ -78,6 +81,7 @@ class RigSpec:
     perception: PerceptionConfig = PerceptionConfig()
     scene: SimScene | BoardScene = SimScene()
     camera_options: dict[str, Any] = field(default_factory=dict)
+    calibration_error: tuple[float, float] = (5.0, 0.5)
 
 
 @dataclass
@@ -103,6 +107,15 @@ class Rig:
     def real_arm(self) -> bool:
         """A physical arm: asked for before its first motion."""
         return self.spec.arm is not None and ARMS.entry(self.spec.arm)[0].hardware
+
+    def self_filter(self) -> SelfFilter | None:
+        """The filter of the arm's own pixels in this camera's frames (None without both)."""
+        if self.camera is None or self.arm is None:
+            return None
+        from deploy.perception.self_filter import SelfFilter
+        from drivers.arm.body import RobotBody
+
+        return SelfFilter(RobotBody.from_robot(self.robot))
 
     def motion_limits(self, fraction: float = JOINT_SPEED_SHARE) -> MotionLimits:
         """`fraction` of the robot's safety limits for planned free-space moves."""
@@ -155,7 +168,11 @@ def _open_simulated(rig: Rig, stack: ExitStack) -> None:
 
         scene = spec.scene
         rig.world = stack.enter_context(SimWorld(Scenario.make(scene.task, scene.seed, scene.split)))
-        camera = CAMERAS.open(spec.camera, world=rig.world, seed=scene.seed, **spec.camera_options)
+        sim_camera = CAMERAS.open(spec.camera, world=rig.world, seed=scene.seed, labels=spec.segmenter == "oracle",
+                                  **spec.camera_options)
+        T_calibrated = simulated_calibration(sim_camera.T_base_camera, *spec.calibration_error,
+                                             np.random.default_rng([scene.seed, 7]))
+        camera = PosedCamera(sim_camera, lambda: T_calibrated.copy())
     rig.camera, rig.serial = camera, SIM_SERIAL
     if spec.arm is None:
         return
@@ -165,6 +182,19 @@ def _open_simulated(rig: Rig, stack: ExitStack) -> None:
         rig.arm = ARMS.open(spec.arm, rig.robot, world=rig.world)
     stack.callback(rig.arm.disconnect)
     rig.kin = getattr(rig.arm, "kin", rig.kin)
+
+
+def simulated_calibration(T_true: np.ndarray, translation_mm: float, rotation_deg: float,
+                          rng: np.random.Generator) -> np.ndarray:
+    """`T_true` (a camera pose, 4x4) as a calibration with the given error would report it: shifted by
+    `translation_mm` and turned by `rotation_deg` about the camera's centre, each in a random direction."""
+    from scipy.spatial.transform import Rotation
+
+    shift, axis = rng.normal(size=3), rng.normal(size=3)
+    T = np.array(T_true, float)
+    T[:3, :3] = Rotation.from_rotvec(np.radians(rotation_deg) * axis / np.linalg.norm(axis)).as_matrix() @ T[:3, :3]
+    T[:3, 3] += translation_mm / 1000 * shift / np.linalg.norm(shift)
+    return T
 
 
 def _open_hardware(rig: Rig, stack: ExitStack) -> None:

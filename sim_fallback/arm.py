@@ -3,10 +3,10 @@
 Control: PyBullet POSITION_CONTROL (a velocity constraint with position and velocity gains) limited to
 the URDF joint efforts; `control_period_s` = 1/240 s, one physics step per `sync()`.
 
-Grasp: when the closing fingers both touch the handle, a fixed constraint welds the hand to it with a
-force limit (`grasp_force_limit_n`); PyBullet then lets the weld stretch under larger loads, and once
-the hand has drifted `SLIP_DISTANCE_M` from the handle the weld is released (a slip: the fingers keep
-closing and the measured gripper width drops, as on a real gripper). Opening the gripper releases it.
+Grasp: when the closing fingers both touch the handle, the hand holds it as a parallel gripper does
+(sim_fallback/grip.py): the handle turns in the fingers about its bar, slides along the bar past the grip's
+friction (2 pads x FINGER_FRICTION x the gripping force, or `grasp_force_limit_n` when set) and slips out
+past it, after which the fingers close on nothing and the measured width drops. Opening releases it.
 """
 
 from __future__ import annotations
@@ -18,10 +18,10 @@ from drivers.arm.base import Arm, ArmState
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.safety import SafetyGuard, SafetyLimits
 from drivers.errors import ArmError
+from sim_fallback.grip import Grip
 from sim_fallback.world import SimWorld
 
-GRASP_FORCE_LIMIT_N = 90.0  # a firm two-finger grasp on a bar handle
-SLIP_DISTANCE_M = 0.01  # hand-to-handle drift at which the weld lets go
+FINGER_FRICTION = 1.0  # rubber finger pads on a handle
 POSITION_GAIN, VELOCITY_GAIN = 0.3, 1.0  # PyBullet POSITION_CONTROL gains at 240 Hz
 FINGER_SPEED_M_S = 0.1
 
@@ -31,7 +31,8 @@ class SimArm(Arm):
 
     kin: the arm's kinematics (default `Kinematics.panda()`, the model the real arm uses);
     guard: the safety check every `command()` goes through (default: the Panda's `SafetyLimits`);
-    grasp_force_limit_n: the weld's force limit, above which the grasp slips.
+    grasp_force_limit_n: the grip's friction force (N) past which it slides and slips (None: from the gripping
+    force).
     """
 
     control_period_s = 1.0 / 240
@@ -41,7 +42,7 @@ class SimArm(Arm):
         world: SimWorld,
         kin: Kinematics | None = None,
         guard: SafetyGuard | None = None,
-        grasp_force_limit_n: float = GRASP_FORCE_LIMIT_N,
+        grasp_force_limit_n: float | None = None,
     ) -> None:
         self._clock = world.clock
         self._client, self._robot = world.client, world.robot_id
@@ -50,7 +51,7 @@ class SimArm(Arm):
         self._spec = spec
         self.kin = kin or Kinematics.panda()
         self.guard = guard or SafetyGuard(SafetyLimits.for_robot(spec, self.kin), spec.arm_joints)
-        self.grasp_force_limit_n = float(grasp_force_limit_n)
+        self.grasp_force_limit_n = grasp_force_limit_n
         self._joints = [world.robot_joints[name] for name in spec.arm_joints]
         self._fingers = [world.robot_joints[name] for name in spec.finger_joints]
         self._hand = world.robot_joints["panda_hand_joint"]  # the hand link's index = its joint's index
@@ -59,9 +60,9 @@ class SimArm(Arm):
         self._q_prev_cmd = np.zeros(len(self._joints))
         self._dq_prev_cmd = np.zeros(len(self._joints))
         self._gripper_target = spec.gripper_max_width_m
-        self._weld: int | None = None
-        self._may_weld = False  # set by a gripper command, cleared by a weld: a slipped grasp stays slipped
-        self._weld_child_pos = np.zeros(3)
+        self._grip: Grip | None = None
+        self._grip_force_n = 40.0
+        self._may_grip = False  # set by a gripper command, cleared by a grip: a slipped grasp stays slipped
         self._clock.add_hook(self._after_step)
         self.connect()
 
@@ -104,8 +105,8 @@ class SimArm(Arm):
         width = float(np.clip(width_m, 0.0, self._spec.gripper_max_width_m))
         if width > self._gripper_target:
             self._release()
-        self._gripper_target = width
-        self._may_weld = self._weld is None
+        self._gripper_target, self._grip_force_n = width, float(force_n)
+        self._may_grip = self._grip is None
         for finger in self._fingers:
             pb.setJointMotorControl2(self._robot, finger, pb.POSITION_CONTROL, targetPosition=width / 2,
                                      force=force_n, maxVelocity=FINGER_SPEED_M_S,
@@ -133,45 +134,32 @@ class SimArm(Arm):
     # --- grasp ------------------------------------------------------------------------------------------
 
     def _after_step(self) -> None:
-        if self._weld is None:
-            if self._may_weld and self._closing_on_handle():
-                self._make_weld()
-        elif np.linalg.norm(self._hand_in_handle() - self._weld_child_pos) > SLIP_DISTANCE_M:
-            self._release()
+        if self._grip is None:
+            if self._may_grip and self._closing_on_handle():
+                self._make_grip()
+        elif not self._grip.update():
+            self._grip = None
+
+    def _contacts(self) -> list[list]:
+        robot, cabinet, handle, c = self._robot, self._cabinet, self._handle_link, self._client
+        return [pb.getContactPoints(robot, cabinet, f, handle, physicsClientId=c) for f in self._fingers]
 
     def _closing_on_handle(self) -> bool:
         if self._gripper_target >= self.state().gripper_width_m - 1e-4:
             return False
-        robot, cabinet, handle, c = self._robot, self._cabinet, self._handle_link, self._client
-        return all(pb.getContactPoints(robot, cabinet, f, handle, physicsClientId=c) for f in self._fingers)
+        return all(self._contacts())
 
-    def _com_pose(self, body: int, link: int) -> tuple:
-        state = pb.getLinkState(body, link, physicsClientId=self._client)
-        return state[0], state[1]
-
-    def _hand_in_handle(self) -> np.ndarray:
-        """The hand's centre of mass in the handle's centre-of-mass frame."""
-        handle = self._com_pose(self._cabinet, self._handle_link)
-        hand = self._com_pose(self._robot, self._hand)
-        inv_pos, inv_orn = pb.invertTransform(*handle)
-        pos, _ = pb.multiplyTransforms(inv_pos, inv_orn, *hand)
-        return np.array(pos)
-
-    def _make_weld(self) -> None:
-        handle = self._com_pose(self._cabinet, self._handle_link)
-        hand = self._com_pose(self._robot, self._hand)
-        inv_pos, inv_orn = pb.invertTransform(*handle)
-        pos, orn = pb.multiplyTransforms(inv_pos, inv_orn, *hand)
-        self._weld = pb.createConstraint(
-            self._robot, self._hand, self._cabinet, self._handle_link, pb.JOINT_FIXED, [0, 0, 0],
-            parentFramePosition=[0, 0, 0], childFramePosition=pos, childFrameOrientation=orn,
-            physicsClientId=self._client,
-        )
-        pb.changeConstraint(self._weld, maxForce=self.grasp_force_limit_n, physicsClientId=self._client)
-        self._weld_child_pos = np.array(pos)
-        self._may_weld = False
+    def _make_grip(self) -> None:
+        """Both fingers touch the handle: hold it at the middle of their contacts, along the tool's x (the bar)."""
+        centre = np.mean([np.mean([c[6] for c in finger], axis=0) for finger in self._contacts()], axis=0)
+        hand = pb.getLinkState(self._robot, self._hand, physicsClientId=self._client)
+        bar = np.asarray(pb.getMatrixFromQuaternion(hand[5])).reshape(3, 3)[:, 0]  # the hand frame's x axis
+        limit = self.grasp_force_limit_n if self.grasp_force_limit_n is not None else \
+            2 * FINGER_FRICTION * self._grip_force_n
+        self._grip = Grip(self._client, self._robot, self._hand, self._cabinet, self._handle_link, centre, bar, limit)
+        self._may_grip = False
 
     def _release(self) -> None:
-        if self._weld is not None:
-            pb.removeConstraint(self._weld, physicsClientId=self._client)
-            self._weld = None
+        if self._grip is not None:
+            self._grip.release()
+            self._grip = None

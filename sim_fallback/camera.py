@@ -1,4 +1,8 @@
-"""A simulated RealSense D415: PyBullet's TinyRenderer, metric depth with D415-like noise, segmentation.
+"""A simulated RealSense D415: PyBullet's TinyRenderer, metric depth with D415-like noise.
+
+Its frames carry what a real camera's do: colour, depth, intrinsics and a timestamp. The simulator's answers
+stay out of them unless asked for: `labels=True` adds the segmentation labels (the oracle ablation, scripted
+data generation, tests) and `posed=True` the true camera pose (a real camera's pose comes from a calibration).
 
 `read()` behaves like a camera streaming at `fps` on the simulated clock: it returns the frame of the
 next frame slot, stepping the physics up to it when the slot has not come yet (the arm keeps its last
@@ -61,7 +65,8 @@ class SimCamera(Camera):
 
     intrinsics: default `d415_intrinsics()` (640x480; 1280x720 via `d415_intrinsics(1280, 720)`);
     noise: depth noise model (`DepthNoise.none()` gives exact depth); seed: noise and frame-drop stream;
-    drop_rate: probability that a frame slot is dropped (its index is skipped).
+    drop_rate: probability that a frame slot is dropped (its index is skipped); labels / posed: attach the
+    segmentation labels / the true T_base_camera to each frame (ground truth: never for the controller).
     """
 
     def __init__(
@@ -73,6 +78,8 @@ class SimCamera(Camera):
         drop_rate: float = 0.0,
         fps: float = 10.0,
         T_base_camera: np.ndarray | None = None,
+        labels: bool = False,
+        posed: bool = False,
     ) -> None:
         if not fps > 0 or not 0.0 <= drop_rate < 1.0:
             raise ValueError(f"SimCamera: fps must be > 0 (got {fps}), drop_rate in [0, 1) (got {drop_rate})")
@@ -87,6 +94,7 @@ class SimCamera(Camera):
         self._view = _gl_list(np.linalg.inv(self.T_base_camera @ _GL_FROM_CV))
         self._proj = _gl_list(projection_matrix(self._intrinsics))
         self._seed = seed
+        self.labels, self.posed = labels, posed
         self.connect()
 
     @property
@@ -110,8 +118,8 @@ class SimCamera(Camera):
         color, depth, segmentation = self.render()
         return Frame(index=slot, t=self._clock.time, color=color,
                      depth_m=self.noise.apply(depth, self._intrinsics.fx, self._rng),
-                     intrinsics=self._intrinsics, T_base_camera=self.T_base_camera.copy(),
-                     segmentation=segmentation)
+                     intrinsics=self._intrinsics, T_base_camera=self.T_base_camera.copy() if self.posed else None,
+                     segmentation=segmentation if self.labels else None)
 
     def render(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Render now, without noise or stepping: colour (H,W,3) uint8, depth (H,W) float32 m, SegLabels."""

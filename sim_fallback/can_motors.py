@@ -12,7 +12,8 @@ Two ways to run: `start()` a thread that answers at once on the wall clock (real
 the arm's `on_cycle` (lockstep: answer, advance one period, reply to MIT frames with the new state).
 
 Fault injection per motor (`MotorFaults`): dropped and delayed frames, silence, a status fault; and for the bus:
-`inject_bus_off()` / `inject_error_passive()` (SocketCAN error frames).
+`inject_bus_off()` / `inject_error_passive()` (SocketCAN error frames). `schedule(t, action)` runs an injection
+once the motors' clock reaches t (sim_fallback/sim_faults.py writes them as text).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from __future__ import annotations
 import threading
 import time
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import can
@@ -183,6 +185,7 @@ class SimMotorBus:
         _ON_CHANNEL[config.can.channel] = self
         self._rng = np.random.default_rng(seed)
         self._delayed: list[tuple[float, can.Message]] = []
+        self._scheduled: list[tuple[float, Callable[[], None]]] = []
         self._deferred: list[SimMotor] = []
         self._lockstep = True
         self._t = 0.0
@@ -222,6 +225,7 @@ class SimMotorBus:
         self.poll()
         with self._lock:
             self._t += dt
+            self._run_scheduled()
             self.backend.advance(self.motors, dt)
             deferred, self._deferred = self._deferred, []
             for m in deferred:
@@ -249,6 +253,7 @@ class SimMotorBus:
                 now = time.perf_counter()
                 dt, self._t_wall = now - self._t_wall, now
                 self._t += dt
+                self._run_scheduled()
                 self.backend.advance(self.motors, dt)
                 for msg in msgs[:-1]:
                     self._handle(msg)
@@ -258,6 +263,20 @@ class SimMotorBus:
                 self._flush_delayed()
 
     # --- faults ------------------------------------------------------------------------------------------------
+
+    def schedule(self, at_s: float, action: Callable[[], None]) -> None:
+        """Run `action` (a fault injection) once the motors' clock reaches `at_s`; at once if it has."""
+        with self._lock:
+            if at_s <= self._t:
+                action()
+            else:
+                self._scheduled.append((at_s, action))
+
+    def _run_scheduled(self) -> None:
+        due = [action for t, action in self._scheduled if t <= self._t]
+        self._scheduled = [(t, action) for t, action in self._scheduled if t > self._t]
+        for action in due:
+            action()
 
     def inject_bus_off(self) -> None:
         """The bus goes bus-off: one SocketCAN bus-off error frame, then no motor answers."""

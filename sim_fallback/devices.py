@@ -18,7 +18,7 @@ from drivers.arm.can_bus import CanBus
 from drivers.arm.robot_config import RobotConfig
 from drivers.camera.base import Intrinsics
 from drivers.camera.depth_noise import DepthNoise
-from drivers.errors import ArmError
+from drivers.errors import ArmError, CameraError
 from sim_fallback.arm import SimArm
 from sim_fallback.camera import SimCamera, d415_intrinsics
 from sim_fallback.can_motors import MotorFaults, PyBulletMotors, SimMotorBus
@@ -29,11 +29,13 @@ _channels = itertools.count()
 
 def open_sim_camera(_argument: str, world: SimWorld | None = None, width: int = 640, height: int = 480,
                     fps: float = 10.0, seed: int = 0, noise: DepthNoise | None = None,
-                    intrinsics: Intrinsics | None = None) -> SimCamera:
-    """The simulated D415 of `world` at width x height (D415 field of view), `fps` on the simulated clock."""
+                    intrinsics: Intrinsics | None = None, labels: bool = False) -> SimCamera:
+    """The simulated D415 of `world` at width x height (D415 field of view), `fps` on the simulated clock; its
+    frames carry no pose (the rig adds the calibrated one) and labels only when asked (the oracle ablation)."""
     if world is None:
-        raise ArmError("camera 'sim' needs a simulated world: use it from a rig (`deploy open-* --camera sim`)")
-    return SimCamera(world, intrinsics=intrinsics or d415_intrinsics(width, height), noise=noise, seed=seed, fps=fps)
+        raise CameraError("camera 'sim' needs a simulated world: use it from a rig (`deploy open-* --camera sim`)")
+    return SimCamera(world, intrinsics=intrinsics or d415_intrinsics(width, height), noise=noise, seed=seed, fps=fps,
+                     labels=labels)
 
 
 def open_sim_arm(_argument: str, robot: RobotConfig, world: SimWorld | None = None) -> SimArm:

@@ -156,7 +156,7 @@ def record_scripted(
              task, seed, split)
     with SimWorld(Scenario.make(task, seed, split)) as world:
         arm = SimArm(world)
-        camera = SimCamera(world, intrinsics=d415_intrinsics(*resolution), seed=seed, fps=fps)
+        camera = SimCamera(world, intrinsics=d415_intrinsics(*resolution), seed=seed, fps=fps, labels=True, posed=True)
         limits = MotionLimits.for_robot(world.robot_spec, arm.kin, fraction=0.3)
         joint_values: list[float] = []
         with FramesWriter(out, camera.intrinsics, T_base_camera=camera.T_base_camera) as writer:

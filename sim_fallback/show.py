@@ -30,7 +30,7 @@ def render_scene_png(
     if out.suffix.lower() != ".png":
         raise ValueError(f"scene image {out}: the file name must end in .png")
     with SimWorld(Scenario.make(task, seed, split)) as world:
-        frame = SimCamera(world, intrinsics=d415_intrinsics(*resolution), seed=seed).read()
+        frame = SimCamera(world, intrinsics=d415_intrinsics(*resolution), seed=seed, labels=True).read()
     depth = frame.depth_m
     valid = depth > 0
     lo, hi = (np.percentile(depth[valid], [1, 99]) if valid.any() else (0.0, 1.0))

@@ -10,6 +10,7 @@ import numpy as np
 import pyrealsense2 as rs
 
 SERIAL = "000111222333"
+SQUARE_ROWS, SQUARE_COLS = (19.5, 27.5), (23.5, 31.5)  # the 0.8 m square of `scene`, in depth pixel coordinates
 
 
 @dataclass
@@ -89,3 +90,26 @@ def write_db3(path: Path, s: Synthetic, color_format: rs.format = rs.format.rgb8
     recorder.pause()
     del recorder, device
     return path
+
+
+def expected_depth(s: Synthetic) -> np.ndarray:
+    """What the colour camera sees of `scene` (the square at 0.8 m in front of the plane at 1.0 m), ray-cast
+    through each colour pixel's centre; 0 where it sees a surface the depth camera did not (the plane behind
+    the square, or beyond the depth camera's field of view)."""
+    rows, cols = np.mgrid[0:s.height, 0:s.width].astype(float)
+    c = (s.width - 1) / 2, (s.height - 1) / 2
+    a, b = (cols - c[0]) / s.color_fx, (rows - c[1]) / s.color_fx  # ray (a, b, 1) from the colour centre
+
+    def depth_pixel(z: float) -> tuple[np.ndarray, np.ndarray]:  # where the ray meets depth z, in depth pixels
+        return (a * z - s.baseline_m) / z * s.depth_fx + c[0], b * s.depth_fx + c[1]
+
+    def inside(x, y, rows_, cols_):
+        return (y >= rows_[0]) & (y < rows_[1]) & (x >= cols_[0]) & (x < cols_[1])
+
+    out = np.zeros((s.height, s.width))
+    square = inside(*depth_pixel(0.8), SQUARE_ROWS, SQUARE_COLS)
+    x, y = depth_pixel(1.0)
+    seen = inside(x, y, (-0.5, s.height - 0.5), (-0.5, s.width - 0.5)) & ~inside(x, y, SQUARE_ROWS, SQUARE_COLS)
+    out[seen] = 1.0
+    out[square] = 0.8
+    return out

@@ -75,7 +75,7 @@ def test_enable_disable_zero(capsys):
     assert run(capsys, "arm", "enable", "--hold", "0.1", "--yes", "--clear-errors")[0] == 0
     code, out, _ = run(capsys, "arm", "disable")
     assert code == 0 and "8 motors" in out
-    code, out, _ = run(capsys, "arm", "zero", "--joint", "panda_joint7", "--yes")
+    code, out, _ = run(capsys, "arm", "zero", "--joint", "panda_joint7", "--yes", "--json")
     assert code == 0 and json.loads(out) == {"joint": "panda_joint7", "can_id": 7, "zeroed": True}
 
 

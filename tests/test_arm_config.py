@@ -1,5 +1,8 @@
 """Robot configs: the examples load and match their URDFs; bad configs are one clear error; the arm factory."""
 
+import subprocess
+import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -8,10 +11,10 @@ import pytest
 from drivers.arm.can_arm import CanArm
 from drivers.arm.ideal import IdealArm
 from drivers.arm.registry import open_arm
-from drivers.arm.robot_config import load_robot_config
+from drivers.arm.robot_config import CONFIG_DIR, PANDA_SIM_CONFIG, load_robot_config, shipped_robot_configs
 from drivers.errors import ArmError
 
-EXAMPLES = sorted(Path("configs/robots").glob("*.toml"))
+EXAMPLES = sorted(CONFIG_DIR.glob("*.toml"))
 
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=[p.stem for p in EXAMPLES])
@@ -29,7 +32,7 @@ def test_examples_load_and_match_their_urdf(path):
 
 
 def test_config_limits_narrow_the_urdf_limits(tmp_path):
-    config = load_robot_config("configs/robots/damiao_6dof.toml")
+    config = load_robot_config("damiao_6dof")
     limits = config.safety_limits(config.kinematics())
     assert limits.v_max[0] == 2.0  # the URDF says 3.14
     joints = [config.joints[0].model_copy(update={"q_min": -1.0, "q_max": 1.0}), *config.joints[1:]]
@@ -47,14 +50,14 @@ def test_config_limits_narrow_the_urdf_limits(tmp_path):
 ])
 def test_bad_configs_name_the_field(tmp_path, edit, words):
     path = tmp_path / "arm.toml"
-    path.write_text(edit(Path("configs/robots/damiao_6dof.toml").read_text()))
+    path.write_text(edit((CONFIG_DIR / "damiao_6dof.toml").read_text()))
     with pytest.raises(ArmError, match=words.replace("(", r"\(")):
         load_robot_config(path)
 
 
 def test_joints_that_do_not_match_the_urdf(tmp_path):
     path = tmp_path / "arm.toml"
-    path.write_text(Path("configs/robots/damiao_6dof.toml").read_text().replace('name = "joint2"', 'name = "elbow"'))
+    path.write_text((CONFIG_DIR / "damiao_6dof.toml").read_text().replace('name = "joint2"', 'name = "elbow"'))
     with pytest.raises(ArmError, match="do not match the URDF's movable joints"):
         load_robot_config(path).kinematics()
 
@@ -62,10 +65,27 @@ def test_joints_that_do_not_match_the_urdf(tmp_path):
 def test_missing_config():
     with pytest.raises(ArmError, match="not found"):
         load_robot_config("configs/robots/nope.toml")
+    with pytest.raises(ArmError, match=r"not found: give the path of a TOML file or a shipped config's name "
+                                       r"\(damiao_6dof, panda_sim\)"):
+        load_robot_config("nope")
+
+
+def test_shipped_configs_load_by_name_and_ship_in_the_wheel(tmp_path):
+    assert shipped_robot_configs() == ["damiao_6dof", "panda_sim"]
+    assert load_robot_config("panda_sim").source == PANDA_SIM_CONFIG == CONFIG_DIR / "panda_sim.toml"
+    user = tmp_path / "panda_sim"  # a path is read as given, even one named like a shipped config
+    user.write_text(PANDA_SIM_CONFIG.read_text().replace('name = "panda-sim"', 'name = "mine"'))
+    assert load_robot_config(user).name == "mine"
+    root = Path(__file__).resolve().parents[1]
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w",
+                    str(tmp_path / "dist"), str(root)], check=True, capture_output=True, timeout=300)
+    (wheel,) = (tmp_path / "dist").glob("axisloop-*.whl")
+    names = zipfile.ZipFile(wheel).namelist()
+    assert {"drivers/arm/configs/panda_sim.toml", "drivers/arm/configs/damiao_6dof.toml"} <= set(names)
 
 
 def test_registry_builds_every_arm_kind_and_refuses_unknown():
-    config = load_robot_config("configs/robots/panda_sim.toml")
+    config = load_robot_config("panda_sim")
     ideal = open_arm("ideal", config)
     assert isinstance(ideal, IdealArm) and ideal.control_period_s == pytest.approx(1 / 240)
     np.testing.assert_allclose(ideal.state().q, config.q_ready)

@@ -16,12 +16,13 @@ from sim_fallback.devices import sim_can_arm
 from sim_fallback.scenario import Scenario
 from sim_fallback.world import SimWorld
 
-PANDA = load_robot_config("configs/robots/panda_sim.toml")
+PANDA = load_robot_config("panda_sim")
 
 
 def _episode(world, arm, target=0.2):
     config = Config().replace(opening={"task": "drawer", "target_distance_m": target})
-    camera = SimCamera(world, intrinsics=d415_intrinsics(640, 480), seed=0, fps=config.opening.camera_hz)
+    camera = SimCamera(world, intrinsics=d415_intrinsics(640, 480), seed=0, fps=config.opening.camera_hz, labels=True,
+                       posed=True)
     return run_episode(camera, arm, arm.kin, OracleSegmenter(), config, None,
                        MotionLimits.for_robot(world.robot_spec, arm.kin, 0.3))
 

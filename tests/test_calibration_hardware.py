@@ -112,7 +112,7 @@ def test_a_missing_d415_is_one_clear_error_and_nothing_moves(can_robot, calib_di
     (["intrinsics", "--camera", "sim", "--arm", "can", "--robot", str(PANDA_SIM_CONFIG)], "cannot see --arm can"),
     (["hand-eye", "--arm", "ideal"], "is not one of sim, sim-can, can"),
     (["hand-eye", "--camera", "usb"], "is not one of sim, d415"),
-    (["hand-eye", "--arm", "sim-can", "--robot", "configs/robots/damiao_6dof.toml"], "is not the simulated Panda"),
+    (["hand-eye", "--arm", "sim-can", "--robot", "damiao_6dof"], "is not the simulated Panda"),
 ])
 def test_bad_device_choices_are_one_clear_error(args, message, calib_dir, capsys):
     assert main(["calibrate", *args]) == 2

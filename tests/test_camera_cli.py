@@ -6,6 +6,7 @@ import cv2
 import numpy as np
 import pytest
 from realsense_recordings import scene, write_db3
+from rerun_files import entities
 
 from deploy.cli import main
 from drivers.camera.frames_dir import FramesRecording
@@ -22,7 +23,8 @@ def db3(tmp_path_factory):
     return write_db3(tmp_path_factory.mktemp("cli") / "session.db3", scene(6))
 
 
-@pytest.mark.parametrize("command", [("cameras", "list"), ("cameras", "snapshot"), ("record",), ("convert",)])
+@pytest.mark.parametrize("command", [("cameras", "list"), ("cameras", "snapshot"), ("record",), ("convert",),
+                                     ("export",)])
 def test_help_has_an_example(capsys, command):
     code, out, _ = run(capsys, *command, "--help")
     assert code == 0 and "Example" in out
@@ -60,6 +62,22 @@ def test_record_sim(capsys, tmp_path):
     assert code == 0, out
     rec = FramesRecording(tmp_path / "sim")
     assert len(rec) == 2 and rec.intrinsics.width == 160 and rec.T_base_camera is not None
+
+
+def test_record_with_the_arm_stores_joints_and_tool_pose_and_views(capsys, tmp_path):
+    out = tmp_path / "arm"
+    code, printed, err = run(capsys, "record", "--camera", "sim", "--arm", "sim", "--out", out, "--frames", 2,
+                             "--width", 160, "--height", 120, "--view", "--json")
+    assert code == 0, err
+    summary = json.loads(printed)
+    assert summary["arm"] and summary["simulated"] and summary["rrd"] == str(out / "recording.rrd")
+    rec = FramesRecording(out)
+    assert rec.simulated and rec.camera == "sim"
+    for record in rec.records:
+        assert len(record["joint_positions"]) == 7 and np.shape(record["ee_pose"]) == (4, 4)
+    assert 0.2 < record["ee_pose"][2][3] < 1.2  # the Panda's tool, above the floor
+    found = entities(out / "recording.rrd")
+    assert found["/world/camera/image/color"]["rows"] == 2 and found["/world/gripper"]["rows"] == 2
 
 
 def test_snapshot(capsys, db3, tmp_path):

@@ -18,7 +18,7 @@ from drivers.errors import ArmError, CanBusError
 from sim_fallback.can_motors import MotorFaults
 from sim_fallback.devices import sim_can_arm
 
-PANDA = load_robot_config("configs/robots/panda_sim.toml")
+PANDA = load_robot_config("panda_sim")
 CONFIG = PANDA.model_copy(update={"control_rate_hz": 500.0})
 LIMITS = MotionLimits(0.5, 2.0, 20.0)
 RELAXED = CONFIG.model_copy(update={"watchdog": CONFIG.watchdog.model_copy(  # realtime tests on a loaded machine

@@ -1,13 +1,16 @@
 """The `deploy` command line end to end, on files and recordings the tests make themselves."""
 
 import json
+import re
 
 import numpy as np
 import pytest
+from rerun_files import entities
 
 from deploy.cli import main
 from deploy.geometry.metrics import axis_angle_error_deg, axis_position_error_m
 from deploy.synthetic.sequence import synthetic_sequence, write_sequence
+from drivers.arm.robot_config import PANDA_SIM_CONFIG
 from drivers.camera.depth_noise import DepthNoise
 
 
@@ -86,6 +89,16 @@ def test_estimate_recording_json(capsys, drawer_recording):
     assert axis_angle_error_deg(seq.true_axis.direction, data["direction"]) < 3.0
 
 
+def test_estimate_uses_the_gripper_path_and_views(capsys, drawer_recording):
+    path, seq = drawer_recording
+    code, out, _ = run(capsys, "axis", "estimate", str(path), "--view", "--json")
+    data = json.loads(out)
+    assert code == 0 and data["gripper_path"] and data["filter"]["profile"] == "sim"  # truth.json: simulated
+    found = entities(path / "axis.rrd")
+    assert found["/world/camera/image/mask"]["rows"] == len(seq.frames)
+    assert found["/world/axis/estimated"]["rows"] == sum(s["joint_type"] is not None for s in data["steps"])
+
+
 def test_estimate_with_bad_config_names_the_field(capsys, drawer_recording, tmp_path):
     cfg = tmp_path / "bad.toml"
     cfg.write_text("[filter]\neps = 0\n")
@@ -108,29 +121,47 @@ def test_axis_demo_prints_every_estimator(capsys):
 
 
 def test_open_drawer_in_simulation_json(capsys, tmp_path):
-    code, out, _ = run(capsys, "open-drawer", "--seed", "1", "--distance", "0.15", "--run-dir", str(tmp_path / "run"),
-                       "--json")
+    code, out, err = run(capsys, "open-drawer", "--seed", "1", "--distance", "0.15", "--run-dir",
+                         str(tmp_path / "run"), "--view", "--json")
     data = json.loads(out)
-    assert code == 0 and data["success"] and data["true_opened"] >= 0.15
-    assert {"success", "opened", "target", "steps", "axis", "stop_reason", "run_dir", "axis_angle_error_deg",
-            "axis_position_error_m", "true_opened"} <= set(data)
+    lines = [line for line in err.splitlines() if line.startswith("step ")]
+    assert len(lines) == data["steps"] + 1, err  # one line per estimate: after the first pull and every step
+    assert re.fullmatch(r"step 0: opened 0\.0\d\d m, axis prismatic, confidence \d\.\d\d", lines[0].strip())
+    found = entities(tmp_path / "run" / "episode.rrd")
+    assert found["/world/axis/estimated"]["rows"] == len(lines) and found["/world/axis/true"]["rows"] == 1
+    assert "Pinhole:image_from_camera" in found["/world/camera/image"]["components"]
+    assert code == 0 and data["success"] and data["true_opened_m"] >= 0.15
+    assert {"success", "opened_m", "target_m", "steps", "axis", "stop_reason", "run_dir", "axis_angle_error_deg",
+            "axis_position_error_m", "true_opened_m", "filter"} <= set(data)
+    assert data["filter"] == {"profile": "sim", "radius_m": 0.05, "eps": 100}  # simulation: the paper's sim setting
     assert data["axis"]["joint_type"] == "prismatic"
     assert (tmp_path / "run" / "report.png").is_file()
 
 
 def test_open_door_that_falls_short_exits_non_zero(capsys, tmp_path):
-    code, out, _ = run(capsys, "open-door", "--seed", "0", "--angle", "20", "--run-dir", str(tmp_path / "run"),
-                       "--json")
+    """A door the arm cannot follow to the target: its config ends joint 1's range at -0.25 rad, which the arc
+    about the hinge crosses after about 10 deg (CAN driver on simulated motors)."""
+    robot = tmp_path / "panda_short_reach.toml"
+    text = PANDA_SIM_CONFIG.read_text()
+    robot.write_text(text.replace('name = "panda_joint1"\n', 'name = "panda_joint1"\nq_min = -0.25\n'))
+    code, out, _ = run(capsys, "open-door", "--seed", "0", "--angle", "45", "--arm", "sim-can", "--robot", str(robot),
+                       "--run-dir", str(tmp_path / "run"), "--json")
     data = json.loads(out)
-    assert code == (0 if data["success"] else 1)
+    assert code == 1 and not data["success"] and data["stop_reason"] == "arm error"
+    assert data["message"].startswith("safety stop: joint panda_joint1 position -0.25")
+    assert "is below its limit -0.2500" in data["message"]
     assert data["axis"]["joint_type"] == "revolute"
+    assert 3.0 < data["true_opened_deg"] < 45.0  # it had started opening
+    steps = json.loads((tmp_path / "run" / "steps.json").read_text())
+    assert steps["result"]["stop_reason"] == "arm error" and (tmp_path / "run" / "report.png").is_file()
 
 
 def test_bench_open_json_keys(capsys):
-    code, out, _ = run(capsys, "bench", "open", "--task", "drawer", "--target", "0.1", "--episodes", "1",
+    code, out, _ = run(capsys, "bench", "open", "--task", "drawer", "--distance", "0.1", "--episodes", "1",
                        "--split", "train", "--seed", "1", "--json")
     data = json.loads(out)
     assert code == 0
-    assert set(data) >= {"task", "target", "split", "policy", "episodes", "success_rate", "mean_opened",
+    assert set(data) >= {"task", "target_m", "split", "policy", "episodes", "success_rate", "mean_opened_m",
                          "axis_angle_error_deg_median", "seconds_per_episode", "failures"}
+    assert data["target_m"] == 0.1
     assert data["episodes"] == 1 and 0.0 <= data["success_rate"] <= 1.0

@@ -28,8 +28,9 @@ class Motors:
         if self.calls.count("read") == self.fail_on:
             raise self.error
 
-    def on_trip(self) -> None:
+    def on_trip(self, fault: ArmError) -> ArmError:
         self.trips += 1
+        return fault
 
 
 def _loop(motors: Motors, realtime: bool, rate_hz: float = 100.0, max_late_cycles: float = 2.0, **kwargs):

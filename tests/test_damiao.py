@@ -76,7 +76,8 @@ def test_mit_clamps_to_the_ranges(lim, q, dq, kp, kd, tau):
 
 def test_non_finite_command_values_do_not_crash():
     data = pack_mit(float("nan"), float("inf"), float("nan"), 1.0, float("-inf"), J4310)
-    assert len(data) == 8
+    # each non-finite value reads as 0 (q 0x8000, dq 0x800, kp 0x000, tau 0x800); kd = 1 -> 0x333
+    assert data.hex(" ") == "80 00 80 00 00 33 38 00"
 
 
 @given(limits_st, st.integers(1, 0x7FE), st.sampled_from(list(Status)), st.floats(-1, 1), st.floats(-1, 1),

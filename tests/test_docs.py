@@ -25,3 +25,15 @@ def test_readme_starts_with_the_two_commands():
     assert blocks[0].startswith("bash scripts/setup.sh && .venv/bin/deploy ")
     assert blocks[1] == ".venv/bin/python -m pytest -n 2"
     assert blocks[1] in (ROOT / ".ci" / "run").read_text()
+
+
+def test_quickstart_config_loads_and_its_commands_exist(tmp_path):
+    from deploy.config import load_config
+
+    text = (ROOT / "docs" / "quickstart.md").read_text()
+    (tmp_path / "first-day.toml").write_text(text.split("```toml\n")[1].split("```")[0])
+    config = load_config(tmp_path / "first-day.toml")
+    assert config.filter.profile == "sparse" and config.opening.timeout_s == 120
+    assert config.perception.object_prompt == "drawer"
+    commands = {line.split()[1] for line in text.splitlines() if line.startswith("deploy ")}
+    assert {"open-drawer", "cameras", "calibrate", "record", "export", "arm"} <= commands

@@ -132,5 +132,5 @@ def test_ray_runs_a_simulated_episode(ray_executor):
     assert (result["task"], result["seed"], result["split"]) == ("drawer", 0, "train")
     assert result["stop_reason"] == "target reached"
     assert result["axis"]["joint_type"] == "prismatic"
-    assert 0.05 <= result["true_opened"] <= 0.05 + 0.02  # reached, at most a 1.5 cm overshoot past it
+    assert 0.05 <= result["true_opened_m"] <= 0.05 + 0.02  # reached, at most a 1.5 cm overshoot past it
     assert result["axis_angle_error_deg"] < 2.0

@@ -88,7 +88,14 @@ def test_ready_pose_points_forward_at_handle_height(kin):
 def test_lines_from_the_ready_pose_need_no_restart(kin, direction):
     T0 = kin.fk(panda().q_ready)
     poses = [_pose(T0[:3, 3] + d * np.array(direction), T0[:3, :3]) for d in np.linspace(0, 0.25, 26)]
-    kin.solve_path(poses, panda().q_ready, restarts=0)
+    qs = kin.solve_path(poses, panda().q_ready, restarts=0)
+    assert qs.shape == (26, 7)
+    np.testing.assert_allclose(qs[0], panda().q_ready, atol=1e-3)  # the start needs no motion
+    for q, T in zip(qs, poses, strict=True):  # every waypoint reached, within the IK's tolerances
+        assert np.linalg.norm(kin.fk(q)[:3, 3] - T[:3, 3]) <= 1e-4
+        assert np.linalg.norm(pin.log3(kin.fk(q)[:3, :3].T @ T[:3, :3])) <= 1e-3
+    assert np.all(qs >= kin.q_min) and np.all(qs <= kin.q_max)
+    assert np.abs(np.diff(qs, axis=0)).max() < 0.25  # 1 cm apart: at most 0.2 rad (stretched out ahead), no jump
 
 
 @pytest.mark.parametrize(("hinge_y", "sign"), [(0.4, -1.0), (-0.4, 1.0)])

@@ -4,10 +4,11 @@ recording with the kinematic arm; bad combinations are one clear error."""
 import json
 
 import pytest
+from rerun_files import entities
 
 from deploy.cli import main
 
-ROBOT = "configs/robots/panda_sim.toml"
+ROBOT = "panda_sim"  # a shipped robot config, by name
 
 
 def run(capsys, *args):
@@ -18,7 +19,7 @@ def run(capsys, *args):
 
 @pytest.mark.parametrize(("scene", "joint"), [("door", "revolute"), ("drawer", "prismatic")])
 def test_open_auto_classifies_and_opens(capsys, tmp_path, scene, joint):
-    code, out, _ = run(capsys, "open", "--joint", "auto", "--scene", scene, "--split", "test", "--seed", "1",
+    code, out, _ = run(capsys, "open", "--joint", "auto", "--task", scene, "--split", "test", "--seed", "1",
                        "--distance", "0.12", "--angle", "20", "--run-dir", tmp_path / "run", "--json")
     data = json.loads(out)
     assert code == 0 and data["success"] and data["axis"]["joint_type"] == joint
@@ -31,15 +32,18 @@ def test_dry_run_plans_moves_nothing_and_views(capsys, tmp_path):
     code, out, _ = run(capsys, "open-door", "--dry-run", "--view", "--run-dir", tmp_path / "run", "--json")
     data = json.loads(out)
     assert code == 0 and data["stop_reason"] == "dry run" and "nothing moved" in data["message"]
-    assert abs(data["true_opened"]) < 0.2 and data["steps"] == 0
+    assert abs(data["true_opened_deg"]) < 0.2 and data["steps"] == 0
     assert (tmp_path / "run" / "episode.rrd").stat().st_size > 10_000  # frame, cloud and gripper pose logged
+    found = entities(tmp_path / "run" / "episode.rrd")
+    assert "Pinhole:image_from_camera" in found["/world/camera/image"]["components"]  # images sit in 3D
+    assert found["/world/axis/true"]["rows"] == 1 and "/world/object" in found
 
 
 def test_sim_can_arm_opens_through_the_can_driver(capsys, tmp_path):
     code, out, _ = run(capsys, "open-drawer", "--arm", "sim-can", "--distance", "0.1", "--run-dir", tmp_path / "r",
                        "--json")
     data = json.loads(out)
-    assert code == 0 and data["success"] and data["true_opened"] >= 0.1
+    assert code == 0 and data["success"] and data["true_opened_m"] >= 0.1
 
 
 def test_hardware_path_on_a_recording_with_the_kinematic_arm(capsys, tmp_path):

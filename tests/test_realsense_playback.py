@@ -75,7 +75,9 @@ def test_filters(tmp_path):
     filled = read_all(RealSenseReplayCamera(path, FilterConfig(spatial=False, hole_filling="nearest_from_around")))
     decimated = read_all(RealSenseReplayCamera(path, FilterConfig(decimation=2, spatial=False)))
     inside = (slice(8, 40), slice(8, 56))  # within the depth field of view
-    assert (raw[inside] == 0).sum() == 4 and (raw[12:14, 14:16] == 0).all()  # the 3x3 hole at 5/6 scale
+    # the 3x3 hole at 5/6 scale spans colour columns 13.92..16.42 and rows 11.83..14.33: the 3x3 colour pixels
+    # whose centres lie in it (librealsense's rounding left 2x2)
+    assert (raw[inside] == 0).sum() == 9 and (raw[12:15, 14:17] == 0).all()
     assert not (filled[-1].depth_m[inside] == 0).any()
     assert decimated[-1].depth_m.shape == (48, 64)  # alignment brings decimated depth back to colour size
     assert decimated[-1].depth_m[23, 29] == pytest.approx(0.8, abs=1e-3)

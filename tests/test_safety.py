@@ -28,15 +28,30 @@ def _check(guard, kin, q, dq=None, q_prev=None, dq_prev=None, tool=None):
     guard.check(q, dq, q_prev, DT, tool, dq_prev)
 
 
+def _stream(guard, kin, traj, speed: float = 1.0) -> tuple[float, float]:
+    """Check every cycle of `traj` played `speed` times faster; the peak velocity and acceleration (per cycle, of
+    the commands) as shares of their limits."""
+    limits = guard.limits
+    q_prev, dq_prev = traj.at(0.0)[:2]
+    peak_v = peak_a = 0.0
+    for t in np.append(np.arange(DT, traj.duration / speed, DT), traj.duration / speed):
+        q, dq, _ = traj.at(t * speed)
+        dq = dq * speed
+        _check(guard, kin, q, dq, q_prev, dq_prev)
+        peak_v = max(peak_v, float(np.max(np.abs(dq) / limits.v_max)))
+        peak_a = max(peak_a, float(np.max(np.abs(dq - dq_prev) / DT / limits.a_max)))
+        q_prev, dq_prev = q, dq
+    return peak_v, peak_a
+
+
 def test_a_planned_trajectory_passes_every_check(guard, kin):
     q0 = panda().q_ready
     limits = MotionLimits.for_robot(panda(), kin, fraction=1.0)
     traj = joint_trajectory(q0, q0 + np.array([0.6, -0.3, 0.5, 0.4, -0.6, 0.3, 0.8]), limits)
-    q_prev, dq_prev = traj.at(0.0)[:2]
-    for t in np.append(np.arange(DT, traj.duration, DT), traj.duration):
-        q, dq, _ = traj.at(t)
-        _check(guard, kin, q, dq, q_prev, dq_prev)
-        q_prev, dq_prev = q, dq
+    peak_v, peak_a = _stream(guard, kin, traj)
+    assert peak_v > 0.99 and peak_a > 0.9  # it ran at the limits, so the checks were tested at them
+    with pytest.raises(ArmError, match="exceeds its limit"):
+        _stream(guard, kin, traj, speed=1.05)  # the same motion 5 % faster is refused
 
 
 def test_position_limits_name_the_joint(guard, kin):

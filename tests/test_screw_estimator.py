@@ -11,7 +11,12 @@ from deploy.config import EstimatorConfig
 from deploy.geometry.estimators.base import Observation
 from deploy.geometry.estimators.screw import ScrewEstimator, ScrewGripEstimator, open_screw, open_screw_grip
 from deploy.geometry.estimators.screw_config import ScrewConfig
-from deploy.geometry.estimators.screw_fit import circle_centre
+from deploy.geometry.estimators.screw_fit import (
+    FREE_DIRECTION_EVIDENCE,
+    circle_centre,
+    free_direction_evidence,
+    front_normal,
+)
 from deploy.geometry.types import Axis, Box, JointType, NoAxis
 
 # Cabinet frame: x out of the front face, z up. The body box includes the closed fronts.
@@ -387,3 +392,52 @@ def test_the_registry_factories_read_the_screw_section():
     assert type(vision) is ScrewEstimator and vision.config is section
     grip = open_screw_grip("", None)
     assert type(grip) is ScrewGripEstimator and grip.config == ScrewConfig()
+
+
+def tilted_drawer_window(direction, seed=0, noise_m=1e-3):
+    """The drawer's surfaces pulled along `direction` (cabinet frame) instead of its front's normal (+x)."""
+    rng = np.random.default_rng(seed)
+    faces, _ = drawer(0.0)
+    box = Box((BODY_LO + BODY_HI) / 2, np.eye(3), BODY_HI - BODY_LO)
+    window = []
+    for k, value in enumerate(DRAWER_10CM):
+        points, normals = sample_faces(faces, rng)
+        points = camera_view(points + value * np.asarray(direction), normals, rng, noise_m)
+        outside = ~np.all((points >= BODY_LO - MARGIN_M) & (points <= BODY_HI + MARGIN_M), axis=1)
+        window.append(Observation(k, 0.1 * k, points[outside], box))
+    return window
+
+
+def test_a_drawer_takes_its_fronts_normal_unless_its_motion_shows_otherwise():
+    straight = ScrewEstimator().estimate(tilted_drawer_window([1.0, 0.0, 0.0]), JointType.PRISMATIC)
+    assert angle_deg(straight.direction, [1, 0, 0]) < 0.5 and straight.direction_sigma_deg is None
+    slanted = np.array([1.0, np.tan(np.radians(12)), 0.0])  # runners 12 deg off the front's normal
+    axis = ScrewEstimator().estimate(tilted_drawer_window(slanted), JointType.PRISMATIC)
+    assert angle_deg(axis.direction, slanted) < 1.5 and axis.direction_sigma_deg < 2.0
+
+
+def test_front_normal_is_the_plane_of_the_faces_turned_toward_the_motion():
+    """The visible faces of an open drawer: the front, the handle 2.5 cm before it and the tray's back
+    panel 35 cm behind it face the same way; the front is the largest."""
+    rng = np.random.default_rng(0)
+    faces, _ = drawer(0.3)
+    points, normals = sample_faces(faces, rng)
+    visible = np.einsum("ij,ij->i", normals, CAMERA - points) > 0
+    points, normals = points[visible], normals[visible]
+    noisy = normals + rng.normal(0, 0.1, normals.shape)  # local normals of a noisy cloud scatter
+    noisy /= np.linalg.norm(noisy, axis=1, keepdims=True)
+    front = front_normal(points + rng.normal(0, 5e-4, points.shape), noisy, np.array([1.0, 0.15, 0.05]))
+    assert angle_deg(front, [1, 0, 0]) < 0.3
+    assert front_normal(points[:20], normals[:20], np.array([1.0, 0, 0])) is None
+    assert front_normal(points, normals, np.array([0.0, 0.0, 1.0])) @ [0, 0, 1] > 0.99  # the tray's bottom
+
+
+def test_free_direction_evidence_grows_with_a_real_slant():
+    s = np.linspace(0, 0.1, 10)[:, None]
+    rng = np.random.default_rng(1)
+    for slant_deg, expect_free in ((0.0, False), (10.0, True)):
+        d = np.array([np.cos(np.radians(slant_deg)), np.sin(np.radians(slant_deg)), 0.0])
+        track = s * d + rng.normal(0, 1e-3, (10, 3))
+        free = np.linalg.svd(track - track.mean(axis=0))[2][0]
+        evidence, sigma = free_direction_evidence([(track, 3e-3)], free, np.array([1.0, 0, 0]))
+        assert (evidence > FREE_DIRECTION_EVIDENCE) is expect_free and 0 < sigma < 2.0

@@ -47,7 +47,8 @@ def _face_depth(world, frame, normal_cab, offset_m, dv=0.0, du=0.0):
 
 @pytest.mark.parametrize("resolution", [(320, 240), (640, 480)])
 def test_depth_of_known_surfaces_matches_geometry(world, resolution):
-    frame = SimCamera(world, intrinsics=d415_intrinsics(*resolution), noise=DepthNoise.none()).read()
+    frame = SimCamera(world, intrinsics=d415_intrinsics(*resolution), noise=DepthNoise.none(), labels=True,
+                      posed=True).read()
     spec = world.scenario.cabinet
     side = np.sign(world.scenario.camera.azimuth_rad)  # the camera sees this side face and the top
     for normal, offset in (([0, 0, 1.0], spec.height_m), ([0, side, 0], spec.width_m / 2)):
@@ -68,7 +69,8 @@ def _aabb_contains(aabbs, points, margin_m=0.005):
 
 
 def test_segmentation_labels_are_where_the_bodies_are(world):
-    frame = SimCamera(world, intrinsics=d415_intrinsics(320, 240), noise=DepthNoise.none()).read()
+    frame = SimCamera(world, intrinsics=d415_intrinsics(320, 240), noise=DepthNoise.none(), labels=True,
+                      posed=True).read()
     points, labels, c = _points(frame), frame.segmentation, world.client
     counts = np.bincount(labels.ravel(), minlength=4)
     assert np.all(counts > 20), counts
@@ -105,7 +107,7 @@ def test_noise_is_switchable_and_seeded(world):
 
 def test_timestamps_follow_the_simulated_clock_and_frames_can_drop():
     with SimWorld(Scenario.make("door", 2)) as world:
-        camera = SimCamera(world, intrinsics=d415_intrinsics(160, 120), fps=10.0)
+        camera = SimCamera(world, intrinsics=d415_intrinsics(160, 120), fps=10.0, posed=True)
         assert isinstance(camera, Camera)
         first, second = camera.read(), camera.read()
         assert (first.index, first.t) == (0, 0.0)
@@ -137,7 +139,8 @@ def test_intrinsics_are_d415_like_and_the_camera_holds_no_ground_truth(world):
 
 def test_optional_floor_is_background_with_depth():
     with SimWorld(Scenario.make("drawer", 1), floor=True) as world:
-        frame = SimCamera(world, intrinsics=d415_intrinsics(160, 120), noise=DepthNoise.none()).read()
+        frame = SimCamera(world, intrinsics=d415_intrinsics(160, 120), noise=DepthNoise.none(), labels=True,
+                          posed=True).read()
     background = frame.segmentation == SegLabel.BACKGROUND
     assert np.mean(frame.depth_m[background] > 0) > 0.5
     points = _points(frame)[background]
@@ -163,3 +166,12 @@ def test_robot_is_drawn_close_to_its_collision_meshes(world):
             points = np.asarray(a.sample_points_uniformly(2000).points, np.float32)
             distance = scene.compute_distance(points).numpy()
             assert np.median(distance) < 0.0015 and np.quantile(distance, 0.99) < 0.008, drawn[0]
+
+
+def test_frames_carry_what_a_real_camera_gives_unless_the_truth_is_asked_for(world):
+    plain = SimCamera(world, intrinsics=d415_intrinsics(160, 120)).read()
+    assert plain.segmentation is None and plain.T_base_camera is None and plain.mask is None
+    assert plain.color.shape == (120, 160, 3) and plain.depth_m.shape == (120, 160)
+    truth = SimCamera(world, intrinsics=d415_intrinsics(160, 120), labels=True, posed=True).read()
+    assert truth.segmentation is not None
+    np.testing.assert_allclose(truth.T_base_camera, world.scenario.T_base_camera)

@@ -273,3 +273,26 @@ def test_write_sequence_round_trips(tmp_path):
     np.testing.assert_allclose(truth["origin"], seq.true_axis.origin)
     np.testing.assert_allclose(truth["direction"], seq.true_axis.direction)
     np.testing.assert_allclose(truth["joint_values"], seq.joint_values)
+
+
+def test_varied_views_reach_head_on_and_far_side_views_above_the_floor():
+    from deploy.synthetic.sequence import VARIED_VIEW
+
+    angles = []
+    for seed in range(30):
+        rng = np.random.default_rng(seed)
+        cabinet = SyntheticCabinet.random(rng, "drawer")
+        T = random_camera_pose(rng, cabinet, D415_640X480, view=VARIED_VIEW)
+        normal = cabinet.T_base_cabinet[:3, 0]
+        center = cabinet.T_base_cabinet[:3, :3] @ np.array([-cabinet.depth_m / 2, 0.0, cabinet.height_m / 2])
+        front = center + cabinet.T_base_cabinet[:3, 3] + cabinet.depth_m / 2 * normal
+        offset = T[:3, 3] - front
+        angles.append(np.degrees(np.arccos(offset @ normal / np.linalg.norm(offset))))
+        assert T[2, 3] >= VARIED_VIEW.min_height_m
+    assert min(angles) < 15 and max(angles) > 45  # beyond the standard view's 15-35 deg
+
+
+def test_eased_openings_start_and_end_slowly():
+    seq = synthetic_sequence("drawer", np.random.default_rng(0), 0.1, 5, noise=DepthNoise.none(), intrinsics=SMALL,
+                             easing=True)
+    np.testing.assert_allclose(seq.joint_values, [0.0, 0.015625, 0.05, 0.084375, 0.1])

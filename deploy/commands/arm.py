@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from deploy.commands.options import ArmOpt, JsonOpt, RobotOpt, dry_run_option, yes_option
+from deploy.commands.options import ArmOpt, JsonOpt, RobotOpt, SimFaultOpt, dry_run_option, yes_option
 from deploy.commands.output import console, err_console, print_json, print_rows, print_table, progress_bar
 
 app = typer.Typer(help="Arm bring-up: scan the CAN bus, status, enable/disable/zero, home, jog, move.",
@@ -16,7 +16,8 @@ app = typer.Typer(help="Arm bring-up: scan the CAN bus, status, enable/disable/z
 
 YesOpt = yes_option("Do not ask before moving.")
 DryRunOpt = dry_run_option("Plan and print the move; enable nothing.")
-HoldOpt = Annotated[float, typer.Option("--hold", help="Seconds to hold the goal before damping and disabling.")]
+HoldOpt = Annotated[float, typer.Option("--hold", min=0.0,
+                                        help="Seconds to hold the goal before damping and disabling.")]
 
 
 def _print_motors(title: str, motors: list[dict]) -> None:
@@ -30,17 +31,21 @@ def _print_motors(title: str, motors: list[dict]) -> None:
 def scan_cmd(
     arm: ArmOpt = "sim-can",
     robot: RobotOpt = None,
-    first_id: Annotated[int, typer.Option(help="First CAN id to try.")] = 1,
-    last_id: Annotated[int, typer.Option(help="Last CAN id to try.")] = 16,
+    first_id: Annotated[int, typer.Option(min=1, max=0x7FE, help="First CAN id to try (1 .. 2046).")] = 1,
+    last_id: Annotated[int, typer.Option(min=1, max=0x7FE, help="Last CAN id to try (1 .. 2046).")] = 16,
+    sim_fault: SimFaultOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
     """List the motors that answer on the bus: CAN id, master id, status and PMAX/VMAX/TMAX (enables nothing).
 
-    Example: deploy arm scan --arm can --robot configs/robots/damiao_6dof.toml --json
+    Example: deploy arm scan --arm can --robot my_arm.toml --json
     """
-    from deploy.arm_bringup import load, scan
+    from deploy.arm_bringup import load, parse_sim_faults, scan
+    from deploy.errors import ConfigError
 
-    motors = scan(arm, load(robot), range(first_id, last_id + 1))
+    if last_id < first_id:
+        raise ConfigError(f"--last-id {last_id} is below --first-id {first_id}: give a range first .. last")
+    motors = scan(arm, load(robot), range(first_id, last_id + 1), parse_sim_faults(arm, sim_fault))
     if json_out:
         print_json({"motors": motors})
     elif motors:
@@ -52,15 +57,20 @@ def scan_cmd(
 
 
 @app.command("status")
-def status_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, json_out: JsonOpt = False) -> None:
+def status_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, sim_fault: SimFaultOpt = None,
+               json_out: JsonOpt = False) -> None:
     """Joint positions, tool pose and each motor's status, temperatures and limits (enables the motors
     briefly, holding their position, then damps and disables them).
 
     Example: deploy arm status --arm sim-can --json
     """
-    from deploy.arm_bringup import load, make_arm, status
+    from deploy.arm_bringup import inject_sim_faults, load, make_arm, parse_sim_faults, released, status
 
-    data = status(make_arm(arm, load(robot)))
+    faults = parse_sim_faults(arm, sim_fault)
+    a = make_arm(arm, load(robot))
+    with released(a):
+        inject_sim_faults(a, faults)
+    data = status(a)
     if json_out:
         print_json(data)
         return
@@ -74,8 +84,10 @@ def enable_cmd(
     arm: ArmOpt = "sim-can",
     robot: RobotOpt = None,
     clear_errors: Annotated[bool, typer.Option(help="Send clear-error to every motor first.")] = False,
-    hold: Annotated[float, typer.Option(help="Seconds to hold position (Ctrl-C stops earlier).")] = 5.0,
+    hold: Annotated[float, typer.Option(min=0.0, help="Seconds to hold position (Ctrl-C stops earlier).")] = 5.0,
     yes: YesOpt = False,
+    sim_fault: SimFaultOpt = None,
+    json_out: JsonOpt = False,
 ) -> None:
     """Enable the motors and hold the current position for --hold seconds, then damp and disable.
 
@@ -83,31 +95,49 @@ def enable_cmd(
     """
     import time
 
-    from deploy.arm_bringup import load, make_arm
+    from deploy.arm_bringup import inject_sim_faults, load, make_arm, motor_states, parse_sim_faults, released
     from drivers.arm.can_arm import CanArm
+    from drivers.arm.disable import disable_summary
 
+    faults = parse_sim_faults(arm, sim_fault)
     a = make_arm(arm, load(robot))
-    if not yes and not typer.confirm(f"Enable the motors of the {arm} arm and hold position?"):
-        raise typer.Exit(1)
-    if clear_errors and isinstance(a, CanArm):
-        a.clear_errors()
+    with released(a):
+        inject_sim_faults(a, faults)
+        if not yes and not typer.confirm(f"Enable the motors of the {arm} arm and hold position?"):
+            a.disconnect()
+            raise typer.Exit(1)
+        if clear_errors and isinstance(a, CanArm):
+            a.clear_errors()
     with a:
-        console.print(f"enabled; holding for {hold:.1f} s (Ctrl-C to stop)")
+        (err_console if json_out else console).print(f"enabled; holding for {hold:.1f} s (Ctrl-C to stop)")
         end = time.perf_counter() + hold
         while time.perf_counter() < end:
             a.sync()
-    console.print("damped and disabled")
+    states = motor_states(a)
+    if json_out:
+        print_json({"held_s": hold, "motors": states})
+    else:
+        console.print(f"damped; {disable_summary(states)}" if states else "damped and disabled")
 
 
 @app.command("disable")
-def disable_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None) -> None:
-    """Disable every configured motor at once (the arm goes limp: support it first).
+def disable_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, sim_fault: SimFaultOpt = None,
+                json_out: JsonOpt = False) -> None:
+    """Disable every configured motor at once and check each one answers (the arm goes limp: support it first).
+    Exits 1 when a motor did not answer.
 
     Example: deploy arm disable --arm can --robot my_arm.toml
     """
-    from deploy.arm_bringup import disable_all, load
+    from deploy.arm_bringup import disable_all, load, parse_sim_faults
+    from drivers.arm.disable import disable_summary
 
-    console.print(f"sent disable to {disable_all(load(robot), arm)} motors")
+    states = disable_all(load(robot), arm, parse_sim_faults(arm, sim_fault))
+    if json_out:
+        print_json({"motors": states})
+    else:
+        console.print(f"sent disable to {len(states)} motors: {disable_summary(states)}")
+    if any(s["enabled"] for s in states):
+        raise typer.Exit(1)
 
 
 @app.command("zero")
@@ -116,39 +146,46 @@ def zero_cmd(
     arm: ArmOpt = "sim-can",
     robot: RobotOpt = None,
     yes: YesOpt = False,
+    sim_fault: SimFaultOpt = None,
+    json_out: JsonOpt = False,
 ) -> None:
     """Make a motor's current position its zero (disables it first). Put the joint at the pose where
     the config's zero_offset says the motor reads 0.
 
     Example: deploy arm zero --joint joint2 --arm can --robot my_arm.toml
     """
-    from deploy.arm_bringup import load, set_zero
+    from deploy.arm_bringup import load, parse_sim_faults, set_zero
 
+    faults = parse_sim_faults(arm, sim_fault)
     if not yes and not typer.confirm(f"Set the zero of {joint}'s motor at its current position?"):
         raise typer.Exit(1)
-    print_json(set_zero(load(robot), arm, joint))
+    result = set_zero(load(robot), arm, joint, faults)
+    if json_out:
+        print_json(result)
+    else:
+        print_rows(f"zero of {joint}", result, digits=None)
 
 
 def _move(kind: str, robot: Path | None, what: str, dry_run: bool, yes: bool, hold: float, json_out: bool,
-          **target) -> None:
+          sim_fault: list[str] | None, **target) -> None:
     """Plan `what` (home, jog or move) from the measured joints, show it, ask, then run it."""
-    from deploy.arm_bringup import execute, load, make_arm, plan
+    from deploy.arm_bringup import execute, inject_sim_faults, load, make_arm, parse_sim_faults, plan, released
     from drivers.arm.can_arm import CanArm
 
+    faults = parse_sim_faults(kind, sim_fault)
     config = load(robot)
     a = make_arm(kind, config)
-    try:
+    with released(a):
+        inject_sim_faults(a, faults)
         if isinstance(a, CanArm):
             a.probe()  # measured joints without enabling
         p = plan(a, config, what, **target)
-    except BaseException:
-        a.disconnect()
-        raise
-    if json_out and dry_run:
-        print_json({"dry_run": True, **p.to_dict()})
-    elif not json_out:
-        print_rows(f"{what} plan ({kind} arm{', dry run' if dry_run else ''})", p.to_dict(), digits=None)
-    if dry_run or (not yes and not typer.confirm("Run this motion now?")):
+        if json_out and dry_run:
+            print_json({"dry_run": True, **p.to_dict()})
+        elif not json_out:
+            print_rows(f"{what} plan ({kind} arm{', dry run' if dry_run else ''})", p.to_dict(), digits=None)
+        go = not dry_run and (yes or typer.confirm("Run this motion now?"))
+    if not go:
         a.disconnect()
         if not dry_run:
             raise typer.Exit(1)
@@ -162,13 +199,13 @@ def _move(kind: str, robot: Path | None, what: str, dry_run: bool, yes: bool, ho
 
 
 @app.command("home")
-def home_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, dry_run: DryRunOpt = False,
-             yes: YesOpt = False, hold: HoldOpt = 0.0, json_out: JsonOpt = False) -> None:
+def home_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, dry_run: DryRunOpt = False, yes: YesOpt = False,
+             hold: HoldOpt = 0.0, sim_fault: SimFaultOpt = None, json_out: JsonOpt = False) -> None:
     """Move to the config's ready pose (q_ready) slowly, after showing the plan and asking.
 
     Example: deploy arm home --arm can --robot my_arm.toml --dry-run
     """
-    _move(arm, robot, "home", dry_run, yes, hold, json_out)
+    _move(arm, robot, "home", dry_run, yes, hold, json_out, sim_fault)
 
 
 @app.command("jog")
@@ -180,13 +217,14 @@ def jog_cmd(
     dry_run: DryRunOpt = False,
     yes: YesOpt = False,
     hold: HoldOpt = 0.0,
+    sim_fault: SimFaultOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Move one joint by --delta (check each joint's direction sign this way, with small deltas first).
 
     Example: deploy arm jog --joint panda_joint1 --delta 0.1 --yes
     """
-    _move(arm, robot, "jog", dry_run, yes, hold, json_out, joint=joint, delta=delta)
+    _move(arm, robot, "jog", dry_run, yes, hold, json_out, sim_fault, joint=joint, delta=delta)
 
 
 @app.command("move")
@@ -198,10 +236,11 @@ def move_cmd(
     dry_run: DryRunOpt = False,
     yes: YesOpt = False,
     hold: HoldOpt = 0.0,
+    sim_fault: SimFaultOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Move the tool to a pose (IK, then a jerk-limited joint move; no collision check).
 
     Example: deploy arm move --pose 0.45 0.0 0.6 0 90 0 --dry-run
     """
-    _move(arm, robot, "move", dry_run, yes, hold, json_out, pose=pose)
+    _move(arm, robot, "move", dry_run, yes, hold, json_out, sim_fault, pose=pose)

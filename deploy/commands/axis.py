@@ -7,20 +7,21 @@ from typing import Annotated
 
 import typer
 
-from deploy.commands.options import EstimatorOpt, JointChoice, JsonOpt
-from deploy.commands.output import fmt, print_json, print_rows, print_table
+from deploy.commands.options import ConfigFileOpt, EstimatorOpt, FilterChoice, JointChoice, JsonOpt, view_option
+from deploy.commands.output import err_console, fmt, print_json, print_rows, print_table, progress_bar
 
 app = typer.Typer(help="Estimate joint axes from recordings, gripper trajectories or synthetic scenes.",
                   no_args_is_help=True)
 
 
-ConfigOpt = Annotated[Path | None, typer.Option("--config", help="TOML config file (see docs/cli.md).")]
+ViewOpt = view_option("the frames, masks, gripper path and the axis estimated at each frame (REC/axis.rrd)")
 
 
 def _print_axis(title: str, data: dict) -> None:
     """The axis fields of `data` that are set: vectors and floats with 4 decimals."""
     rows = {}
-    for key in ("joint_type", "origin", "direction", "radius", "residual_m", "n_samples", "estimator", "reason"):
+    for key in ("joint_type", "origin", "direction", "direction_sigma_deg", "radius", "residual_m", "n_samples",
+                "format", "estimator", "reason"):
         value = data.get(key)
         if isinstance(value, list):
             value = "[" + ", ".join(f"{v:+.4f}" for v in value) + "]"
@@ -33,27 +34,37 @@ def _print_axis(title: str, data: dict) -> None:
 
 @app.command("fit-trajectory")
 def axis_fit_trajectory(
-    file: Annotated[Path, typer.Argument(help="One sample per line: `x y z` or `x y z qx qy qz qw` (m).")],
-    joint: Annotated[JointChoice, typer.Option(help="Joint type, or auto to choose by BIC.")] = JointChoice.auto,
+    file: Annotated[Path, typer.Argument(help="One sample per line: `x y z`, `x y z qx qy qz qw`, TUM `timestamp tx ty "
+                                              "tz qx qy qz qw`, or CSV with a header naming x,y,z (m) and optionally "
+                                              "qx,qy,qz,qw and timestamp.")],
+    joint: Annotated[JointChoice, typer.Option(
+        help="Joint type, or auto: decided from the path, or undecided (exit 1, with the reason).")] = JointChoice.auto,
     json_out: JsonOpt = False,
 ) -> None:
-    """Fit a prismatic line or a revolute axis to a gripper (handle) trajectory.
+    """Fit a prismatic line or a revolute axis to a gripper (handle) trajectory, with the uncertainty of its direction.
 
     Example: deploy axis fit-trajectory handle.txt --joint auto --json
+    Example: deploy axis fit-trajectory handle_tum.txt
     """
     from deploy.errors import RecordingError
-    from deploy.geometry.estimators.trajectory import fit_trajectory, parse_trajectory_text
+    from deploy.geometry.estimators.trajectory import fit_trajectory, parse_trajectory
     from deploy.geometry.types import JointType
 
     if not file.is_file():
         raise RecordingError(f"trajectory file {file} not found: give a text file with one `x y z` per line")
     try:
-        positions, quats = parse_trajectory_text(file.read_text())
+        text = file.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise RecordingError(f"trajectory file {file} is not UTF-8 text ({exc.reason} at byte {exc.start}): give a "
+                             "text file with one `x y z` per line") from None
+    try:
+        samples = parse_trajectory(text)
     except ValueError as exc:
         raise RecordingError(f"trajectory file {file}: {exc}") from exc
-    result = fit_trajectory(positions, quats, None if joint == JointChoice.auto else JointType(joint.value))
-    data = {"joint_type": None, "origin": None, "direction": None, "radius": None, "residual_m": None,
-            "n_samples": len(positions)}
+    result = fit_trajectory(samples.positions, samples.quaternions,
+                            None if joint == JointChoice.auto else JointType(joint.value), times=samples.times)
+    data = {"joint_type": None, "origin": None, "direction": None, "direction_sigma_deg": None, "radius": None,
+            "residual_m": None, "n_samples": len(samples.positions), "format": samples.format}
     if hasattr(result, "reason"):
         data["reason"] = result.reason
     else:
@@ -71,14 +82,18 @@ def axis_estimate(
     recording: Annotated[Path, typer.Argument(help="Frames directory with masks (docs/recording-format.md).")],
     joint: Annotated[JointChoice, typer.Option(help="Joint type, or auto to classify.")] = JointChoice.auto,
     estimator: EstimatorOpt = None,
-    filter_profile: Annotated[str | None, typer.Option("--filter", help="Filter profile: sim or sparse.")] = None,
+    filter_profile: Annotated[FilterChoice | None, typer.Option(
+        "--filter", help="Filter profile: sparse (the paper's real-camera setting) or sim \\[default: the config's, "
+        "else sim for a recording made in simulation, sparse otherwise].")] = None,
     filter_radius: Annotated[float | None, typer.Option(help="Filter radius, in --filter-unit.")] = None,
     filter_eps: Annotated[int | None, typer.Option(help="Minimum number of other points within the radius.")] = None,
     filter_unit: Annotated[str | None, typer.Option(help="Unit of --filter-radius: m, cm or mm.")] = None,
-    config: ConfigOpt = None,
+    config: ConfigFileOpt = None,
+    view: ViewOpt = False,
     json_out: JsonOpt = False,
 ) -> None:
-    """Estimate the joint axis from a recording, re-estimating over a sliding window at every frame.
+    """Estimate the joint axis from a recording, re-estimating over a sliding window at every frame (with the
+    gripper's path where the recording has it, e.g. from `deploy record --arm`).
 
     Examples:
       deploy axis estimate runs/drawer --json
@@ -90,10 +105,16 @@ def axis_estimate(
     cfg = load_config(config, {
         "estimator.name": estimator,
         "estimator.joint": joint.value if joint != JointChoice.auto else None,
-        "filter.profile": filter_profile, "filter.radius": filter_radius, "filter.eps": filter_eps,
-        "filter.unit": filter_unit,
-    })
-    data = estimate_recording(recording, cfg)
+        "filter.profile": filter_profile.value if filter_profile is not None else None,
+        "filter.radius": filter_radius, "filter.eps": filter_eps, "filter.unit": filter_unit,
+    }).for_camera(f"replay:{recording}")
+    viewer = None
+    if view:
+        from deploy.control.viewer import RerunViewer
+
+        viewer = RerunViewer(recording / "axis.rrd")
+    with progress_bar(f"estimating {recording.name}") as bar:
+        data = estimate_recording(recording, cfg, progress=bar.counts, viewer=viewer)
     if json_out:
         print_json(data)
     else:
@@ -103,17 +124,28 @@ def axis_estimate(
 
 
 @app.command("demo")
-def axis_demo(seed: Annotated[int, typer.Option(help="Random seed of the synthetic scenes.")] = 0) -> None:
+def axis_demo(
+    seed: Annotated[int, typer.Option(min=0, help="Random seed of the synthetic scenes.")] = 0,
+    json_out: JsonOpt = False,
+) -> None:
     """Synthetic noisy drawer and door: every estimator's axis error in one table.
 
-    Example: deploy axis demo --seed 3
+    Example: deploy axis demo --seed 3 --json
     """
     from deploy.bench.axis import demo_axis
 
-    rows = []
-    for r in demo_axis(seed):
+    rows, results = [], []
+    with err_console.status("axis demo: every estimator on a synthetic drawer and door"):
+        demo = demo_axis(seed)
+    for r in demo:
         ms = sum(r.ms_per_estimate) / max(len(r.ms_per_estimate), 1)
+        results.append({"object": r.kind, "estimator": r.estimator, "angle_error_deg": r.angle_deg,
+                        "position_error_m": r.position_m, "joint_type_ok": r.joint_type_ok, "ms_per_estimate": ms,
+                        "reason": r.reason})
         rows.append((r.kind, r.estimator, fmt(r.angle_deg) if r.angle_deg is not None else f"- ({r.reason})",
                      fmt(r.position_m, 100), "ok" if r.joint_type_ok else "wrong", f"{ms:.1f}"))
+    if json_out:
+        print_json({"seed": seed, "results": results})
+        return
     print_table("axis estimators on a synthetic drawer (10 cm) and door (20 deg), D415-like noise",
                 ("object", "estimator", "angle error (deg)", "position error (cm)", "auto joint type", "ms"), rows)

@@ -2,76 +2,147 @@
 
 from __future__ import annotations
 
+from enum import Enum
 from typing import Annotated
 
 import typer
 
-from deploy.commands.options import JsonOpt, PolicyChoice, PolicyOpt, RobotOpt, Split, StationSeedOpt, Task
+from deploy.commands.options import (
+    CalibrationErrorOpt,
+    JsonOpt,
+    PolicyChoice,
+    PolicyOpt,
+    RobotOpt,
+    SegmenterOpt,
+    Split,
+    StationSeedOpt,
+    Task,
+    above,
+)
 from deploy.commands.output import console, err_console, fmt, print_json, print_rows, print_table, progress_bar
 
 app = typer.Typer(help="Benchmarks: accuracy and speed, results for docs/benchmarks.md.", no_args_is_help=True)
 
 
+class JointTold(str, Enum):
+    auto = "auto"
+
+
+class Scenes(str, Enum):
+    standard = "standard"
+    varied = "varied"
+    paths = "paths"
+
+
 @app.command("axis")
 def bench_axis_cmd(
-    sequences: Annotated[int, typer.Option(help="Sequences per object kind.")] = 20,
-    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    sequences: Annotated[int, typer.Option(min=1, help="Sequences per object kind (RGB-D scene sets).")] = 20,
+    seed: Annotated[int, typer.Option(min=0, help="Random seed.")] = 0,
+    scenes: Annotated[Scenes, typer.Option(
+        help="standard: 10 cm / 20 deg openings seen from above and aside; varied: short, eased openings seen "
+        "head-on to 60 deg aside, below to above; paths: 60 hand-recorded-like handle trajectories for "
+        "fit-trajectory.")] = Scenes.standard,
     json_out: JsonOpt = False,
 ) -> None:
-    """Axis accuracy and speed of every estimator on synthetic D415-like sequences with known axes.
+    """Axis accuracy (median, p90, max) and speed of every estimator on synthetic data with known axes.
 
     Example: deploy bench axis --sequences 50 --json
+    Example: deploy bench axis --scenes varied --seed 1
+    Example: deploy bench axis --scenes paths --json
     """
+    if scenes is Scenes.paths:
+        _bench_axis_paths(seed, json_out)
+        return
     from deploy.bench.axis import bench_axis
 
     with progress_bar("bench axis") as bar:
-        data = bench_axis(sequences, seed, progress=bar.counts)
+        data = bench_axis(sequences, seed, progress=bar.counts, scenes=scenes.value)
     if json_out:
         print_json(data)
         return
+
+    def spread(s: dict, key: str, scale: float = 1.0) -> str:
+        return " / ".join(fmt(s[f"{key}_{q}"], scale) for q in ("median", "p90", "max"))
+
     print_table(
-        f"axis estimators on {data['sequences']} synthetic sequences (seed {seed})",
-        ("estimator", "drawer deg med/p90", "door deg med/p90", "door pos cm med/p90", "joint acc", "failed",
-         "ms med"),
-        [(name, f"{fmt(s['drawer_angle_deg_median'])} / {fmt(s['drawer_angle_deg_p90'])}",
-          f"{fmt(s['door_angle_deg_median'])} / {fmt(s['door_angle_deg_p90'])}",
-          f"{fmt(s['door_position_m_median'], 100)} / {fmt(s['door_position_m_p90'], 100)}",
+        f"axis estimators on {data['sequences']} synthetic sequences ({scenes.value} scenes, seed {seed})",
+        ("estimator", "drawer deg med/p90/max", "door deg med/p90/max", "door pos cm med/p90/max", "joint acc",
+         "failed", "ms med"),
+        [(name, spread(s, "drawer_angle_deg"), spread(s, "door_angle_deg"), spread(s, "door_position_m", 100),
           f"{s['joint_type_accuracy']:.2f}", str(s["failed_estimates"]), fmt(s["ms_median"], digits=1))
          for name, s in data["estimators"].items()],
     )
     console.print(f"full geometry step ({data['step_estimator']}), median: {fmt(data['step_ms_median'], digits=1)} ms")
+    for name, s in data["estimators"].items():
+        for reason, count in s["failures"].items():
+            console.print(f"{name} failed {count}x: {reason}")
+
+
+def _bench_axis_paths(seed: int, json_out: bool) -> None:
+    """`bench axis --scenes paths`: fit-trajectory on the handle-trajectory set."""
+    from deploy.bench.axis_paths import bench_axis_paths
+
+    with progress_bar("bench axis paths") as bar:
+        data = bench_axis_paths(seed, progress=bar.counts)
+    if json_out:
+        print_json(data)
+        return
+    rows = []
+    for kind, k in data["kinds"].items():
+        auto, given = k["angle_deg"], k["given_angle_deg"]
+        rows.append((kind, f"{k['right']}/{k['paths']}", " / ".join(fmt(auto[q]) for q in ("median", "p90", "max")),
+                     " / ".join(fmt(given[q]) for q in ("median", "p90", "max"))))
+    print_table(f"fit-trajectory on {data['paths']} handle trajectories (seed {seed}): joint type "
+                f"{data['joint_type_accuracy']:.2f}, {data['wrong_type']} wrong, {data['undecided']} undecided",
+                ("kind", "type right", "deg med/p90/max (auto)", "deg med/p90/max (type given)"), rows)
+    console.print("object medians (deg): " + ", ".join(
+        f"{name} {fmt(value)}" for name, value in data["object_median_angle_deg"].items()))
+    for cause, count in data["undecided_causes"].items():
+        console.print(f"undecided {count}x: {cause}")
 
 
 @app.command("open")
 def bench_open_cmd(
     task: Annotated[Task, typer.Option(help="drawer or door.")] = Task.drawer,
-    target: Annotated[float, typer.Option(help="Target opening: m (drawer) or deg (door).")] = 0.30,
-    episodes: Annotated[int, typer.Option(help="Episodes (consecutive scenario seeds).")] = 10,
+    distance: Annotated[float, typer.Option(callback=above(0.0), help="Target opening of a drawer, in metres.")
+                        ] = 0.30,
+    angle: Annotated[float, typer.Option(callback=above(0.0), help="Target opening of a door, in degrees.")] = 45.0,
+    target: Annotated[float | None, typer.Option(callback=above(0.0), hidden=True,
+                                                 help="Old name: the target in m (drawer) or deg (door).")] = None,
+    episodes: Annotated[int, typer.Option(min=1, help="Episodes (consecutive scenario seeds).")] = 10,
     split: Annotated[Split, typer.Option(help="Object family.")] = Split.test,
     policy: PolicyOpt = PolicyChoice.closed,
-    seed: Annotated[int, typer.Option(help="First scenario seed.")] = 0,
-    workers: Annotated[int, typer.Option(help="Local worker processes.")] = 1,
+    seed: Annotated[int, typer.Option(min=0, help="First scenario seed.")] = 0,
+    workers: Annotated[int, typer.Option(min=1, help="Local worker processes.")] = 1,
     ray: Annotated[str | None, typer.Option(
         "--ray", metavar="ADDRESS", help="Run episodes on a Ray cluster: local, auto, ray://HOST:10001 or "
         "HOST:6379 (needs the cluster extra); --workers is then unused.")] = None,
-    auto_joint: Annotated[bool, typer.Option(
-        "--auto-joint", help="The policy is not told the task: it classifies from its probe pull.")] = False,
+    joint: Annotated[JointTold | None, typer.Option(
+        help="auto: the policy is not told the joint and classifies it from its probe pull \\[default: told "
+        "the task's].")] = None,
+    auto_joint: Annotated[bool, typer.Option("--auto-joint", hidden=True, help="Old name of --joint auto.")] = False,
+    segmenter: SegmenterOpt = None,
+    calibration_error: CalibrationErrorOpt = (5.0, 0.5),
     json_out: JsonOpt = False,
 ) -> None:
-    """Success rate of simulated openings (success = the true joint value exceeds the target, like the paper).
+    """Success rate of simulated openings (success = the true joint value exceeds the target, like the paper),
+    with what a real robot senses: the default segmenter and a calibrated (imperfect) camera pose.
 
-    Example: deploy bench open --task door --target 45 --episodes 20 --workers 2 --json
-    Example: deploy bench open --task drawer --target 0.30 --episodes 1000 --ray ray://head:10001 --json
+    Example: deploy bench open --task door --angle 45 --episodes 20 --workers 2 --json
+    Example: deploy bench open --task drawer --distance 0.30 --episodes 1000 --ray ray://head:10001 --json
     """
     from deploy.bench.open import bench_open
 
+    goal = target if target is not None else distance if task is Task.drawer else angle
+    unit = "m" if task is Task.drawer else "deg"
     with progress_bar(f"bench open {task.value}", episodes) as bar:
-        data = bench_open(task.value, target, episodes, split.value, policy.value, seed, workers,
-                          progress=bar.advance, ray_address=ray, auto_joint=auto_joint)
+        data = bench_open(task.value, goal, episodes, split.value, policy.value, seed, workers,
+                          progress=bar.advance, ray_address=ray, auto_joint=auto_joint or joint is JointTold.auto,
+                          segmenter=segmenter, calibration_error=calibration_error)
     if json_out:
         print_json(data)
         return
-    print_rows(f"{task.value} to {target} ({split.value}, {policy.value} loop)", data)
+    print_rows(f"{task.value} to {goal:g} {unit} ({split.value}, {policy.value} loop)", data)
 
 
 @app.command("sim")
@@ -82,7 +153,8 @@ def bench_sim_cmd(json_out: JsonOpt = False) -> None:
     """
     from sim_fallback.bench import bench_sim
 
-    data = bench_sim()
+    with err_console.status("bench sim: physics, rendering and a scripted opening"):
+        data = bench_sim()
     if json_out:
         print_json(data)
         return
@@ -91,8 +163,9 @@ def bench_sim_cmd(json_out: JsonOpt = False) -> None:
 
 @app.command("perception")
 def bench_perception_cmd(
-    seeds: Annotated[int, typer.Option(help="Scenario seeds (a drawer and a door recording each).")] = 1,
-    fps: Annotated[float, typer.Option(help="Frames per second of the simulated recordings.")] = 10.0,
+    seeds: Annotated[int, typer.Option(min=1, help="Scenario seeds (a drawer and a door recording each).")] = 1,
+    fps: Annotated[float, typer.Option(callback=above(0.0), max=60.0,
+                                       help="Frames per second of the simulated recordings.")] = 10.0,
     json_out: JsonOpt = False,
 ) -> None:
     """Per-frame latency of each segmenter backend and its mask IoU against the simulator's oracle masks.
@@ -122,8 +195,8 @@ def bench_perception_cmd(
 @app.command("arm")
 def bench_arm_cmd(
     robot: RobotOpt = None,
-    samples: Annotated[int, typer.Option(help="IK and Ruckig samples.")] = 500,
-    seconds: Annotated[float, typer.Option(help="Control loop run time (s).")] = 3.0,
+    samples: Annotated[int, typer.Option(min=1, help="IK and Ruckig samples.")] = 500,
+    seconds: Annotated[float, typer.Option(callback=above(0.0), help="Control loop run time (s).")] = 3.0,
     json_out: JsonOpt = False,
 ) -> None:
     """IK time and success, Ruckig time, and the 500 Hz CAN loop's rate and jitter (8 simulated motors).
@@ -133,7 +206,8 @@ def bench_arm_cmd(
     from deploy.arm_bringup import load
     from deploy.bench.arm import bench_arm
 
-    data = bench_arm(load(robot), samples, seconds)
+    with err_console.status(f"bench arm: {samples} IK and Ruckig samples, {seconds:g} s of the CAN loop"):
+        data = bench_arm(load(robot), samples, seconds)
     if json_out:
         print_json(data)
     else:

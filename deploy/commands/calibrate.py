@@ -10,7 +10,9 @@ import typer
 
 from deploy.commands.options import (
     JsonOpt,
+    SimFaultOpt,
     StationSeedOpt,
+    above,
     dry_run_option,
     kind_option,
     robot_option,
@@ -37,8 +39,8 @@ class ExistingChoice(str, Enum):
 CameraOpt = kind_option(CAMERAS, "--camera", " A D415's serial names the calibration file; a recording cannot "
                         "calibrate.")
 ArmOpt = kind_option(ARMS, "--arm", " \\[default: sim with the sim camera, can with a D415].", optional=True)
-RobotOpt = robot_option("Robot config TOML; its name names the calibration file (required for --arm can; default "
-                        "for sim arms: configs/robots/panda_sim.toml).")
+RobotOpt = robot_option("Robot config (a shipped one's name or a TOML file); its name names the calibration file "
+                        "(required for --arm can; default for sim arms: panda_sim).")
 PivotOpt = Annotated[tuple[float, float, float] | None, typer.Option(
     "--pivot-mm", help="Point (mm, tool frame) the stations turn about: eye-to-hand the board centre, eye-in-hand the "
     "point the wrist camera looks at (required on a real arm, except for check: from the stored calibration; "
@@ -75,6 +77,7 @@ def board_cmd(
     squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0, marker_mm: MarkerMmOpt = 28.0,
     dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False,
     dpi: Annotated[float, typer.Option("--dpi", min=72.0, help="Print resolution.")] = 300.0,
+    json_out: JsonOpt = False,
 ) -> None:
     """Render a printable ChArUco board at true scale: print at 100 %, then measure one square.
 
@@ -85,7 +88,11 @@ def board_cmd(
     cfg = _board(squares, square_mm, marker_mm, dictionary, legacy)
     write_board(cfg, out, dpi)
     w, h = cfg.size_m
-    console.print(f"wrote {out}: {squares} squares of {square_mm:g} mm ({w * 1e3:.0f} x {h * 1e3:.0f} mm)")
+    if json_out:
+        print_json({"out": str(out), "squares": squares, "square_mm": square_mm, "marker_mm": marker_mm,
+                    "dictionary": dictionary, "width_mm": w * 1e3, "height_mm": h * 1e3, "dpi": dpi})
+    else:
+        console.print(f"wrote {out}: {squares} squares of {square_mm:g} mm ({w * 1e3:.0f} x {h * 1e3:.0f} mm)")
 
 
 def _prepare(dev, cfg, board, dry_run: bool, yes: bool, json_out: bool, record=None, note: str = "") -> bool:
@@ -117,7 +124,8 @@ def intrinsics_cmd(
     poses: PosesOpt = 12, setup: SetupOpt = SetupChoice.eye_to_hand,
     squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0, marker_mm: MarkerMmOpt = 28.0,
     dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False, directory: DirOpt = None,
-    yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 0, json_out: JsonOpt = False,
+    yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 0, sim_fault: SimFaultOpt = None,
+    json_out: JsonOpt = False,
 ) -> None:
     """Fit the camera's own intrinsics from board views at N stations (default: RealSense factory values).
 
@@ -126,11 +134,14 @@ def intrinsics_cmd(
     from calibration.poses import PoseConfig
     from calibration.routine import RoutineConfig, run_intrinsics
     from calibration.store import IntrinsicsRecord, save_intrinsics
+    from deploy.arm_bringup import parse_sim_faults
     from deploy.calibration_devices import choose, open_devices
 
     choice = choose(camera, arm, robot, pivot_mm)
+    faults = parse_sim_faults(choice.arm, sim_fault)
     board = _board(squares, square_mm, marker_mm, dictionary, legacy)
     with open_devices(choice, setup.value, board, seed) as dev:
+        _inject(dev, faults)
         cfg = RoutineConfig(setup.value, poses, board, PoseConfig(pivot_tool_m=dev.pivot(), seed=seed))
         if not _prepare(dev, cfg, board, dry_run, yes, json_out):
             return
@@ -155,7 +166,7 @@ def hand_eye_cmd(
     existing: Annotated[ExistingChoice, typer.Option("--existing", help="When a calibration exists: ask, reuse "
                                                      "it, or redo it.")] = ExistingChoice.ask,
     directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 0,
-    json_out: JsonOpt = False,
+    sim_fault: SimFaultOpt = None, json_out: JsonOpt = False,
 ) -> None:
     """Hand-eye: move through N diverse poses, detect the board, solve, refine and save the calibration.
 
@@ -168,12 +179,15 @@ def hand_eye_cmd(
     from calibration.poses import PoseConfig
     from calibration.routine import RoutineConfig, run_hand_eye
     from calibration.store import hand_eye_path, load_for, load_intrinsics_for
+    from deploy.arm_bringup import parse_sim_faults
     from deploy.calibration_devices import choose, open_devices
     from deploy.evaluation import calibration_error
 
     choice = choose(camera, arm, robot, pivot_mm)
+    faults = parse_sim_faults(choice.arm, sim_fault)
     board = _board(squares, square_mm, marker_mm, dictionary, legacy)
     with open_devices(choice, setup.value, board, seed) as dev:
+        _inject(dev, faults)
         serial, robot_id = dev.serial, dev.robot_id
         old = load_for(serial, robot_id, directory) if existing != ExistingChoice.redo and not dry_run else None
         if old is not None and (existing == ExistingChoice.reuse or typer.confirm(
@@ -209,11 +223,12 @@ def hand_eye_cmd(
 def check_cmd(
     camera: CameraOpt = "sim", arm: ArmOpt = None, robot: RobotOpt = None, pivot_mm: PivotOpt = None,
     poses: PosesOpt = 6,
-    max_age_days: Annotated[float, typer.Option("--max-age-days", help="Warn when older.")] = 30.0,
+    max_age_days: Annotated[float, typer.Option("--max-age-days", callback=above(0.0), help="Warn when older.")
+                            ] = 30.0,
     point: Annotated[bool, typer.Option("--point", help="Eye-in-hand: move the tool tip to 2 cm in front of "
                                         "the board's centre corner.")] = False,
     directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 1,
-    json_out: JsonOpt = False,
+    sim_fault: SimFaultOpt = None, json_out: JsonOpt = False,
 ) -> None:
     """Check the stored calibration: spread of the fixed frame over fresh poses, a one-shot test, warnings.
 
@@ -224,6 +239,7 @@ def check_cmd(
     from calibration.poses import PoseConfig
     from calibration.routine import RoutineConfig, point_at_board, run_check
     from calibration.store import load_for
+    from deploy.arm_bringup import parse_sim_faults
     from deploy.calibration_devices import choose, open_devices
     from deploy.errors import CalibrationError
     from deploy.rig import SIM_SERIAL
@@ -236,8 +252,10 @@ def check_cmd(
         return record
 
     choice = choose(camera, arm, robot, pivot_mm, pivot_from_record=True)
+    faults = parse_sim_faults(choice.arm, sim_fault)
     record = stored(SIM_SERIAL, choice.robot.name) if choice.simulated else None  # the rig needs its setup
     with open_devices(choice, record.setup if record else "eye-to-hand", record and record.board, seed) as dev:
+        _inject(dev, faults)
         record = record or stored(dev.serial, dev.robot_id)
         cfg = RoutineConfig(record.setup, poses, record.board,  # type: ignore[arg-type]
                             PoseConfig(pivot_tool_m=dev.pivot(record), seed=seed))
@@ -261,6 +279,12 @@ def check_cmd(
         print_json(data)
     else:
         print_rows(f"check of {record.setup} calibration ({record.created:%Y-%m-%d})", data, digits=4)
+
+
+def _inject(dev, faults) -> None:
+    """Schedule the --sim-fault faults on the simulated motors of a sim-can calibration arm."""
+    for fault in faults:
+        fault.schedule(dev.motors)
 
 
 def _save(run, dev, board, directory: Path | None) -> Path:

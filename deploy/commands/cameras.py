@@ -1,16 +1,19 @@
-"""`deploy cameras list|snapshot`, `deploy record` and `deploy convert`: RealSense discovery and recordings."""
+"""`deploy cameras list|snapshot`, `deploy record`, `deploy convert` and `deploy export`: RealSense discovery and
+recordings in and out."""
 
 from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
+from enum import Enum
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from deploy.commands.options import kind_option
+from deploy.commands.options import JsonOpt, RobotOpt, above, kind_option, overwrite_option, view_option
 from deploy.commands.output import console, print_json, print_table, progress_bar
+from drivers.arm.registry import ARMS
 from drivers.camera.registry import CAMERAS
 
 if TYPE_CHECKING:
@@ -20,10 +23,13 @@ app = typer.Typer(help="RealSense cameras: discovery and snapshots.", no_args_is
 top_level = typer.Typer()  # its commands sit directly under `deploy`
 
 CameraSpecOpt = kind_option(CAMERAS, "--camera", " sim: a simulated drawer, seed 0.")
-WidthOpt = Annotated[int, typer.Option(help="Image width (d415: 640, 848 or 1280; sim: any).")]
-HeightOpt = Annotated[int, typer.Option(help="Image height (d415: 480 or 720).")]
-FpsOpt = Annotated[int, typer.Option(help="Frames per second (d415: 6, 15, 30 or 60).")]
-JsonTextOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object instead of text.")]
+WidthOpt = Annotated[int, typer.Option(min=1, max=8192, help="Image width (d415: 640, 848 or 1280; sim: any).")]
+HeightOpt = Annotated[int, typer.Option(min=1, max=8192, help="Image height (d415: 480 or 720).")]
+FpsOpt = Annotated[int, typer.Option(min=1, max=1000, help="Frames per second (d415: 6, 15, 30 or 60).")]
+OverwriteOpt = overwrite_option("recording at --out")
+ArmRecordOpt = kind_option(ARMS, "--arm", " Recorded with every frame: joint positions and tool pose (the arm is "
+                           "read, never enabled; --robot names its config).", optional=True)
+ViewOpt = view_option("the frames, the camera and the tool pose")
 
 
 @contextmanager
@@ -39,7 +45,7 @@ def open_any_camera(spec: str, width: int = 640, height: int = 480, fps: int = 3
 
 
 @app.command("list")
-def list_cameras(json_out: JsonTextOpt = False) -> None:
+def list_cameras(json_out: JsonOpt = False) -> None:
     """List connected RealSense cameras: serial, name, firmware, USB type and supported profiles.
 
     Example: deploy cameras list --json
@@ -66,7 +72,7 @@ def snapshot(
     width: WidthOpt = 640,
     height: HeightOpt = 480,
     fps: FpsOpt = 30,
-    json_out: JsonTextOpt = False,
+    json_out: JsonOpt = False,
 ) -> None:
     """Save one aligned colour/depth pair, a coloured depth PNG and the intrinsics.
 
@@ -87,46 +93,63 @@ def snapshot(
 def record_cmd(
     out: Annotated[Path, typer.Option(help="Frames directory to write (docs/recording-format.md).")],
     camera: CameraSpecOpt = "d415",
-    seconds: Annotated[float | None, typer.Option(help="Camera seconds to record.")] = None,
-    frames: Annotated[int | None, typer.Option(help="Frames to record.")] = None,
+    arm: ArmRecordOpt = None,
+    robot: RobotOpt = None,
+    seconds: Annotated[float | None, typer.Option(callback=above(0.0), help="Camera seconds to record.")] = None,
+    frames: Annotated[int | None, typer.Option(min=1, help="Frames to record.")] = None,
     width: WidthOpt = 640,
     height: HeightOpt = 480,
     fps: FpsOpt = 30,
-    json_out: JsonTextOpt = False,
+    view: ViewOpt = False,
+    overwrite: OverwriteOpt = False,
+    json_out: JsonOpt = False,
 ) -> None:
-    """Record a camera to a frames directory, flushing every frame (Ctrl-C keeps what was recorded).
+    """Record a camera to a frames directory, flushing every frame (Ctrl-C keeps what was recorded); with
+    --arm, the arm's joint states and tool pose per frame too (the arm is read, never enabled).
 
     Example: deploy record --camera d415 --out runs/rec1 --seconds 10
+    Example: deploy record --camera d415 --arm can --robot my_arm.toml --out runs/rec2 --seconds 20
     """
     from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
 
     from deploy.errors import RecordingError
-    from drivers.camera.record import record
+    from deploy.output_folder import prepare_output
+    from deploy.recording import record_rig
 
     if seconds is None and frames is None:
         raise RecordingError("deploy record: say how long to record with --seconds S or --frames N")
+    prepare_output(out, overwrite, "recording")
     columns = (TextColumn("recording"), BarColumn(), TextColumn("{task.completed} frames"), TimeElapsedColumn())
-    with progress_bar("record", frames, *columns) as bar, open_any_camera(camera, width, height, fps) as cam:
-        summary = record(cam, out, frames=frames, seconds=seconds, progress=bar.advance)
+    with progress_bar("record", frames, *columns) as bar:
+        summary = record_rig(camera, out, frames, seconds, arm, robot, {"width": width, "height": height,
+                                                                        "fps": fps}, bar.advance, view)
     if json_out:
         print_json(summary)
     else:
-        console.print(f"wrote {summary['frames']} frames ({summary['seconds']:.2f} s) to {out}")
+        with_arm = " with the arm's joints and tool pose" if summary["arm"] else ""
+        console.print(f"wrote {summary['frames']} frames ({summary['seconds']:.2f} s){with_arm} to {out}")
 
 
 @top_level.command("convert")
 def convert(
-    recording: Annotated[Path, typer.Argument(help="RealSense recording (.bag or .db3).")],
+    recording: Annotated[Path, typer.Argument(help="RealSense SDK recording (.bag, .db3) or ROS 2 bag of "
+                                                   "realsense-ros topics (.db3, .mcap or the bag folder).")],
     out: Annotated[Path, typer.Option(help="Frames directory to write.")],
-    depth_scale: Annotated[float, typer.Option(help="Depth unit of the frames directory (m).")] = 0.001,
-    json_out: JsonTextOpt = False,
+    depth_scale: Annotated[float, typer.Option(callback=above(0.0), help="Depth unit of the frames directory, in "
+                                               "metres.")] = 0.001,
+    overwrite: OverwriteOpt = False,
+    json_out: JsonOpt = False,
 ) -> None:
-    """Convert a RealSense .bag/.db3 recording into a frames directory (depth aligned to colour).
+    """Convert a RealSense or ROS 2 recording into a frames directory, depth aligned to colour (streams that
+    already share one pixel grid keep every depth pixel).
 
     Example: deploy convert session.db3 --out runs/session
+    Example: deploy convert rosbag2_2026_01_01 --out runs/ros
     """
+    from deploy.output_folder import prepare_output
     from drivers.camera.realsense_convert import convert_recording
 
+    prepare_output(out, overwrite, "recording")
     with progress_bar(f"converting {recording.name}") as bar:
         summary = convert_recording(recording, out, depth_scale, progress=bar.advance)
     if json_out:
@@ -135,3 +158,35 @@ def convert(
         console.print(f"wrote {summary['frames']} frames ({summary['seconds']:.2f} s) to {out} "
                       f"(source depth unit {summary['source_depth_scale']:g} m)")
 
+
+class ExportFormat(str, Enum):
+    tum = "tum"
+    open3d = "open3d"
+    rrd = "rrd"
+
+
+@top_level.command("export")
+def export_cmd(
+    recording: Annotated[Path, typer.Argument(help="Frames directory (docs/recording-format.md).")],
+    out: Annotated[Path, typer.Option(help="Folder to write (tum, open3d) or NAME.rrd (rrd).")],
+    fmt: Annotated[ExportFormat, typer.Option("--format", help="tum: TUM RGB-D layout (rgb/, depth/, rgb.txt, "
+                                              "depth.txt, groundtruth.txt with poses); open3d: Open3D's "
+                                              "reconstruction layout with camera_intrinsic.json; rrd: a rerun "
+                                              "recording.")] = ExportFormat.tum,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an earlier export at --out; without it "
+                                            "an existing one is refused.")] = False,
+    json_out: JsonOpt = False,
+) -> None:
+    """Export a frames recording to the layout other tools load (docs/recording-format.md#export).
+
+    Example: deploy export runs/rec1 --format tum --out runs/rec1-tum
+    Example: deploy export runs/rec1 --format rrd --out runs/rec1.rrd && rerun runs/rec1.rrd
+    """
+    from deploy.export import export_recording
+
+    with progress_bar(f"exporting {recording.name}", None) as bar:
+        summary = export_recording(recording, out, fmt.value, progress=bar.counts, overwrite=overwrite)
+    if json_out:
+        print_json(summary)
+    else:
+        console.print(f"wrote {summary['frames']} frames to {out} ({fmt.value}: {', '.join(summary['files'])})")

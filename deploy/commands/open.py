@@ -9,15 +9,22 @@ import typer
 
 from deploy.commands.options import (
     ArmOpt,
+    BoxOpt,
+    CalibrationErrorOpt,
     CameraOpt,
+    ConfigFileOpt,
+    FilterChoice,
+    FilterOpt,
     JointChoice,
     JsonOpt,
     PolicyChoice,
-    PolicyOpt,
+    PromptOpt,
     SegmenterOpt,
+    SimFaultOpt,
     Split,
     Task,
     dry_run_option,
+    overwrite_option,
     robot_option,
     seed_option,
     yes_option,
@@ -27,14 +34,30 @@ from deploy.commands.output import print_json, print_rows
 top_level = typer.Typer()  # its commands sit directly under `deploy`
 
 SeedOpt = seed_option("Simulated scenario seed (--camera sim).")
-RobotOpt = robot_option("Robot config TOML for --arm can (see docs/arm.md).")
+RobotOpt = robot_option("Robot config for --arm can: a TOML file, or a shipped one's name (damiao_6dof is the "
+                        "template; docs/arm.md).")
 CalibrationOpt = Annotated[Path | None, typer.Option(
     help="Hand-eye calibration file \\[default: the one saved for this camera and robot].")]
 RunDirOpt = Annotated[Path | None, typer.Option(help="Run folder \\[default: runs/TASK-TIME].")]
 SplitOpt = Annotated[Split, typer.Option(help="Object family (--camera sim).")]
 DryRunOpt = dry_run_option("Perceive and plan the grasp; move nothing.")
 YesOpt = yes_option("Skip the confirmation before a real arm's first motion.")
-ViewOpt = Annotated[bool, typer.Option("--view", help="Stream frames, clouds and axes to a rerun viewer.")]
+ViewOpt = Annotated[bool, typer.Option("--view", help="Show frames, the camera, clouds and axes (estimated per step; "
+                                      "true in simulation) in a rerun viewer, saved to RUN/episode.rrd.")]
+OverwriteOpt = overwrite_option("run folder at --run-dir")
+PolicyOrConfigOpt = Annotated[PolicyChoice | None, typer.Option(
+    help="closed (re-estimate every step), open or paper \\[default: the config's, closed].")]
+DistanceOpt = Annotated[float | None, typer.Option(
+    "--distance", help="Target opening of a drawer, in metres \\[default: the config's, 0.30].")]
+AngleOpt = Annotated[float | None, typer.Option(
+    "--angle", help="Target opening of a door, in degrees \\[default: the config's, 45].")]
+
+
+def _overrides(filter_profile: FilterChoice | None, prompt: str | None,
+               box: tuple[float, float, float, float] | None) -> dict:
+    """--filter, --prompt and --box as settings by dotted name (None: the config's)."""
+    return {"filter.profile": filter_profile.value if filter_profile is not None else None,
+            "perception.object_prompt": prompt, "perception.box": box}
 
 
 def _print_episode(data: dict, json_out: bool) -> None:
@@ -42,15 +65,39 @@ def _print_episode(data: dict, json_out: bool) -> None:
         print_json(data)
         return
     where = f"seed {data['seed']}" if "seed" in data else data.get("camera", "")
-    keys = ("success", "opened", "target", "true_opened", "steps", "stop_reason", "message", "axis_angle_error_deg",
-            "axis_position_error_m", "run_dir")
-    print_rows(f"{data['task']} episode ({where}, {data['policy']} loop)", {k: data[k] for k in keys if k in data})
+    keys = ("success", "opened_m", "opened_deg", "target_m", "target_deg", "true_opened_m", "true_opened_deg",
+            "steps", "stop_reason", "message", "axis_angle_error_deg", "axis_position_error_m", "run_dir")
+    rows = {k: data[k] for k in keys if k in data}
+    used = data["filter"]
+    used = data["filter"]
+    rows["filter"] = f"{used['profile']}: radius {used['radius_m']:g} m, eps {used['eps']}"
+    print_rows(f"{data['task']} episode ({where}, {data['policy']} loop)", rows)
 
 
-def _open(request_fields: dict, json_out: bool) -> None:
+def _value(choice: PolicyChoice | None) -> str | None:
+    return None if choice is None else choice.value
+
+
+def _open(request_fields: dict, json_out: bool, sim_fault: list[str] | None, overwrite: bool) -> None:
+    """Check the request (--calibration only with a real camera, --sim-fault only with sim-can, the run folder
+    new or --overwrite), then run it."""
+    from dataclasses import replace
+
+    from deploy.arm_bringup import inject_sim_faults, parse_sim_faults
     from deploy.control.session import OpenRequest, open_object
+    from deploy.errors import ConfigError
+    from deploy.output_folder import prepare_output
+    from drivers.camera.registry import CAMERAS
 
-    data = open_object(OpenRequest(**request_fields))
+    faults = parse_sim_faults(request_fields["arm"], sim_fault)
+    request = OpenRequest(**request_fields)
+    if request.calibration is not None and CAMERAS.entry(request.camera)[0].simulated:
+        raise ConfigError(f"--calibration {request.calibration} is for a real camera: the simulated camera's pose "
+                          "comes from the simulation; drop --calibration, or use --camera d415")
+    request = replace(request, run_dir=request.folder())
+    prepare_output(request.run_dir, overwrite, "run folder", "--run-dir")
+    data = open_object(request, confirm=lambda question: typer.confirm(question, abort=True),
+                       setup=(lambda _world, arm: inject_sim_faults(arm, faults)) if faults else None)
     _print_episode(data, json_out)
     if not (data["success"] or data["stop_reason"] == "dry run"):
         raise typer.Exit(1)
@@ -58,7 +105,7 @@ def _open(request_fields: dict, json_out: bool) -> None:
 
 @top_level.command("open-drawer")
 def open_drawer(
-    distance: Annotated[float, typer.Option(help="Target opening (m).")] = 0.30,
+    distance: DistanceOpt = None,
     camera: CameraOpt = "sim",
     arm: ArmOpt = "sim",
     robot: RobotOpt = None,
@@ -66,26 +113,35 @@ def open_drawer(
     segmenter: SegmenterOpt = None,
     seed: SeedOpt = 0,
     split: SplitOpt = Split.train,
-    policy: PolicyOpt = PolicyChoice.closed,
+    policy: PolicyOrConfigOpt = None,
+    config: ConfigFileOpt = None,
+    filter_profile: FilterOpt = None,
+    prompt: PromptOpt = None,
+    box: BoxOpt = None,
     run_dir: RunDirOpt = None,
     dry_run: DryRunOpt = False,
     yes: YesOpt = False,
     view: ViewOpt = False,
+    calibration_error: CalibrationErrorOpt = (5.0, 0.5),
+    sim_fault: SimFaultOpt = None,
+    overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
 ) -> None:
     """Open a drawer to the target, re-estimating its axis after every step.
 
     Example: deploy open-drawer --distance 0.30 --seed 3 --json
-    Example: deploy open-drawer --camera d415 --arm can --robot configs/robots/damiao_6dof.toml --dry-run
+    Example: deploy open-drawer --camera d415 --arm can --robot my_arm.toml --dry-run
+    Example: deploy open-drawer --camera d415 --arm can --robot my_arm.toml --config run.toml --prompt drawer
     """
     _open(dict(task="drawer", scene="drawer", distance_m=distance, camera=camera, arm=arm, robot=robot,
-               calibration=calibration, segmenter=segmenter, seed=seed, split=split.value, policy=policy.value,
-               run_dir=run_dir, dry_run=dry_run, yes=yes, view=view), json_out)
+               calibration=calibration, segmenter=segmenter, seed=seed, split=split.value, policy=_value(policy),
+               run_dir=run_dir, dry_run=dry_run, yes=yes, view=view, calibration_error=calibration_error,
+               config_file=config, overrides=_overrides(filter_profile, prompt, box)), json_out, sim_fault, overwrite)
 
 
 @top_level.command("open-door")
 def open_door(
-    angle: Annotated[float, typer.Option(help="Target opening (deg).")] = 45.0,
+    angle: AngleOpt = None,
     camera: CameraOpt = "sim",
     arm: ArmOpt = "sim",
     robot: RobotOpt = None,
@@ -93,11 +149,18 @@ def open_door(
     segmenter: SegmenterOpt = None,
     seed: SeedOpt = 0,
     split: SplitOpt = Split.train,
-    policy: PolicyOpt = PolicyChoice.closed,
+    policy: PolicyOrConfigOpt = None,
+    config: ConfigFileOpt = None,
+    filter_profile: FilterOpt = None,
+    prompt: PromptOpt = None,
+    box: BoxOpt = None,
     run_dir: RunDirOpt = None,
     dry_run: DryRunOpt = False,
     yes: YesOpt = False,
     view: ViewOpt = False,
+    calibration_error: CalibrationErrorOpt = (5.0, 0.5),
+    sim_fault: SimFaultOpt = None,
+    overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
 ) -> None:
     """Open a door to the target angle along arcs about its estimated hinge axis.
@@ -105,17 +168,19 @@ def open_door(
     Example: deploy open-door --angle 45 --seed 2 --json
     """
     _open(dict(task="door", scene="door", angle_deg=angle, camera=camera, arm=arm, robot=robot,
-               calibration=calibration, segmenter=segmenter, seed=seed, split=split.value, policy=policy.value,
-               run_dir=run_dir, dry_run=dry_run, yes=yes, view=view), json_out)
+               calibration=calibration, segmenter=segmenter, seed=seed, split=split.value, policy=_value(policy),
+               run_dir=run_dir, dry_run=dry_run, yes=yes, view=view, calibration_error=calibration_error,
+               config_file=config, overrides=_overrides(filter_profile, prompt, box)), json_out, sim_fault, overwrite)
 
 
 @top_level.command("open")
 def open_any(
     joint: Annotated[JointChoice, typer.Option(
         help="auto: drawer or door from a 2.5 cm probe pull (how the front turns); or say which.")] = JointChoice.auto,
-    distance: Annotated[float, typer.Option(help="Target if it is a drawer (m).")] = 0.30,
-    angle: Annotated[float, typer.Option(help="Target if it is a door (deg).")] = 45.0,
-    scene: Annotated[Task, typer.Option(help="Simulated object (--camera sim).")] = Task.drawer,
+    distance: DistanceOpt = None,
+    angle: AngleOpt = None,
+    task: Annotated[Task, typer.Option(help="Simulated object (--camera sim).")] = Task.drawer,
+    scene: Annotated[Task | None, typer.Option(hidden=True, help="Old name of --task.")] = None,
     camera: CameraOpt = "sim",
     arm: ArmOpt = "sim",
     robot: RobotOpt = None,
@@ -123,18 +188,27 @@ def open_any(
     segmenter: SegmenterOpt = None,
     seed: SeedOpt = 0,
     split: SplitOpt = Split.train,
-    policy: PolicyOpt = PolicyChoice.closed,
+    policy: PolicyOrConfigOpt = None,
+    config: ConfigFileOpt = None,
+    filter_profile: FilterOpt = None,
+    prompt: PromptOpt = None,
+    box: BoxOpt = None,
     run_dir: RunDirOpt = None,
     dry_run: DryRunOpt = False,
     yes: YesOpt = False,
     view: ViewOpt = False,
+    calibration_error: CalibrationErrorOpt = (5.0, 0.5),
+    sim_fault: SimFaultOpt = None,
+    overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
 ) -> None:
     """Open whatever is in front of the arm: a drawer to --distance or a door to --angle.
 
-    Example: deploy open --joint auto --scene door --seed 4 --json
+    Example: deploy open --joint auto --task door --seed 4 --json
     """
-    task = {"auto": "auto", "prismatic": "drawer", "revolute": "door"}[joint.value]
-    _open(dict(task=task, scene=scene.value, distance_m=distance, angle_deg=angle, camera=camera, arm=arm,
-               robot=robot, calibration=calibration, segmenter=segmenter, seed=seed, split=split.value,
-               policy=policy.value, run_dir=run_dir, dry_run=dry_run, yes=yes, view=view), json_out)
+    told = {"auto": "auto", "prismatic": "drawer", "revolute": "door"}[joint.value]
+    _open(dict(task=told, scene=(scene or task).value, distance_m=distance, angle_deg=angle, camera=camera,
+               arm=arm, robot=robot, calibration=calibration, segmenter=segmenter, seed=seed, split=split.value,
+               policy=_value(policy), run_dir=run_dir, dry_run=dry_run, yes=yes, view=view,
+               calibration_error=calibration_error, config_file=config,
+               overrides=_overrides(filter_profile, prompt, box)), json_out, sim_fault, overwrite)

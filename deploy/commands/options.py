@@ -6,6 +6,7 @@ here that takes the group's help, so its flag and type are the same in every gro
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from enum import Enum
 from pathlib import Path
 from typing import Annotated, Any
@@ -35,6 +36,11 @@ class Split(str, Enum):
     test = "test"
 
 
+class FilterChoice(str, Enum):
+    sim = "sim"
+    sparse = "sparse"
+
+
 class PolicyChoice(str, Enum):
     closed = "closed"
     open = "open"
@@ -59,21 +65,72 @@ def kind_option(registry: Registry, flag: str, note: str = "", optional: bool = 
 
 
 def robot_option(help: str) -> Any:
-    """`--robot PATH` of a robot config TOML."""
-    return Annotated[Path | None, typer.Option("--robot", help=help)]
+    """`--robot NAME|PATH`: a shipped robot config's name or a robot config TOML."""
+    return Annotated[Path | None, typer.Option("--robot", metavar="NAME|PATH", help=help)]
+
+
+def view_option(what: str) -> Any:
+    """`--view`: show `what` in a rerun viewer (live where a display is) and save it as a .rrd file."""
+    return Annotated[bool, typer.Option("--view", help=f"Show {what} in a rerun viewer (live where a display is) "
+                                        "and save them as a .rrd file.")]
 
 
 def seed_option(help: str) -> Any:
-    """`--seed N`; `help` says what it seeds."""
-    return Annotated[int, typer.Option("--seed", help=help)]
+    """`--seed N` (N >= 0); `help` says what it seeds."""
+    return Annotated[int, typer.Option("--seed", min=0, help=help)]
+
+
+def above(limit: float) -> Callable[[float | None], float | None]:
+    """An option callback that refuses a number at or below `limit` (typer's `min` allows the limit itself)."""
+
+    def check(value: float | None) -> float | None:
+        if value is not None and not value > limit:
+            raise typer.BadParameter(f"{value:g} is not above {limit:g}")
+        return value
+
+    return check
+
+
+def sim_fault_option() -> Any:
+    """`--sim-fault KIND[:JOINT][@SECONDS]` (repeatable): a fault of the simulated CAN arm (--arm sim-can)."""
+    return Annotated[list[str] | None, typer.Option(
+        "--sim-fault", metavar="KIND[:JOINT][@SECONDS]",
+        help="With --arm sim-can: inject a fault to rehearse the safety handling, e.g. bus-off@1.5, "
+             "silent:panda_joint2, over-temperature:panda_joint4@0.5 (kinds: docs/reliability.md; default joint: the "
+             "first; default time: at once, in arm seconds). Repeatable.")]
+
+
+def overwrite_option(what: str) -> Any:
+    """`--overwrite`: replace an existing `what` (its old files are removed first)."""
+    return Annotated[bool, typer.Option("--overwrite", help=f"Replace an existing {what} (all its old files are "
+                                        "removed first); without it an existing one is refused.")]
 
 
 CameraOpt = kind_option(CAMERAS, "--camera")
 ArmOpt = kind_option(ARMS, "--arm")
-SegmenterOpt = kind_option(SEGMENTERS, "--segmenter", " \\[default: oracle in simulation, gdino-sam2 otherwise]",
-                           optional=True)
+SegmenterOpt = kind_option(SEGMENTERS, "--segmenter", " \\[default: gdino-sam2 where its weights are on this "
+                           "machine, else rgbd]", optional=True)
 EstimatorOpt = kind_option(ESTIMATORS, "--estimator", " \\[default: the config's, screw-grip]", optional=True)
-JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object instead of a table.")]
+CalibrationErrorOpt = Annotated[tuple[float, float], typer.Option(
+    "--calibration-error", metavar="MM DEG", help="Simulation: the calibrated camera pose is off by MM and DEG "
+    "(each in a random direction drawn from the seed), as a field hand-eye calibration is; 0 0 for the exact pose.")]
+ConfigFileOpt = Annotated[Path | None, typer.Option(
+    "--config", metavar="FILE", help="The run's TOML config: [filter] [geometry] [estimator] [opening] (targets, "
+    "steps, speeds, timeouts) [perception] (prompts, box, thresholds, models); options given here override it "
+    "(docs/cli.md#configuration).")]
+FilterOpt = Annotated[FilterChoice | None, typer.Option(
+    "--filter", help="Cloud filter: sparse (the paper's real-camera setting: radius 1.3 cm, eps 1) or sim (its "
+    "simulation setting: radius 0.05 m, eps 100) \\[default: the config's, else sim for simulated cameras and "
+    "recordings made in simulation, sparse for real cameras and their recordings].")]
+PromptOpt = Annotated[str | None, typer.Option(
+    "--prompt", help="What to segment (the detector's text prompt) \\[default: the config's, cabinet].")]
+BoxOpt = Annotated[tuple[float, float, float, float] | None, typer.Option(
+    "--box", metavar="X0 Y0 X1 Y1", help="The object's box in the first frame (pixels); skips the detector "
+    "(needed by --segmenter classical).")]
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object instead of a table (on an error: "
+                                       "{error, kind, exit_code, motors}).")]
 PolicyOpt = Annotated[PolicyChoice, typer.Option(help="closed (re-estimate every step), open or paper.")]
-RobotOpt = robot_option("Robot config TOML \\[default: configs/robots/panda_sim.toml].")
+RobotOpt = robot_option("Robot config: a shipped one's name (panda_sim, damiao_6dof) or a TOML file "
+                        "\\[default: panda_sim].")
 StationSeedOpt = seed_option("Seed of the station generator (and sim noise).")
+SimFaultOpt = sim_fault_option()

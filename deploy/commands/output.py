@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import logging
 import sys
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
@@ -16,6 +17,31 @@ if TYPE_CHECKING:
 
 console = Console()
 err_console = Console(stderr=True)
+
+
+OUR_PACKAGES = ("deploy", "drivers", "calibration", "sim_fallback")
+STEP_LOGGER = "deploy.control.steps"  # deploy.control.viewer's per-step lines, shown without --verbose too
+
+
+def configure_logging(verbose: bool) -> None:
+    """Log records to stderr through rich: the episode's step lines always; with `verbose` every INFO record
+    and our packages' DEBUG records too. Without `verbose` nothing else changes (other records go where
+    Python's logging sends them by default)."""
+    from rich.logging import RichHandler
+
+    root, steps = logging.getLogger(), logging.getLogger(STEP_LOGGER)
+    for logger in (root, steps):
+        for handler in [h for h in logger.handlers if getattr(h, "axisloop", False)]:
+            logger.removeHandler(handler)
+    handler = RichHandler(console=err_console, show_time=verbose, show_level=verbose, show_path=verbose,
+                          markup=False, rich_tracebacks=False)
+    handler.axisloop = True  # type: ignore[attr-defined]
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    (root if verbose else steps).addHandler(handler)
+    root.setLevel(logging.INFO if verbose else logging.WARNING)
+    for name in OUR_PACKAGES:
+        logging.getLogger(name).setLevel(logging.DEBUG if verbose else logging.NOTSET)
+    steps.setLevel(logging.INFO)
 
 
 def print_json(data: dict) -> None:

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from enum import Enum
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from deploy.commands.options import JsonOpt
-from deploy.commands.output import print_json, print_rows, print_table
+from deploy.commands.options import JsonOpt, kind_option, view_option
+from deploy.commands.output import print_json, print_rows, print_table, progress_bar
+from deploy.perception.registry import SEGMENTERS
 
 top_level = typer.Typer()  # its commands sit directly under `deploy`
 models_app = typer.Typer(help="Model weights: what is present, where, and how to fetch the rest.", no_args_is_help=True)
@@ -21,16 +21,15 @@ TrackerOpt = Annotated[str | None, typer.Option(
     help="SAM2/EdgeTAM video model: local directory or cached repo id (default facebook/sam2.1-hiera-tiny).")]
 
 
-class SegmenterChoice(str, Enum):
-    gdino_sam2 = "gdino-sam2"
-    classical = "classical"
+TrackSegmenterOpt = kind_option(SEGMENTERS, "--segmenter", " Backend.")
+ViewOpt = view_option("the frames and the masks found (in the output folder, track.rrd)")
 
 
 @top_level.command("track")
 def track(
     recording: Annotated[Path, typer.Argument(help="Frames directory (docs/recording-format.md).")],
     prompt: Annotated[str, typer.Option(help="What to segment (Grounding DINO text prompt).")] = "cabinet",
-    segmenter: Annotated[SegmenterChoice, typer.Option(help="Backend.")] = SegmenterChoice.gdino_sam2,
+    segmenter: TrackSegmenterOpt = "gdino-sam2",
     box: Annotated[tuple[float, float, float, float] | None, typer.Option(
         help="First-frame box X0 Y0 X1 Y1 in pixels; skips detection (required by classical).")] = None,
     out: Annotated[Path | None, typer.Option(
@@ -39,6 +38,7 @@ def track(
     detector: DetectorOpt = None,
     tracker: TrackerOpt = None,
     device: DeviceOpt = "auto",
+    view: ViewOpt = False,
     json_out: JsonOpt = False,
 ) -> None:
     """Segment and track the object through a recording, writing masks (mask/ folder) and an overlay PNG strip.
@@ -55,7 +55,14 @@ def track(
     FramesRecording(recording)  # a wrong path fails here, before any model loads
     config = perception_config(object_prompt=prompt, handle_prompt=handle_prompt or None, box=box,
                                detector=detector, tracker=tracker, device=device)
-    data = track_recording(recording, make_segmenter(segmenter.value, config), prompt, out)
+    backend = make_segmenter(segmenter, config)
+    viewer = None
+    if view:
+        from deploy.control.viewer import RerunViewer
+
+        viewer = RerunViewer((out or recording) / "track.rrd")
+    with progress_bar(f"tracking {recording.name}") as bar:
+        data = track_recording(recording, backend, prompt, out, progress=bar.counts, viewer=viewer)
     if json_out:
         print_json(data)
         return

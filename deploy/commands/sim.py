@@ -2,19 +2,21 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from deploy.commands.options import Split, Task
-from deploy.commands.output import console
+from deploy.commands.options import JsonOpt, Split, Task, above, overwrite_option
+from deploy.commands.output import console, err_console, print_json
 
 app = typer.Typer(help="PyBullet simulation: render scenes and record scripted openings.", no_args_is_help=True)
 
 TaskOpt = Annotated[Task, typer.Option(help="Cabinet with a drawer or a door.")]
-SeedOpt = Annotated[int, typer.Option(help="Scenario seed.")]
+SeedOpt = Annotated[int, typer.Option(min=0, help="Scenario seed.")]
 SplitOpt = Annotated[Split, typer.Option(help="Object family.")]
+OverwriteOpt = overwrite_option("recording at --out")
 
 
 @app.command("show")
@@ -23,6 +25,7 @@ def sim_show(
     seed: SeedOpt = 0,
     split: SplitOpt = Split.train,
     out: Annotated[Path, typer.Option(help="PNG to write.")] = Path("scene.png"),
+    json_out: JsonOpt = False,
 ) -> None:
     """Render a simulated scene: colour, depth and segmentation side by side.
 
@@ -30,8 +33,12 @@ def sim_show(
     """
     from sim_fallback.show import render_scene_png
 
-    render_scene_png(task.value, seed, out, split=split.value)
-    console.print(f"wrote {out}")
+    with err_console.status(f"rendering the {task.value} scene of seed {seed}"):
+        render_scene_png(task.value, seed, out, split=split.value)
+    if json_out:
+        print_json({"out": str(out), "task": task.value, "seed": seed, "split": split.value})
+    else:
+        console.print(f"wrote {out}")
 
 
 @app.command("record")
@@ -40,14 +47,26 @@ def sim_record(
     task: TaskOpt = Task.drawer,
     seed: SeedOpt = 0,
     split: SplitOpt = Split.train,
-    fps: Annotated[float, typer.Option(help="Camera frames per second.")] = 10.0,
+    fps: Annotated[float, typer.Option(callback=above(0.0), max=60.0, help="Camera frames per second.")] = 10.0,
+    overwrite: OverwriteOpt = False,
+    json_out: JsonOpt = False,
 ) -> None:
     """Record a scripted opening (a data generator that uses ground truth, not the policy).
 
     Writes the frames-directory format with masks, poses and truth.json.
     Example: deploy sim record --task drawer --seed 1 --out runs/drawer1 && deploy axis estimate runs/drawer1
     """
+    from deploy.output_folder import prepare_output
     from sim_fallback.scripted import record_scripted
 
-    summary = record_scripted(task.value, seed, out, split=split.value, fps=fps)
-    console.print(f"wrote {out}: {summary}")
+    prepare_output(out, overwrite, "recording")
+    with err_console.status(f"recording a scripted {task.value} opening (seed {seed}) to {out}"):
+        summary = record_scripted(task.value, seed, out, split=split.value, fps=fps)
+    if json_out:
+        unit, scale = ("m", 1.0) if task is Task.drawer else ("deg", math.degrees(1.0))
+        print_json({"out": str(out), "task": task.value, "seed": seed, "split": split.value,
+                    "frames": summary.frames, f"opened_{unit}": summary.joint_end * scale,
+                    f"target_{unit}": summary.target * scale, "sim_time_s": summary.sim_time_s,
+                    "wall_time_s": summary.wall_time_s})
+    else:
+        console.print(f"wrote {out}: {summary}")

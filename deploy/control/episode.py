@@ -22,12 +22,14 @@ from deploy.control.viewer import RerunViewer
 from deploy.errors import PerceptionError
 from deploy.geometry.types import JointType
 from deploy.perception.base import Segmenter
+from deploy.perception.self_filter import SelfFilter
 from drivers.arm.base import Arm
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.robots import panda
 from drivers.arm.trajectory import MotionLimits
 from drivers.camera.base import Camera
 from drivers.errors import ArmError, IKError
+from drivers.interrupts import Interrupted, interrupts
 
 TASK_JOINT = {"drawer": JointType.PRISMATIC, "door": JointType.REVOLUTE}
 
@@ -42,19 +44,22 @@ def run_episode(
     joint_limits: MotionLimits | None = None,
     viewer: RerunViewer | None = None,
     dry_run: bool = False,
+    self_filter: SelfFilter | None = None,
 ) -> EpisodeResult:
     """Open the object in view to `config.opening`'s target; always leaves the arm stopped.
 
     folder: the run folder (frames and motions are written as they come; the caller finishes it with
     `RunFolder.finish`). joint_limits: free-space joint moves (default 0.3 of the Panda's limits).
-    dry_run: perceive and plan the grasp, command nothing.
+    dry_run: perceive and plan the grasp, command nothing. self_filter: removes the arm's own pixels.
     """
     state = EpisodeState(t0=arm.time(), joint=TASK_JOINT.get(config.opening.task))
-    observer = Observer(camera, segmenter, kin, config, state.joint, state.t0, folder, viewer)
+    observer = Observer(camera, segmenter, kin, config, state.joint, state.t0, folder, viewer, self_filter)
     episode = Episode(camera, arm, kin, segmenter, config,
                       joint_limits or MotionLimits.for_robot(panda(), kin, 0.3), observer, state, folder)
+    interrupted = None
     try:
-        reason, message = stages.run(episode, dry_run)
+        with interrupts():  # Ctrl-C / SIGTERM end the episode here, so that its run folder can be finished
+            reason, message = stages.run(episode, dry_run)
     except EpisodeStop as stop:
         reason, message = stop.reason, stop.message
     except IKError as exc:
@@ -63,17 +68,27 @@ def run_episode(
         reason, message = StopReason.ARM_ERROR, str(exc)
     except PerceptionError as exc:  # the segmenter lost the object and could not find it again
         reason, message = StopReason.TRACKING_LOST, str(exc)
+    except Interrupted as stop:
+        reason, message, interrupted = StopReason.INTERRUPTED, stop.message, stop
     finally:
         arm.stop()
         if viewer is not None:
             viewer.close()
-    return _result(episode, reason, message)
+    result = _result(episode, reason, message)
+    if interrupted is not None:  # the caller finishes the run folder with the result so far, then stops too
+        interrupted.result = result
+        raise interrupted
+    return result
 
 
 def _result(episode: Episode, reason: StopReason, message: str) -> EpisodeResult:
     state = episode.state
     state.timings["estimate_s"] += episode.observer.seconds
     state.timings["sim_time_s"] = episode.now()
+    frame_ms = episode.observer.frame_ms
+    if frame_ms:
+        state.timings.update({"frame_ms_median": float(np.median(frame_ms)),
+                              "frame_ms_p90": float(np.percentile(frame_ms, 90))})
     return EpisodeResult(
         success=state.axis is not None and state.opened >= episode.target(), opened=state.opened,
         target=episode.target(), steps=state.steps, joint_type=state.joint_type().value, axis=state.axis,

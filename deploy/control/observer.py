@@ -1,5 +1,6 @@
 """The episode's eyes: frames grabbed during motions (every 1/camera_hz of arm time), then, between motions,
-segmented and fed to the axis pipeline; the first frame fixes the body box."""
+segmented and fed to the axis pipeline; the first frame fixes the body box. The self-filter removes the arm's
+own pixels (depth and mask) before anything else sees a frame; the run folder keeps what the camera saw."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from deploy.control.state import EpisodeStop, StopReason
 from deploy.control.viewer import RerunViewer
 from deploy.geometry.types import AxisResult, JointType, NoAxis
 from deploy.perception.base import Segmenter
+from deploy.perception.self_filter import SelfFilter
 from drivers.arm.base import ArmState
 from drivers.arm.kinematics import Kinematics
 from drivers.camera.base import Camera, Frame
@@ -26,13 +28,16 @@ class Observer:
 
     def __init__(self, camera: Camera, segmenter: Segmenter, kin: Kinematics, config: Config,
                  joint: JointType | None, t0: float = 0.0, folder: RunFolder | None = None,
-                 viewer: RerunViewer | None = None) -> None:
+                 viewer: RerunViewer | None = None, self_filter: SelfFilter | None = None) -> None:
         self.camera, self.segmenter, self.kin, self.config = camera, segmenter, kin, config
-        self.folder, self.viewer = folder, viewer
+        self.folder, self.viewer, self.self_filter = folder, viewer, self_filter
         estimator = "paper-obb" if config.opening.policy == "paper" else config.estimator.name
-        self.pipeline = AxisPipeline(config.replace(estimator={
-            "name": estimator, "joint": "auto" if joint is None else joint.value}))
+        self._pipeline_config = config.replace(estimator={
+            "name": estimator, "joint": "auto" if joint is None else joint.value})
+        self.pipeline = AxisPipeline(self._pipeline_config)
         self.first_frame: Frame | None = None
+        self.first_mask = np.zeros((0, 0), bool)
+        self.first_robot = np.zeros((0, 0), bool)  # the arm's own pixels on the first frame
         self.first_points = np.zeros((0, 3))
         self.last_seen: tuple[Frame, np.ndarray] | None = None
         self.mask_pixels = 0
@@ -41,21 +46,24 @@ class Observer:
         self.next_frame_t = 0.0
         self.t0 = t0  # arm-clock start of the episode (viewer timeline)
         self.seconds = 0.0  # spent segmenting and estimating
+        self.frame_ms: list[float] = []  # per processed frame: self-filter, segmenter and axis pipeline
 
     def first(self, arm_state: Callable[[], ArmState]) -> tuple[Frame, np.ndarray]:
         """Read and segment the first frame (the arm's state read after it), fix the body box; the frame and
-        its object mask."""
-        frame = self.camera.read()
+        its object mask. Called again, it starts over (a new body box)."""
+        raw = self.camera.read()
         state = arm_state()
-        self.first_frame = frame
-        mask = self.segmenter.start(frame, self.config.perception.object_prompt)
-        self.mask_pixels = int(np.count_nonzero(mask))
+        frame, robot = self._without_robot(raw, state)
+        self.pipeline = AxisPipeline(self._pipeline_config)
+        self.first_frame, self.first_robot = frame, robot
+        mask = self.segmenter.start(frame, self.config.perception.object_prompt) & ~robot
+        self.mask_pixels, self.first_mask = int(np.count_nonzero(mask)), mask
         if self.mask_pixels == 0:
             raise EpisodeStop(StopReason.NO_OBJECT,
                               "the segmenter found no object on the first frame: point the camera at it")
         pose = self.kin.fk(state.q)
         self.pipeline.update_frame(frame, mask, pose)
-        self._log(frame, mask, state)
+        self._log(raw, mask, state)
         self.first_points = frame_points(frame, mask, self.pipeline.config)
         if self.viewer is not None:
             self.viewer.cloud(self.first_points)
@@ -72,9 +80,11 @@ class Observer:
         """Segment the frames grabbed during the last motion and feed them to the pipeline, in order."""
         clock = time.perf_counter()
         pending, self.pending = self.pending, []
-        for frame, state in pending:
-            mask = self.segmenter.track(frame)
-            self._log(frame, mask, state)
+        for raw, state in pending:
+            start = time.perf_counter()
+            frame, robot = self._without_robot(raw, state)
+            mask = self.segmenter.track(frame) & ~robot
+            self._log(raw, mask, state)
             if np.count_nonzero(mask) < self.config.opening.min_mask_fraction * self.mask_pixels:
                 raise EpisodeStop(StopReason.TRACKING_LOST, f"the object's mask shrank to {np.count_nonzero(mask)} "
                                   f"pixels of {self.mask_pixels} at frame {frame.index}: the object left the view "
@@ -82,12 +92,19 @@ class Observer:
             pose = self.kin.fk(state.q)
             self.vision = self.pipeline.update_frame(frame, mask, pose).result
             self.last_seen = frame, mask
+            self.frame_ms.append((time.perf_counter() - start) * 1e3)
         self.seconds += time.perf_counter() - clock
 
-    def look(self) -> tuple[Frame, np.ndarray]:
-        """A fresh frame and its object cloud (base frame), outside any motion (re-grasp)."""
-        frame = self.camera.read()
-        return frame, frame_points(frame, self.segmenter.track(frame), self.pipeline.config)
+    def look(self, state: ArmState) -> tuple[Frame, np.ndarray]:
+        """A fresh frame (the arm at `state`, its pixels removed) and its object cloud (base frame), outside any
+        motion (re-grasp)."""
+        frame, robot = self._without_robot(self.camera.read(), state)
+        return frame, frame_points(frame, self.segmenter.track(frame) & ~robot, self.pipeline.config)
+
+    def _without_robot(self, frame: Frame, state: ArmState) -> tuple[Frame, np.ndarray]:
+        if self.self_filter is None:
+            return frame, np.zeros(frame.depth_m.shape, bool)
+        return self.self_filter.apply(frame, state.q, state.gripper_width_m)
 
     def _log(self, frame: Frame, mask: np.ndarray, state: ArmState) -> None:
         pose = self.kin.fk(state.q)

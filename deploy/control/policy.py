@@ -3,6 +3,8 @@ radians); its settings are `OpeningConfig` (deploy/config.py)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from deploy.config import OpeningConfig
@@ -19,7 +21,7 @@ def orient_axis(axis: Axis, pull: np.ndarray, grip: np.ndarray) -> Axis:
         sign = np.sign(np.cross(axis.direction, grip - axis.origin) @ pull)
     if sign >= 0:
         return axis
-    return Axis(axis.joint_type, axis.origin, -axis.direction, axis.confidence, axis.residual_m, axis.radius_m)
+    return replace(axis, direction=-axis.direction)
 
 
 def opening(axis: Axis, p_start: np.ndarray, p_now: np.ndarray) -> float:

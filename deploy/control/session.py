@@ -1,7 +1,9 @@
 """One `deploy open*` request: build the rig it names, run the episode, finish the run folder, return the JSON.
 
-In simulation the scenario's truth scores the episode afterwards (`deploy.evaluation`); the controller never
-sees it. A real arm asks `confirm` before its first motion unless --yes or --dry-run.
+In simulation the scenario's truth scores the episode afterwards (`deploy.evaluation`) and, with --view, its
+true axis is logged to the viewer before the episode; the controller never sees it. A real arm asks `confirm`
+before its first motion unless --yes or --dry-run. The JSON names units in its keys (`opened_m` or
+`opened_deg`) and reports the cloud filter used (`filter`: radius_m, eps).
 """
 
 from __future__ import annotations
@@ -16,8 +18,11 @@ from typing import Any, Literal
 from deploy.config import Config, load_config
 from deploy.control.episode import run_episode
 from deploy.control.run_folder import RunFolder
+from deploy.control.viewer import EpisodeView
+from deploy.perception.registry import default_segmenter
 from deploy.rig import Rig, RigSpec, SimScene, open_rig
 from drivers.camera.registry import CAMERAS
+from drivers.interrupts import Interrupted
 
 Setup = Callable[[Any, Any], None]  # (world, arm) -> None: changes a simulated world before the episode (tests)
 
@@ -25,13 +30,15 @@ Setup = Callable[[Any, Any], None]  # (world, arm) -> None: changes a simulated 
 @dataclass(frozen=True)
 class OpenRequest:
     """What the user asked for. task: what the policy is told ("auto" = classify from the probe pull);
-    scene: the simulated object (`--camera sim` only); config_file: a run's TOML (deploy/config.py);
-    overrides: settings on top, by dotted name ({"opening.max_steps": 3, "estimator.name": "screw"})."""
+    scene: the simulated object (`--camera sim` only); distance_m / angle_deg / policy: None keeps the
+    config's; config_file: a run's TOML (deploy/config.py); overrides: settings on top, by dotted name
+    ({"opening.max_steps": 3, "filter.profile": "sparse", "perception.object_prompt": "drawer"}). The filter
+    profile, unless set, follows the camera (`Config.for_camera`)."""
 
     task: Literal["drawer", "door", "auto"]
     scene: Literal["drawer", "door"] = "drawer"
-    distance_m: float = 0.30
-    angle_deg: float = 45.0
+    distance_m: float | None = None
+    angle_deg: float | None = None
     camera: str = "sim"
     arm: str = "sim"
     robot: Path | None = None
@@ -39,26 +46,28 @@ class OpenRequest:
     segmenter: str | None = None
     seed: int = 0
     split: Literal["train", "test"] = "train"
-    policy: Literal["closed", "open", "paper"] = "closed"
+    policy: Literal["closed", "open", "paper"] | None = None
     run_dir: Path | None = None
     dry_run: bool = False
     yes: bool = False
     view: bool = False
     resolution: tuple[int, int] = (640, 480)
+    calibration_error: tuple[float, float] = (5.0, 0.5)
     config_file: Path | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
 
     def config(self) -> Config:
         return load_config(self.config_file, {
             "opening.task": self.task, "opening.policy": self.policy, "opening.target_distance_m": self.distance_m,
-            "opening.target_angle_deg": self.angle_deg, **self.overrides})
+            "opening.target_angle_deg": self.angle_deg, **self.overrides}).for_camera(self.camera)
 
     def rig_spec(self, config: Config) -> RigSpec:
         simulated = CAMERAS.entry(self.camera)[0].simulated
         width, height = self.resolution
         return RigSpec(camera=self.camera, arm=self.arm, robot=self.robot, calibration=self.calibration,
-                       segmenter=self.segmenter or ("oracle" if simulated else "gdino-sam2"),
+                       segmenter=self.segmenter or default_segmenter(config.perception),
                        perception=config.perception, scene=SimScene(self.scene, self.seed, self.split),
+                       calibration_error=self.calibration_error,
                        camera_options={"width": width, "height": height, "fps": config.opening.camera_hz}
                        if simulated else {})
 
@@ -82,17 +91,41 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
         evaluation = _evaluation(rig)
         if rig.real_arm and confirm is not None and not (request.dry_run or request.yes):
             confirm(f"The arm will grasp and pull the {request.task} in view. Area clear, arm supervised?")
+        view = _view(request, run_dir, evaluation)
         with rig.arm:
-            result = run_episode(rig.camera, rig.arm, rig.kin, rig.segmenter, config, folder,
-                                 rig.motion_limits(), _viewer(request, run_dir), request.dry_run)
-        data = {**result.to_dict(), "task": request.task, "camera": request.camera, "arm": request.arm,
-                "policy": request.policy}
+            try:
+                result = run_episode(rig.camera, rig.arm, rig.kin, rig.segmenter, config, folder,
+                                     rig.motion_limits(), view, request.dry_run, rig.self_filter())
+            except Interrupted as stop:  # Ctrl-C / SIGTERM: finish the run folder up to here, then stop
+                if folder is not None and stop.result is not None:
+                    folder.finish(stop.result, evaluation.axis_error if evaluation is not None else None)
+                    stop.run_dir = folder.path
+                raise
+        data = {**_with_units(result.to_dict(), result.scale), "task": request.task, "camera": request.camera,
+                "arm": request.arm, "policy": config.opening.policy, "segmenter": rig.spec.segmenter,
+                "filter": _filter(config)}
+        if hasattr(rig.arm, "motor_states"):  # a CAN arm: every motor's final state (name, enabled, status)
+            data["motors"] = rig.arm.motor_states()
         if evaluation is not None:
+            translation_mm, rotation_deg = request.calibration_error
             data.update({"seed": request.seed, "split": request.split, "task": request.scene,
+                         "calibration_error": {"translation_mm": translation_mm, "rotation_deg": rotation_deg},
                          **evaluation.score(result, config.opening), "seconds": time.perf_counter() - wall})
     if folder is not None:
         folder.finish(result, evaluation.axis_error if evaluation is not None else None)
     return data
+
+
+def _with_units(data: dict, scale: float) -> dict:
+    """The result's openings under keys that name their unit: opened_m / target_m, or _deg for a door."""
+    unit = "m" if scale == 1.0 else "deg"
+    return {f"{key}_{unit}" if key in ("opened", "target") else key: value for key, value in data.items()}
+
+
+def _filter(config: Config) -> dict:
+    """The cloud filter the run used, in metres."""
+    profile = config.filter.resolve()
+    return {"profile": config.filter.profile, "radius_m": profile.radius_m, "eps": profile.eps}
 
 
 def _evaluation(rig: Rig):
@@ -103,9 +136,14 @@ def _evaluation(rig: Rig):
     return Evaluation(rig.world)
 
 
-def _viewer(request: OpenRequest, run_dir: Path | None):
-    if not request.view or run_dir is None:
-        return None
-    from deploy.control.viewer import RerunViewer
+def _view(request: OpenRequest, run_dir: Path | None, evaluation: Any) -> EpisodeView:
+    """The episode's step lines, and with --view the rerun viewer (RUN/episode.rrd) showing the true axis too."""
+    viewer = None
+    if request.view and run_dir is not None:
+        from deploy.control.viewer import RerunViewer
 
-    return RerunViewer(run_dir / "episode.rrd")
+        viewer = RerunViewer(run_dir / "episode.rrd")
+    view = EpisodeView(viewer)
+    if evaluation is not None:
+        view.true_axis(evaluation.true_axis())
+    return view

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 
+import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -40,8 +41,13 @@ GRIPPER_FORCE_N = 40.0
 CLOSE_TIME_S = 0.5
 OPEN_MARGIN_M = 0.005  # a gripper within this of fully open did not close on anything
 MAX_DRAWER_LAG_M = 0.03  # how far a drawer may lag the gripper's travel (a stretched grasp)
-OVERSHOOT = {JointType.PRISMATIC: 0.015, JointType.REVOLUTE: float(np.radians(5.0))}  # past the target
+OVERSHOOT = {JointType.PRISMATIC: 0.015, JointType.REVOLUTE: float(np.radians(5.0))}  # steps aim this far past
+# the target, so that an opening measured a little long still leaves the object open to the target
+GOAL_TOLERANCE = {JointType.PRISMATIC: 0.005, JointType.REVOLUTE: float(np.radians(1.0))}  # the goal is reached
+# this close to it
 RETREAT_M = 0.05  # re-grasp: back off this far along the approach and come back
+ARM_TOUCH_PX = 100  # the arm's pixels touching the object's on the first frame: it may hide the handle
+CLEAR_VIEW_TURNS_RAD = (0.7, -0.7, 1.2, -1.2)  # first-joint swings tried to take the arm out of the view
 MIN_DOOR_RADIUS_M = 0.1  # the first arc's radius is taken as at least this
 PLANNED_DOOR_REACH_M = 0.1  # a door's pre-grasp is planned for this much straight pull
 
@@ -57,7 +63,7 @@ def run(episode: Episode, dry_run: bool = False) -> tuple[StopReason, str]:
     first_pull(episode, handle)
     while True:
         axis, source = estimate(episode, handle.normal)
-        if episode.state.opened >= episode.target():
+        if episode.state.opened >= _goal(episode, axis) - GOAL_TOLERANCE[axis.joint_type]:
             return StopReason.TARGET_REACHED, f"opened {_shown(episode, episode.state.opened):.3f} of " \
                                               f"{_shown(episode, episode.target()):.3f}"
         step(episode, axis, source)
@@ -65,21 +71,61 @@ def run(episode: Episode, dry_run: bool = False) -> tuple[StopReason, str]:
 
 def perceive(episode: Episode) -> Handle:
     """The first frame: the object's mask and body box, the handle (its own mask when the segmenter tells it
-    apart, else the points protruding from the body box's front)."""
+    apart, else the points protruding from the front). When the arm hides the handle or touches the object in
+    the image, it swings out of the view first and the camera looks again."""
     clock = time.perf_counter()
-    observer, state = episode.observer, episode.state
+    handle = _find_handle(episode)
+    if (handle is None or _arm_in_the_way(episode)) and _move_out_of_view(episode):
+        handle = _find_handle(episode)
+    episode.state.timings["perceive_s"] += time.perf_counter() - clock
+    if handle is None:
+        raise EpisodeStop(StopReason.NO_HANDLE, "no handle found on the first frame (too few points protrude "
+                          "from the front): check the camera view and the mask")
+    episode.state.handle = handle
+    return handle
+
+
+def _find_handle(episode: Episode) -> Handle | None:
+    observer = episode.observer
     frame, _ = observer.first(episode.arm.state)
     handle_mask = episode.segmenter.handle_mask(frame)
     pipeline = observer.pipeline
     points = pipeline.handle_points if handle_mask is None else frame_points(frame, handle_mask, pipeline.config)
-    handle = None if pipeline.body_box is None else find_handle(
-        points, observer.first_points, pipeline.body_box, viewpoint(frame), state.joint is JointType.REVOLUTE)
-    state.timings["perceive_s"] += time.perf_counter() - clock
-    if handle is None:
-        raise EpisodeStop(StopReason.NO_HANDLE, "no handle found on the first frame (too few points protrude "
-                          "from the front): check the camera view and the mask")
-    state.handle = handle
-    return handle
+    return None if pipeline.body_box is None else find_handle(
+        points, observer.first_points, pipeline.body_box, viewpoint(frame), episode.state.joint is JointType.REVOLUTE)
+
+
+def _arm_in_the_way(episode: Episode) -> bool:
+    """Whether the arm's pixels touch the object's on the first frame (it may hide part of the front)."""
+    observer = episode.observer
+    if not observer.first_robot.any():
+        return False
+    near = cv2.dilate(observer.first_mask.astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
+    return int(np.count_nonzero(near & observer.first_robot)) > ARM_TOUCH_PX
+
+
+def _move_out_of_view(episode: Episode) -> bool:
+    """Swing the first joint (the base's turn) so that the arm hides the least of the object, if that is less
+    than now; False when there is nothing better (or no self-filter to tell)."""
+    observer, arm = episode.observer, episode.arm
+    if observer.self_filter is None or observer.first_frame is None:
+        return False
+    state = arm.state()
+    near = cv2.dilate(observer.first_mask.astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
+
+    def hidden(q: np.ndarray) -> int:
+        return int(np.count_nonzero(near & observer.self_filter.mask(observer.first_frame, q, state.gripper_width_m,
+                                                                     depth_test=False)))
+
+    low, high = episode.kin.q_min[0] + 0.1, episode.kin.q_max[0] - 0.1
+    candidates = [state.q + np.eye(len(state.q))[0] * turn for turn in CLEAR_VIEW_TURNS_RAD]
+    candidates = [q for q in candidates if low <= q[0] <= high]
+    best = min(candidates, key=hidden, default=None)
+    if best is None or hidden(best) >= hidden(state.q):
+        return False
+    move_to_joints(arm, best, episode.joint_limits)
+    episode.wait(SETTLE_S)
+    return True
 
 
 def plan(episode: Episode, handle: Handle) -> tuple[StopReason, str]:
@@ -151,12 +197,14 @@ def first_pull(episode: Episode, handle: Handle) -> None:
 
 
 def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
-    """The axis to act on and where it came from; updates the opening. The open-loop policy keeps its first
-    estimate. Before any usable estimate: the door's hinge prior, or a line along the front normal."""
+    """The axis to act on and where it came from; updates the opening. The open-loop policy estimates once,
+    after the first pull, and keeps that axis. Before any usable estimate: the door's hinge prior, or a line
+    along the front normal."""
     clock = time.perf_counter()
     state, vision = episode.state, episode.observer.vision
-    if state.estimated and episode.config.opening.policy == "open":
-        chosen, source = state.axis, "fixed"
+    if episode.config.opening.policy == "open":
+        chosen, source = (state.axis, "fixed") if state.estimated else _estimate_once(episode, pull)
+        state.estimated = True
     else:
         poses = np.array(state.measured)
         joint = state.joint or (vision.joint_type if isinstance(vision, Axis) else None)
@@ -175,6 +223,16 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
     _log_estimate(episode, chosen, source)
     state.timings["estimate_s"] += time.perf_counter() - clock
     return chosen, source
+
+
+def _estimate_once(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
+    """The open loop's one estimate: vision's axis of the expected joint type however confident, else the
+    prior."""
+    state, vision = episode.state, episode.observer.vision
+    if isinstance(vision, Axis) and (state.joint is None or vision.joint_type is state.joint):
+        return orient_axis(vision, _measured_pull(episode, pull), state.p_grasp), "vision (once)"
+    prior = state.axis if state.axis is not None else Axis(JointType.PRISMATIC, state.p_grasp, pull, confidence=0.0)
+    return prior, "prior (once)"
 
 
 def step(episode: Episode, axis: Axis, source: str) -> None:
@@ -200,7 +258,7 @@ def regrasp(episode: Episode) -> None:
     episode.wait(CLOSE_TIME_S)
     T = episode.tool()
     follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), RETREAT_M, episode.line_limits())
-    frame, points = episode.observer.look()
+    frame, points = episode.observer.look(arm.state())
     handle = find_handle(protruding_points(points, held, viewpoint(frame)), points,
                          episode.observer.pipeline.body_box, viewpoint(frame),
                          state.joint_type() is JointType.REVOLUTE)
@@ -290,7 +348,7 @@ def _log_estimate(episode: Episode, axis: Axis, source: str) -> None:
 def _step_path(episode: Episode, axis: Axis) -> tuple[PathFn, float, MotionLimits]:
     """The next step: a line (drawer, or the paper's straight steps) or an arc about the axis (door)."""
     state, cfg = episode.state, episode.config.opening
-    remaining = episode.target() - state.opened + OVERSHOOT[axis.joint_type]
+    remaining = _goal(episode, axis) - state.opened
     size = cfg.step_for(axis.joint_type, state.steps)
     T = episode.tool()
     if cfg.policy == "paper":  # straight lines along the line or the arc's tangent, in metres
@@ -304,6 +362,11 @@ def _step_path(episode: Episode, axis: Axis) -> tuple[PathFn, float, MotionLimit
     if axis.joint_type is JointType.PRISMATIC:
         return line_path(T, axis.direction), min(size, remaining), episode.line_limits()
     return arc_path(T, axis.origin, axis.direction), min(size, remaining), episode.arc_limits()
+
+
+def _goal(episode: Episode, axis: Axis) -> float:
+    """Where the steps aim: the target plus the overshoot (m or rad)."""
+    return episode.target() + OVERSHOOT[axis.joint_type]
 
 
 def _shown(episode: Episode, value: float) -> float:

@@ -1,13 +1,18 @@
-"""`--view`: stream an episode to a rerun viewer (rerun-sdk, optional extra `axisloop[viewer]`).
+"""`--view`: frames, clouds and axes to rerun (rerun-sdk, extra `axisloop[viewer]`), and the episode's step lines.
 
-Logged on the arm-time timeline: colour, depth and the object mask per frame, the gripper pose, the object
-cloud of the first frame, the axis acted on at each step and the estimated opening. Everything is also
-saved to RUN/episode.rrd (`rerun RUN/episode.rrd` replays it); a live viewer is spawned when a display is
-available.
+`RerunViewer` logs on the `time` timeline (seconds: arm time in an episode, camera time in a recording): the
+camera (its pose in the base frame and a pinhole, so colour, depth and the object mask sit in 3D), the
+gripper pose, the object cloud of the first frame, the axis acted on at each step, the true axis in
+simulation and the opening. Every log goes at once to the .rrd file and, when a display is available, to a
+live viewer spawned for it (rerun's multi-sink `set_sinks`): `rerun RUN/episode.rrd` replays it later.
+
+`EpisodeView` is what an episode is handed: one log line per step on the `deploy.control.steps` logger (the
+CLI prints it on stderr) and, with `--view`, the same calls forwarded to a `RerunViewer`.
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import sys
 from pathlib import Path
@@ -15,56 +20,143 @@ from pathlib import Path
 import numpy as np
 
 from deploy.errors import ConfigError
-from deploy.geometry.types import Axis
-from drivers.camera.base import Frame
+from deploy.geometry.types import Axis, JointType
+from drivers.camera.base import Frame, Intrinsics
 
 AXIS_LENGTH_M = 0.6
+STEP_LOGGER = "deploy.control.steps"
+ESTIMATED_RGB = (230, 120, 20)
+TRUE_RGB = (40, 200, 60)
+
+step_log = logging.getLogger(STEP_LOGGER)
 
 
 class RerunViewer:
-    """Logs to a rerun recording saved at `path`; `spawn` also opens a live viewer."""
+    """A rerun recording saved at `path`; `spawn` (default: when a display is available) also streams it to a
+    live viewer started here. The file and the viewer open with the first thing logged (a recording's folder
+    exists by then)."""
 
-    def __init__(self, path: Path, spawn: bool | None = None) -> None:
+    def __init__(self, path: Path, spawn: bool | None = None, name: str = "axisloop") -> None:
         try:
             import rerun as rr
         except ImportError as exc:
             raise ConfigError("--view needs the rerun viewer: pip install 'axisloop[viewer]' "
                               "(or run without --view)") from exc
         self.rr = rr
-        self.rec = rr.RecordingStream("axisloop")
-        if spawn if spawn is not None else _has_display():
-            self.rec.spawn()
-        path.parent.mkdir(parents=True, exist_ok=True)
-        self.rec.save(path)
-        self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        self.path = Path(path)
+        self.name = name
+        self.spawn = spawn if spawn is not None else _has_display()
+        self._rec = None
+        self._intrinsics: Intrinsics | None = None
+
+    @property
+    def rec(self):
+        """The recording stream, opened on first use: to the file and, with `spawn`, to a live viewer."""
+        if self._rec is None:
+            rr = self.rr
+            self._rec = rr.RecordingStream(self.name)
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            sinks = [rr.FileSink(str(self.path))]
+            if self.spawn:
+                self._rec.spawn(connect=False)  # start the viewer; the gRPC sink below streams to it
+                sinks.append(rr.GrpcSink())
+            self._rec.set_sinks(*sinks)
+            self._rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        return self._rec
 
     def _at(self, t: float) -> None:
-        self.rr.set_time("arm_time", duration=float(t), recording=self.rec)
+        self.rr.set_time("time", duration=float(t), recording=self.rec)
 
-    def frame(self, t: float, frame: Frame, mask: np.ndarray, tool_pose: np.ndarray) -> None:
+    def camera(self, intrinsics: Intrinsics, T_base_camera: np.ndarray | None) -> None:
+        """The camera's pinhole (OpenCV axes: x right, y down, z forward) and, when known, its pose."""
         rr = self.rr
-        self._at(t)
-        self.rec.log("camera/color", rr.Image(frame.color))
-        self.rec.log("camera/depth", rr.DepthImage(frame.depth_m, meter=1.0))
-        self.rec.log("camera/mask", rr.SegmentationImage(mask.astype(np.uint8)))
-        self.rec.log("world/gripper", rr.Transform3D(translation=tool_pose[:3, 3], mat3x3=tool_pose[:3, :3]))
-        if frame.T_base_camera is not None:
-            T = frame.T_base_camera
+        if intrinsics != self._intrinsics:
+            self._intrinsics = intrinsics
+            self.rec.log("world/camera/image", rr.Pinhole(image_from_camera=intrinsics.K,
+                                                          resolution=[intrinsics.width, intrinsics.height],
+                                                          camera_xyz=rr.ViewCoordinates.RDF), static=True)
+        if T_base_camera is not None:
+            T = np.asarray(T_base_camera, float)
             self.rec.log("world/camera", rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]))
 
-    def cloud(self, points: np.ndarray) -> None:
-        self.rec.log("world/object", self.rr.Points3D(np.asarray(points, np.float32)), static=True)
-
-    def axis(self, t: float, axis: Axis, opened: float) -> None:
+    def frame(self, t: float, frame: Frame, mask: np.ndarray | None = None,
+              tool_pose: np.ndarray | None = None) -> None:
+        """One frame at time `t` (s): colour, depth, the object mask and the gripper pose where given."""
         rr = self.rr
         self._at(t)
-        d = AXIS_LENGTH_M * axis.direction / np.linalg.norm(axis.direction)
-        self.rec.log("world/axis", rr.Arrows3D(origins=[axis.origin - d / 2], vectors=[d]))
-        self.rec.log("opening", rr.Scalars(opened))
+        self.camera(frame.intrinsics, frame.T_base_camera)
+        self.rec.log("world/camera/image/color", rr.Image(frame.color))
+        self.rec.log("world/camera/image/depth", rr.DepthImage(frame.depth_m, meter=1.0))
+        if mask is not None:
+            self.rec.log("world/camera/image/mask", rr.SegmentationImage(np.asarray(mask).astype(np.uint8)))
+        if tool_pose is not None:
+            self.rec.log("world/gripper", rr.Transform3D(translation=tool_pose[:3, 3], mat3x3=tool_pose[:3, :3]))
+            self.rec.log("world/gripper/point", rr.Points3D([[0.0, 0.0, 0.0]], radii=0.01))
+
+    def cloud(self, points: np.ndarray) -> None:
+        """The object's cloud of the first frame (base frame, m)."""
+        self.rec.log("world/object", self.rr.Points3D(np.asarray(points, np.float32)), static=True)
+
+    def axis(self, t: float, axis: Axis, opened: float | None, source: str | None = None,
+             step: int | None = None) -> None:
+        """The axis acted on (or estimated) at time `t` and the opening then (m or deg; None: not known)."""
+        self._at(t)
+        label = f"step {step}" if step is not None else "estimate"
+        label += f" ({source})" if source else ""
+        self.rec.log("world/axis/estimated", self._arrow(axis, ESTIMATED_RGB, label))
+        if opened is not None:
+            self.rec.log("opening", self.rr.Scalars(opened))
+
+    def true_axis(self, axis: Axis) -> None:
+        """The simulation's true joint axis (for the eye only: the controller never sees it)."""
+        self.rec.log("world/axis/true", self._arrow(axis, TRUE_RGB, "true axis"), static=True)
+
+    def _arrow(self, axis: Axis, color: tuple[int, int, int], label: str):
+        d = AXIS_LENGTH_M * np.asarray(axis.direction, float) / np.linalg.norm(axis.direction)
+        return self.rr.Arrows3D(origins=[np.asarray(axis.origin, float) - d / 2], vectors=[d], colors=[color],
+                                labels=[label])
 
     def close(self) -> None:
-        self.rec.flush()
-        self.rec.disconnect()
+        """Write everything logged to the file (and the viewer) and end the recording."""
+        if self._rec is not None:
+            self._rec.flush()
+            self._rec.disconnect()
+
+
+class EpisodeView:
+    """What an episode reports to: a log line per step, and everything to `viewer` when there is one. The
+    episode calls it as it would a `RerunViewer` (frame, cloud, axis, close)."""
+
+    def __init__(self, viewer: RerunViewer | None = None) -> None:
+        self.viewer = viewer
+        self.steps = 0
+
+    def frame(self, t: float, frame: Frame, mask: np.ndarray | None = None,
+              tool_pose: np.ndarray | None = None) -> None:
+        if self.viewer is not None:
+            self.viewer.frame(t, frame, mask, tool_pose)
+
+    def cloud(self, points: np.ndarray) -> None:
+        if self.viewer is not None:
+            self.viewer.cloud(points)
+
+    def axis(self, t: float, axis: Axis, opened: float, source: str | None = None) -> None:
+        """Step `steps`: its line (opening with unit, where the axis came from, confidence), then the viewer."""
+        unit = "deg" if axis.joint_type is JointType.REVOLUTE else "m"
+        where = f"from {source}" if source else axis.joint_type.value
+        step_log.info("step %d: opened %.3f %s, axis %s, confidence %.2f", self.steps, opened, unit, where,
+                      axis.confidence)
+        if self.viewer is not None:
+            self.viewer.axis(t, axis, opened, source, self.steps)
+        self.steps += 1
+
+    def true_axis(self, axis: Axis) -> None:
+        if self.viewer is not None:
+            self.viewer.true_axis(axis)
+
+    def close(self) -> None:
+        if self.viewer is not None:
+            self.viewer.close()
 
 
 def _has_display() -> bool:

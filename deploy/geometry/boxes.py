@@ -49,6 +49,47 @@ def yaw_box(points: np.ndarray, n_angles: int | None = 120) -> Box:
     )
 
 
+def front_box(points: np.ndarray, viewpoint: np.ndarray, tolerance_m: float = 0.005) -> Box:
+    """Box with vertical sides turned to the cabinet's front: its yaw follows the normal of the largest
+    vertical plane in the points (RANSAC, `tolerance_m`); extents and centre from all points. First axis =
+    the longer horizontal side. Falls back to `yaw_box` when no vertical plane holds a fifth of the points.
+
+    A front seen head-on with its sides lost to grazing-angle dropout (a stereo camera's usual view) leaves
+    the smallest-area box ill-posed: a few top or base points turn it by degrees; the front's plane does not.
+    """
+    pts = _finite(points, "front_box")
+    normal = _vertical_plane_normal(pts, tolerance_m)
+    if normal is None:
+        return yaw_box(pts)
+    yaw = float(np.arctan2(normal[1], normal[0]))
+    local = pts @ _rot_z(yaw)
+    lo, hi = local.min(axis=0), local.max(axis=0)
+    if hi[1] - lo[1] > hi[0] - lo[0]:
+        yaw += np.pi / 2
+        local = pts @ _rot_z(yaw)
+        lo, hi = local.min(axis=0), local.max(axis=0)
+    rotation = _rot_z(yaw)
+    return Box(center=rotation @ ((lo + hi) / 2), rotation=rotation, extent=hi - lo)
+
+
+def _vertical_plane_normal(points: np.ndarray, tolerance_m: float, tries: int = 3) -> np.ndarray | None:
+    """Unit horizontal normal of the largest near-vertical plane (|n_z| < 0.2), None if none is large."""
+    o3d.utility.random.seed(0)
+    remaining = points
+    for _ in range(tries):
+        if len(remaining) < max(30, 0.2 * len(points)):
+            return None
+        cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(remaining))
+        plane, inliers = cloud.segment_plane(tolerance_m, 3, 300)
+        normal = np.asarray(plane[:3], float)
+        normal /= np.linalg.norm(normal)
+        if abs(normal[2]) < 0.2 and len(inliers) >= 0.2 * len(points):
+            horizontal = np.array([normal[0], normal[1], 0.0])
+            return horizontal / np.linalg.norm(horizontal)
+        remaining = np.delete(remaining, inliers, axis=0)
+    return None
+
+
 def oriented_box(points: np.ndarray) -> Box:
     """Minimal-volume 3D oriented box (Open3D), with a right-handed rotation.
 

@@ -46,7 +46,8 @@ class Axis:
 
     For a prismatic joint `direction` is the opening direction; for a revolute joint opening is a
     positive (right-handed) rotation about `direction`. `residual_m` is the fit's RMS residual and
-    `confidence` in [0, 1] says how much the estimate can be trusted.
+    `confidence` in [0, 1] says how much the estimate can be trusted; `direction_sigma_deg`, when the
+    estimator measures it, is the direction's standard deviation.
     """
 
     joint_type: JointType
@@ -55,6 +56,7 @@ class Axis:
     confidence: float = 1.0
     residual_m: float = 0.0
     radius_m: float | None = None
+    direction_sigma_deg: float | None = None
 
     def to_dict(self) -> dict:
         return {
@@ -64,6 +66,7 @@ class Axis:
             "radius": None if self.radius_m is None else float(self.radius_m),
             "residual_m": float(self.residual_m),
             "confidence": float(self.confidence),
+            "direction_sigma_deg": None if self.direction_sigma_deg is None else float(self.direction_sigma_deg),
         }
 
 

@@ -32,6 +32,13 @@ class PerceptionConfig(BaseModel):
     min_area_ratio: float = Field(default=0.3, ge=0, le=1, description="lost below this x the first mask's area")
     min_iou: float = Field(default=0.3, ge=0, le=1, description="lost below this IoU with the previous mask")
     max_redetections: int = Field(default=3, ge=0, description="re-detection attempts on a lost frame before stopping")
+    detect_min_range_m: float = Field(default=0.25, ge=0, description="rgbd: the object stands at least this far "
+                                      "from the arm's base (horizontally)")
+    detect_max_range_m: float = Field(default=1.5, gt=0, description="rgbd: ... and at most this far")
+    track_margin_m: float = Field(default=0.02, ge=0, le=0.2, description="rgbd: the tracking region's margin "
+                                  "around the detected object")
+    opening_reach_m: float = Field(default=0.6, ge=0, le=2.0, description="rgbd: how far the opening part may "
+                                   "come out of the front (a door's width, if larger, counts)")
 
 
 def perception_config(**overrides: object) -> PerceptionConfig:

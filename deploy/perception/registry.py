@@ -12,12 +12,29 @@ if TYPE_CHECKING:
     from deploy.perception.config import PerceptionConfig
 
 SEGMENTERS: Registry[Segmenter] = Registry("segmenter", ConfigError)
+SEGMENTERS.register("rgbd", "deploy.perception.rgbd:open_rgbd",
+                    "no weights: furniture found in the depth image, followed in 3D (needs the camera pose)")
 SEGMENTERS.register("gdino-sam2", "deploy.perception.gdino_sam2:open_gdino_sam2",
                     "Grounding DINO + SAM2 (needs model weights)")
 SEGMENTERS.register("classical", "deploy.perception.classical:open_classical",
                     "no weights: a first box tracked by depth and colour")
 SEGMENTERS.register("oracle", "deploy.perception.oracle:open_oracle",
                     "ablation: simulator labels or stored masks")
+
+
+def default_segmenter(config: PerceptionConfig | None = None) -> str:
+    """`gdino-sam2` when its detector and tracker weights are on this machine, else `rgbd` (no weights)."""
+    from deploy.errors import ModelError
+    from deploy.perception.config import PerceptionConfig
+    from deploy.perception.models import resolve_checkpoint
+
+    config = config or PerceptionConfig()
+    try:
+        resolve_checkpoint(config.detector)
+        resolve_checkpoint(config.tracker)
+    except ModelError:
+        return "rgbd"
+    return "gdino-sam2"
 
 
 def make_segmenter(name: str, config: PerceptionConfig | None = None) -> Segmenter:

@@ -5,7 +5,9 @@ from __future__ import annotations
 import json
 import shutil
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -35,13 +37,15 @@ def _write_mask(directory: Path, index: int, mask: np.ndarray) -> None:
         raise PerceptionError(f"could not write {directory}/{index:06d}.png: check the disk and permissions")
 
 
-def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | None = None) -> dict:
+def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | None = None,
+                    progress: Callable[[float, float], None] | None = None, viewer: Any = None) -> dict:
     """Segment every frame of the recording at `path` in order (start on the first, track on the rest).
 
     With `out`, a copy of the recording with the new masks is written there (truth.json copied too);
     without, the masks go into the recording's own mask/ folder, which must not exist yet. An overlay
     PNG strip of a few evenly spaced frames is written beside. Returns a summary (timings in ms; IoU
-    against the recording's own masks when it has them).
+    against the recording's own masks when it has them). progress(done, total) follows the frames;
+    `viewer` (deploy.control.viewer.RerunViewer) is shown every frame with its mask and is closed at the end.
     """
     recording = FramesRecording(path)
     n = len(recording)
@@ -55,7 +59,8 @@ def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | N
     target = out or Path(path)
     writer = None
     if out is not None:
-        writer = FramesWriter(out, recording.intrinsics, recording.depth_scale, recording.T_base_camera)
+        writer = FramesWriter(out, recording.intrinsics, recording.depth_scale, recording.T_base_camera,
+                              recording.camera, recording.simulated)
         if (Path(path) / "truth.json").exists():
             shutil.copyfile(Path(path) / "truth.json", out / "truth.json")
     else:
@@ -79,9 +84,16 @@ def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | N
                 _write_mask(target / "mask", frame.index, mask)
             if i in tiles_at:
                 tiles.append(overlay(frame, mask))
+            if viewer is not None:
+                pose = recording.records[i].get("ee_pose")
+                viewer.frame(frame.t, frame, mask, None if pose is None else np.asarray(pose))
+            if progress is not None:
+                progress(i + 1, n)
     finally:
         if writer is not None:
             writer.close()
+        if viewer is not None:
+            viewer.close()
     strip = target / "overlay.png"
     cv2.imwrite(str(strip), cv2.cvtColor(np.hstack(tiles), cv2.COLOR_RGB2BGR))
     summary = {

@@ -22,6 +22,25 @@ D415_640X480 = Intrinsics(640, 480, 615.0, 615.0, 319.5, 239.5)
 
 
 @dataclass(frozen=True)
+class Viewpoint:
+    """Ranges (uniform) of the tripod camera: angle off the front normal and elevation of that offset
+    above the horizontal side direction (deg; negative = below the cabinet's centre), and distance (m)
+    from the front."""
+
+    off_normal_deg: tuple[float, float] = (15.0, 35.0)
+    lift_deg: tuple[float, float] = (30.0, 70.0)
+    distance_m: tuple[float, float] = (0.6, 0.9)
+    min_height_m: float = 0.0
+
+
+STANDARD_VIEW = Viewpoint()
+"""Above the cabinet and to one side: little of a drawer's side walls shows."""
+VARIED_VIEW = Viewpoint(off_normal_deg=(0.0, 60.0), lift_deg=(-20.0, 70.0), distance_m=(0.5, 1.3),
+                        min_height_m=0.25)
+"""Head-on to far to the side (a drawer's side wall in view), from below to well above, near to far."""
+
+
+@dataclass(frozen=True)
 class SyntheticSequence:
     """Frames of one opening (`mask` = object incl. handle, `segmentation` = labels) with ground truth.
 
@@ -56,22 +75,34 @@ def look_at(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
 
 
 def random_camera_pose(
-    rng: np.random.Generator, cabinet: SyntheticCabinet, intrinsics: Intrinsics | None = None, margin_px: int = 16
+    rng: np.random.Generator, cabinet: SyntheticCabinet, intrinsics: Intrinsics | None = None, margin_px: int = 16,
+    view: Viewpoint = STANDARD_VIEW,
 ) -> np.ndarray:
-    """A tripod camera 15-35 deg off the front normal, above the cabinet and to one side, aimed at the
-    cabinet's centre, 0.6-0.9 m from the front, moved back until the whole cabinet is in view."""
+    """A tripod camera `view.off_normal_deg` off the front normal, its offset lifted by `view.lift_deg`
+    from the side direction (to one side, at random), aimed at the cabinet's centre, `view.distance_m`
+    from the front, moved back until the whole cabinet is in view. A pose lower than
+    `view.min_height_m` is drawn again."""
     intrinsics = D415_640X480 if intrinsics is None else intrinsics
     T = cabinet.T_base_cabinet
     normal = T[:3, 0]
     target = T[:3, :3] @ np.array([-cabinet.depth_m / 2, 0.0, cabinet.height_m / 2]) + T[:3, 3]
     front = target + cabinet.depth_m / 2 * normal
-    side = np.cross([0.0, 0.0, 1.0], normal) * rng.choice([-1.0, 1.0])
-    off_normal, lift = np.radians(rng.uniform(15, 35)), np.radians(rng.uniform(30, 70))
-    direction = math.cos(off_normal) * normal + math.sin(off_normal) * (
-        math.cos(lift) * side + math.sin(lift) * np.array([0.0, 0.0, 1.0])
-    )
     corners = np.vstack([box.corners() for box, _ in cabinet.body_parts()])
-    distance = rng.uniform(0.6, 0.9)
+    while True:
+        side = np.cross([0.0, 0.0, 1.0], normal) * rng.choice([-1.0, 1.0])
+        off_normal, lift = np.radians(rng.uniform(*view.off_normal_deg)), np.radians(rng.uniform(*view.lift_deg))
+        direction = math.cos(off_normal) * normal + math.sin(off_normal) * (
+            math.cos(lift) * side + math.sin(lift) * np.array([0.0, 0.0, 1.0])
+        )
+        pose = _framing_pose(front, target, direction, rng.uniform(*view.distance_m), corners,
+                             intrinsics, margin_px)
+        if pose[2, 3] >= view.min_height_m:
+            return pose
+
+
+def _framing_pose(front, target, direction, distance, corners, intrinsics, margin_px) -> np.ndarray:
+    """The camera at `front + distance * direction` looking at `target`, moved back in 5 cm steps until
+    every corner projects `margin_px` inside the image (or 3 m away)."""
     while True:
         pose = look_at(front + distance * direction, target)
         cam = (corners - pose[:3, 3]) @ pose[:3, :3]
@@ -106,18 +137,23 @@ def synthetic_sequence(
     gripper_noise_m: float = 0.0,
     cabinet: SyntheticCabinet | None = None,
     gripper_noise_deg: float = 0.0,
+    view: Viewpoint = STANDARD_VIEW,
+    easing: bool = False,
 ) -> SyntheticSequence:
     """Render a cabinet (random unless given) opening from q = 0 to `travel` (m or rad) in `n_frames`
-    evenly spaced steps, seen by a random tripod camera, with `noise` (default `DepthNoise.d415()`)
-    on the depth, Gaussian noise of `gripper_noise_m` on the gripper positions and rotations of
-    `gripper_noise_deg` (per axis, standard deviation) on their orientations."""
+    steps, even or, with `easing`, slow at both ends (smoothstep), seen by a random tripod camera
+    (`view`), with `noise` (default `DepthNoise.d415()`) on the depth, Gaussian noise of
+    `gripper_noise_m` on the gripper positions and rotations of `gripper_noise_deg` (per axis,
+    standard deviation) on their orientations."""
     if n_frames < 1:
         raise ValueError(f"n_frames must be at least 1, got {n_frames}")
     noise = DepthNoise.d415() if noise is None else noise
     cabinet = SyntheticCabinet.random(rng, kind) if cabinet is None else cabinet
-    T_base_camera = random_camera_pose(rng, cabinet, intrinsics)
+    T_base_camera = random_camera_pose(rng, cabinet, intrinsics, view=view)
     background = _scene_background(cabinet)
     joint_values = np.linspace(0.0, travel, n_frames)
+    if easing:
+        joint_values = travel * (3 * (joint_values / travel) ** 2 - 2 * (joint_values / travel) ** 3)
     frames, poses = [], []
     for i, q in enumerate(joint_values):
         color, depth, labels = render_rgbd(background + cabinet.parts(q), intrinsics, T_base_camera)

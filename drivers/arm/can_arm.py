@@ -12,9 +12,11 @@ With `gravity_compensation` on, each command carries the gravity torque at the c
 URDF inertias) as MIT feed-forward, so that low (compliant) gains do not let the arm sag.
 
 Every fault (safety limit, status fault, stale feedback, late cycle, bus error) disables all motors and makes
-the next `command()` / `sync()` raise ArmError naming the joint and the fault. SIGINT / SIGTERM disable the
-motors too (installed at connect when running in the main thread). The motors' channels, requests and the bus
-scan live in drivers/arm/motor_channels.py (re-exported here).
+the next `command()` / `sync()` raise ArmError naming the joint and the fault, and any motor that did not confirm
+the disable (drivers/arm/disable.py). SIGINT / SIGTERM disable the motors too (installed at connect when running
+in the main thread, unless drivers.interrupts turns them into an exception that stops the arm on its way out).
+An exception leaving `with arm:` carries the motors' final states as `motors`. The motors' channels, requests and
+the bus scan live in drivers/arm/motor_channels.py (re-exported here).
 """
 
 from __future__ import annotations
@@ -27,14 +29,14 @@ import pinocchio as pin
 from drivers.arm.base import Arm, ArmState
 from drivers.arm.can_bus import CanBus
 from drivers.arm.control_loop import ControlLoop, LoopStats
-from drivers.arm.damiao import PARAM_ID, MotorLimits, Special, Status, refresh_request, special
+from drivers.arm.damiao import PARAM_ID, Special, Status, refresh_request, special
+from drivers.arm.disable import disable_and_confirm, motor_states, with_summary
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.motor_channels import (
     PMAX_MARGIN,
     MotorChannel,
     ScannedMotor,
     check_feedback,
-    disable_all,
     gripper_frame,
     gripper_width,
     read_limits,
@@ -47,6 +49,7 @@ from drivers.arm.robot_config import RobotConfig
 from drivers.arm.safety import SafetyGuard, SafetyLimits
 from drivers.arm.signals import StopSignals
 from drivers.errors import ArmError
+from drivers.interrupts import active as interrupts_active
 
 __all__ = ["CanArm", "LoopStats", "MotorChannel", "ScannedMotor", "read_param", "scan_bus"]
 
@@ -81,13 +84,14 @@ class CanArm(Arm):
         self.channels = [*self.joints, *([self.gripper] if self.gripper else [])]
         self._by_master = {c.config.master_id: c for c in self.channels}
         self.loop = ControlLoop(config.name, config.control_rate_hz, config.watchdog.max_late_cycles, realtime,
-                                send=self._send_commands, read=self._read_feedback, on_trip=self._disable_all,
+                                send=self._send_commands, read=self._read_feedback, on_trip=self._on_trip,
                                 on_cycle=on_cycle)
         self.stats: LoopStats = self.loop.stats
         self._lock = self.loop.lock
         self._signals = StopSignals(self._stopped_by)
         self._enabled = False
         self._closed = False
+        self._unconfirmed: set[str] = set()  # motors whose last disable went unanswered
         self._gravity_data = self.kin.model.createData()  # the loop thread's own Pinocchio workspace
         self._tau_max = np.array([j.tau_max for j in config.joints])
         n = len(self.joints)
@@ -111,16 +115,7 @@ class CanArm(Arm):
             raise ArmError(f"arm {self.config.name!r} was disconnected: open a new one")
         self.loop.clear_fault()
         try:
-            for i, c in enumerate(self.joints):
-                c.limits = self._read_limits(c)
-                check_motor_range(c, self.limits, i)
-            if self.gripper is not None:
-                self.gripper.limits = self._read_limits(self.gripper)
-            for c in self.channels:
-                self._request_feedback(c, special(Special.ENABLE), c.config.can_id)
-                if c.feedback.status != Status.ENABLED:
-                    raise ArmError(f"motor {c.describe()} did not enable (status {c.feedback.status.name}): "
-                                   "clear its error (`deploy arm enable --clear-errors`) and check its supply")
+            enable_motors(self.bus, self.channels, self.limits, self.config.watchdog.reply_timeout_s, self.loop.now)
             check_start_position(self.joints, self._measured_q(), self.limits)
         except ArmError:
             self._disable_all()
@@ -131,16 +126,18 @@ class CanArm(Arm):
             if self.gripper is not None:
                 self._grip_width = gripper_width(self.gripper, self.config.gripper)
             self._enabled = True
-        self._signals.install()
+        if not interrupts_active():
+            self._signals.install()
         self.loop.start()
 
     def probe(self) -> None:
         """Read each motor's limits and one feedback frame without enabling anything (state() then works)."""
         if self._closed:
             raise ArmError(f"arm {self.config.name!r} was disconnected: open a new one")
+        timeout = self.config.watchdog.reply_timeout_s
         for c in self.channels:
-            c.limits = self._read_limits(c)
-            self._request_feedback(c, refresh_request(c.config.can_id), PARAM_ID)
+            c.limits = read_limits(self.bus, c, timeout)
+            request_feedback(self.bus, c, refresh_request(c.config.can_id), PARAM_ID, timeout, self.loop.now)
 
     def disconnect(self) -> None:
         """Stop (damp, disable), close the bus; safe after any failure."""
@@ -190,7 +187,10 @@ class CanArm(Arm):
             self._grip_force = max(MIN_GRIP_FORCE_N, float(force_n))
 
     def stop(self) -> None:
-        """Damp (kp = 0) for `stop_damping_s`, then disable every motor. Idempotent, never raises."""
+        """Damp (kp = 0) for `stop_damping_s`, then disable every motor (also when a signal cuts the damping
+        short). Idempotent, raises no Exception; nothing to do once disconnected."""
+        if self._closed:
+            return
         try:
             if self._enabled and self.loop.fault is None:
                 with self._lock:
@@ -201,11 +201,12 @@ class CanArm(Arm):
                     self.sync()
         except Exception:  # noqa: BLE001 - stopping must go on to disabling whatever happened
             pass
-        self.loop.stop()
-        self._disable_all()
-        with self._lock:
-            self._enabled = False
-            self._kp = np.array([j.kp for j in self.config.joints])
+        finally:
+            self.loop.stop()
+            self._disable_all()
+            with self._lock:
+                self._enabled = False
+                self._kp = np.array([j.kp for j in self.config.joints])
 
     # --- extras --------------------------------------------------------------------------------------------
 
@@ -224,6 +225,16 @@ class CanArm(Arm):
         """Per motor: name, ids, status, position/velocity/torque (joint side), temperatures, limits."""
         with self._lock:
             return [c.report() for c in self.channels]
+
+    def motor_states(self) -> list[dict]:
+        """Every motor's state (name, CAN id, enabled, status); `enabled` where a disable went unanswered."""
+        with self._lock:
+            return motor_states(self.channels, self._unconfirmed)
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.disconnect()
+        if exc is not None:
+            exc.motors = self.motor_states()
 
     @property
     def fault(self) -> ArmError | None:
@@ -269,12 +280,6 @@ class CanArm(Arm):
 
     # --- helpers -------------------------------------------------------------------------------------------
 
-    def _read_limits(self, c: MotorChannel) -> MotorLimits:
-        return read_limits(self.bus, c, self.config.watchdog.reply_timeout_s)
-
-    def _request_feedback(self, c: MotorChannel, data: bytes, arbitration_id: int) -> None:
-        request_feedback(self.bus, c, data, arbitration_id, self.config.watchdog.reply_timeout_s, self.loop.now)
-
     def _measured_q(self) -> np.ndarray:
         return np.array([c.to_joint(c.feedback.q if c.feedback else 0.0, "q") for c in self.joints])
 
@@ -285,13 +290,36 @@ class CanArm(Arm):
             raise ArmError(f"arm {self.config.name!r} is not enabled (stopped or never connected): connect() first")
 
     def _disable_all(self) -> None:
-        disable_all(self.bus, self.channels)
+        unconfirmed = disable_and_confirm(self.bus, self.channels, self.config.watchdog.reply_timeout_s, self._lock,
+                                          self.loop.now)
+        self._unconfirmed = {c.name for c in unconfirmed}
+
+    def _on_trip(self, fault: ArmError) -> ArmError:
+        """The loop tripped: disable every motor; the fault's message then names any that did not confirm."""
+        self._disable_all()
+        message = with_summary(str(fault), self.motor_states())
+        return fault if message == str(fault) else type(fault)(message)
 
     def _stopped_by(self, signal_name: str) -> None:
         """SIGINT / SIGTERM: trip (motors disabled), end the loop; the handler then raises."""
         self.loop.trip(ArmError(f"stopped by {signal_name}: motors disabled"))
         self.loop.stop()
         self._enabled = False
+
+
+def enable_motors(bus: CanBus, channels: list[MotorChannel], limits: SafetyLimits, timeout_s: float,
+                  now: Callable[[], float]) -> None:
+    """Read each motor's PMAX/VMAX/TMAX, check the joints' ranges against them (`channels`: the joints in order,
+    then the gripper), enable each motor; ArmError naming the motor and the fix otherwise."""
+    for i, c in enumerate(channels):
+        c.limits = read_limits(bus, c, timeout_s)
+        if i < len(limits.q_min):
+            check_motor_range(c, limits, i)
+    for c in channels:
+        request_feedback(bus, c, special(Special.ENABLE), c.config.can_id, timeout_s, now)
+        if c.feedback.status != Status.ENABLED:
+            raise ArmError(f"motor {c.describe()} did not enable (status {c.feedback.status.name}): "
+                           "clear its error (`deploy arm enable --clear-errors`) and check its supply")
 
 
 def check_motor_range(c: MotorChannel, limits: SafetyLimits, i: int) -> None:

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import can
 
 from drivers.errors import CanBusError
+from drivers.interrupts import critical
 
 if TYPE_CHECKING:
     from drivers.arm.robot_config import CanConfig
@@ -69,7 +70,8 @@ class CanBus:
         msg = can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False, is_fd=self.fd,
                           bitrate_switch=self.fd)
         try:
-            self._bus.send(msg, timeout=0.001)
+            with critical:  # python-can's virtual bus holds queue locks: a signal waits for the send's end
+                self._bus.send(msg, timeout=0.001)
         except (can.CanError, OSError) as exc:
             raise classify_send_error(exc, self.channel, arbitration_id) from exc
 
@@ -77,11 +79,12 @@ class CanBus:
         """The next data frame within `timeout` s (None if none); CanBusError on an error frame or a dead bus."""
         deadline = time.perf_counter() + timeout
         while True:
-            if self.pump is not None:
-                self.pump()
             remaining = max(0.0, deadline - time.perf_counter())
             try:
-                msg = self._bus.recv(0.0 if self.pump is not None else remaining)
+                with critical:  # queue locks (virtual bus, simulated motors): a signal waits for the receive's end
+                    if self.pump is not None:
+                        self.pump()
+                    msg = self._bus.recv(0.0 if self.pump is not None else remaining)
             except (can.CanError, OSError) as exc:
                 raise CanBusError(f"CAN {self.channel}: receive failed ({exc}): {FIX_BUS_OFF}") from exc
             if msg is not None and msg.is_error_frame:

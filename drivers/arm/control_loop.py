@@ -7,8 +7,8 @@
 - lockstep (simulation on the caller's clock): `sync()` runs one cycle, so `on_cycle()` (one physics step)
   advances simulated time by one period per cycle.
 
-An ArmError in a cycle trips the loop: the first fault is kept in `fault`, `on_trip()` runs (disable the
-motors) and the thread ends.
+An ArmError in a cycle trips the loop: the thread ends, `on_trip(fault)` runs (disable the motors; it returns the
+fault, its message telling which motors were disabled) and the first fault is kept in `fault`.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drivers.errors import ArmError
+from drivers.interrupts import critical
 
 GIL_SWITCH_INTERVAL_S = 2e-4  # Python's default 5 ms would let the planner thread delay a 2 ms control cycle
 
@@ -57,7 +58,7 @@ class ControlLoop:
         realtime: bool,
         send: Callable[[], None],
         read: Callable[[], None],
-        on_trip: Callable[[], None],
+        on_trip: Callable[[ArmError], ArmError],
         on_cycle: Callable[[], None] | None = None,
     ) -> None:
         self.name = name
@@ -111,27 +112,32 @@ class ControlLoop:
                 if not self._cycle_done.wait(max(0.0, deadline - time.perf_counter())):
                     break
 
-    def trip(self, exc: ArmError) -> None:
-        """Record the first fault, wake `sync()` waiters, end the loop, run `on_trip()`."""
+    def trip(self, exc: ArmError) -> ArmError:
+        """End the loop (waiting for its thread unless called from it, so no cycle reads the motors' answers to
+        the disable), run `on_trip(exc)`, record the first fault and wake `sync()` waiters; returns the fault."""
+        self.stop()
+        fault = self._on_trip(exc)
         with self._cycle_done:
             if self.fault is None:
-                self.fault = exc
+                self.fault = fault
             self._cycle_done.notify_all()
-        self._stop.set()
-        self._on_trip()
+            return self.fault
 
     def cycle(self) -> None:
         """One cycle: send, on_cycle, read. An ArmError trips the loop and is raised."""
         if self.realtime:
             self.stats.starts.append(time.perf_counter())
         try:
-            self._send()
-            if self._on_cycle is not None:
-                self._on_cycle()
-            self._read()
+            with critical:  # a signal waits for the cycle's end
+                self._send()
+                if self._on_cycle is not None:
+                    self._on_cycle()
+                self._read()
         except ArmError as exc:
-            self.trip(exc)
-            raise
+            fault = self.trip(exc)
+            if fault is exc:
+                raise
+            raise fault from exc
         with self._cycle_done:
             self.cycles += 1
             self._cycle_done.notify_all()
@@ -150,8 +156,7 @@ class ControlLoop:
                 return
             try:
                 self.cycle()
-            except ArmError as exc:
-                self.trip(exc)
+            except ArmError:  # the cycle tripped the loop
                 return
             except Exception as exc:  # noqa: BLE001 - the loop must end safe on any bug
                 self.trip(ArmError(f"control loop crashed ({type(exc).__name__}: {exc}): motors disabled; "

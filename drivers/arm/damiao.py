@@ -127,8 +127,9 @@ class FrameError(ValueError):
 
 
 def _to_uint(x: float, lo: float, hi: float, bits: int) -> int:
-    """x clamped to [lo, hi], mapped linearly onto 0 .. 2^bits - 1 (rounded to nearest)."""
-    x = min(max(float(x), lo), hi) if math.isfinite(x) else 0.5 * (lo + hi)  # scalar clamp (np.clip is 20x slower)
+    """x clamped to [lo, hi], mapped linearly onto 0 .. 2^bits - 1 (rounded to nearest). A non-finite x reads as 0
+    (every range holds 0: no position offset, velocity, gain or torque), never as a range end."""
+    x = min(max(float(x), lo), hi) if math.isfinite(x) else 0.0  # scalar clamp (np.clip is 20x slower)
     return int(round((x - lo) / (hi - lo) * ((1 << bits) - 1)))
 
 
@@ -142,8 +143,8 @@ def special(command: Special) -> bytes:
 
 
 def pack_mit(q: float, dq: float, kp: float, kd: float, tau: float, limits: MotorLimits) -> bytes:
-    """MIT command payload; every value is clamped to its range (non-finite values become the range's centre,
-    which the caller's safety layer must have rejected already)."""
+    """MIT command payload; every value is clamped to its range. A non-finite value becomes 0 (kp = kd = 0: a
+    limp motor, not a full-scale one); the driver refuses such commands before they get here."""
     qi = _to_uint(q, -limits.p_max, limits.p_max, 16)
     dqi = _to_uint(dq, -limits.v_max, limits.v_max, 12)
     kpi = _to_uint(kp, 0.0, KP_MAX, 12)

@@ -7,9 +7,10 @@ parameter reads, connect-time feedback requests and the scan; `receive_feedback`
 
 from __future__ import annotations
 
+import math
 import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TypeVar
 
@@ -26,18 +27,16 @@ from drivers.arm.damiao import (
     Feedback,
     FrameError,
     MotorLimits,
-    Special,
     Status,
     is_param_reply,
     pack_mit,
     param_read,
     refresh_request,
-    special,
     unpack_feedback,
     unpack_param_reply,
 )
 from drivers.arm.robot_config import GripperConfig, MotorConfig, WatchdogConfig
-from drivers.errors import ArmError, CanBusError
+from drivers.errors import ArmError
 
 PMAX_MARGIN = 0.999  # commands stay inside the MIT range so they never read as special frames
 REQUEST_ATTEMPTS = 3  # connect-time requests are repeated this often before a motor counts as missing
@@ -64,7 +63,11 @@ class MotorChannel:
         return self.config.direction * value + (self.config.zero_offset if kind == "q" else 0.0)
 
     def mit_frame(self, q: float, dq: float, kp: float, kd: float, tau: float = 0.0) -> bytes:
-        """MIT command for joint-side q, dq, tau; the motor position is clamped inside PMAX."""
+        """MIT command for joint-side q, dq, tau; the motor position is clamped inside PMAX. ArmError for a
+        non-finite value: such a command is never encoded, let alone sent."""
+        if not all(math.isfinite(v) for v in (q, dq, kp, kd, tau)):
+            raise ArmError(f"motor {self.describe()}: MIT command (q {q}, dq {dq}, kp {kp}, kd {kd}, tau {tau}) is not "
+                           "finite: refused; a controller bug produced NaN or inf")
         cfg = self.config
         q_m = cfg.direction * (q - cfg.zero_offset)
         lim = self.limits
@@ -227,17 +230,6 @@ def check_feedback(c: MotorChannel, age_s: float, watchdog: WatchdogConfig, tau_
             raise ArmError(f"safety stop: joint {c.describe()} torque {tau:.1f} N m exceeds {limit:.1f} N m "
                            "(tau_max x torque_margin): motors disabled; the arm hit something or is blocked: "
                            "clear the obstacle, or lower the motion limits")
-
-
-def disable_all(bus: CanBus, channels: Iterable[MotorChannel]) -> None:
-    """Send disable twice to every motor (one lost frame must not leave a motor enabled); never raises."""
-    for c in channels:
-        for _ in range(2):
-            try:
-                bus.send(c.config.can_id, special(Special.DISABLE))
-            except (CanBusError, ArmError):
-                pass
-    bus.flush()
 
 
 @dataclass(frozen=True)

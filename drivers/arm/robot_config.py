@@ -1,6 +1,8 @@
 """Robot config (TOML, validated with pydantic): URDF, frames, CAN bus, per-joint motors, limits, gains, gripper.
 
-See configs/robots/*.toml for complete examples and docs/arm.md for every field.
+Every number must be finite (nan or inf in a limit, the workspace or a timeout would switch a safety check off),
+and the watchdog's timeouts are bounded. The configs shipped with the package (drivers/arm/configs/*.toml,
+`--robot panda_sim`, `--robot damiao_6dof`) are complete examples; docs/arm.md describes every field.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ else:  # pragma: no cover
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class CanConfig(_Strict):
@@ -95,11 +97,11 @@ class WatchdogConfig(_Strict):
     """When the driver disables the motors: feedback older than `feedback_timeout_s`, a control cycle later than
     `max_late_cycles` periods, a parameter read unanswered after `reply_timeout_s` (per motor)."""
 
-    feedback_timeout_s: float = Field(0.02, gt=0)
-    max_late_cycles: float = Field(2.0, gt=0)
-    reply_timeout_s: float = Field(0.05, gt=0)
-    torque_margin: float = Field(1.2, ge=1.0)  # measured |tau| above margin * tau_max is a fault
-    stop_damping_s: float = Field(0.3, ge=0)  # stop(): damp (kp = 0) this long before disabling
+    feedback_timeout_s: float = Field(0.02, gt=0, le=1.0)
+    max_late_cycles: float = Field(2.0, gt=0, le=1000)
+    reply_timeout_s: float = Field(0.05, gt=0, le=1.0)
+    torque_margin: float = Field(1.2, ge=1.0, le=5.0)  # measured |tau| above margin * tau_max is a fault
+    stop_damping_s: float = Field(0.3, ge=0, le=5.0)  # stop(): damp (kp = 0) this long before disabling
 
 
 class RobotConfig(_Strict):
@@ -194,13 +196,35 @@ class RobotConfig(_Strict):
         return MotionLimits(safety.v_max * fraction, safety.a_max * fraction, self.robot_spec().j_max * fraction)
 
 
-def load_robot_config(path: str | Path) -> RobotConfig:
-    """Read and validate a robot config; ArmError naming the file and the bad field otherwise."""
-    path = Path(path)
-    if not path.is_file():
-        raise ArmError(f"robot config {path} not found: pass one of configs/robots/*.toml or your own")
+def shipped_robot_configs() -> list[str]:
+    """The names of the robot configs shipped with the package (`--robot NAME`)."""
+    return sorted(p.stem for p in CONFIG_DIR.glob("*.toml"))
+
+
+def robot_config_path(spec: str | Path) -> Path:
+    """The file `spec` names: an existing path, else a shipped config's name (`panda_sim`, `damiao_6dof`).
+    ArmError naming both choices otherwise."""
+    path = Path(spec)
+    if path.is_file():
+        return path
+    shipped = CONFIG_DIR / f"{spec}.toml"
+    if path.parent == Path(".") and not path.suffix and shipped.is_file():
+        return shipped
+    raise ArmError(f"robot config {spec} not found: give the path of a TOML file or a shipped config's name "
+                   f"({', '.join(shipped_robot_configs())})")
+
+
+def load_robot_config(spec: str | Path) -> RobotConfig:
+    """Read and validate a robot config (a path, or a shipped config's name); ArmError naming the file and the
+    bad field otherwise."""
+    path = robot_config_path(spec)
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ArmError(f"robot config {path} is not UTF-8 text ({exc.reason} at byte {exc.start}): give a TOML "
+                       "file (`deploy arm status --robot damiao_6dof` uses a shipped example)") from None
+    except OSError as exc:
+        raise ArmError(f"robot config {path} cannot be read ({exc.strerror}): check its permissions") from None
     except tomllib.TOMLDecodeError as exc:
         raise ArmError(f"robot config {path} is not valid TOML ({exc}): fix the syntax") from exc
     try:
@@ -212,5 +236,7 @@ def load_robot_config(path: str | Path) -> RobotConfig:
                        "fix the field (docs/arm.md lists them)") from exc
 
 
-PANDA_SIM_CONFIG = Path(__file__).resolve().parents[2] / "configs" / "robots" / "panda_sim.toml"
+CONFIG_DIR = Path(__file__).resolve().parent / "configs"
+"""The robot configs shipped with the package (package data)."""
+PANDA_SIM_CONFIG = CONFIG_DIR / "panda_sim.toml"
 """The simulated Franka Panda's robot config (the default robot of the simulated arms)."""

@@ -32,6 +32,25 @@ class SafetyLimits:
     workspace_max: np.ndarray
     jump_tolerance_rad: float = 0.01
 
+    def __post_init__(self) -> None:
+        """ArmError unless every limit can hold: one value per joint, ranges not empty, no NaN (a NaN limit
+        would let every command pass)."""
+        for name in ("q_min", "q_max", "v_max", "a_max", "workspace_min", "workspace_max"):
+            object.__setattr__(self, name, np.asarray(getattr(self, name), float))
+        dof = self.q_min.shape
+        if len(dof) != 1 or any(x.shape != dof for x in (self.q_max, self.v_max, self.a_max)) \
+                or self.workspace_min.shape != (3,) or self.workspace_max.shape != (3,):
+            self._refuse("one value per joint for q_min, q_max, v_max and a_max, three for the workspace box")
+        if not np.all(self.q_min < self.q_max):
+            self._refuse("q_min must be below q_max on every joint")
+        if not (np.all(self.v_max > 0) and np.all(self.a_max > 0) and self.jump_tolerance_rad >= 0):
+            self._refuse("v_max and a_max must be above 0, jump_tolerance_rad 0 or more")
+        if not np.all(self.workspace_min < self.workspace_max):
+            self._refuse("workspace_min must be below workspace_max on every axis")
+
+    def _refuse(self, what: str) -> None:
+        raise ArmError(f"invalid safety limits: {what}; fix the URDF's limits or the robot config")
+
     @classmethod
     def for_robot(cls, robot: RobotSpec, kin: Kinematics) -> SafetyLimits:
         """The URDF position and velocity limits, the robot's acceleration limits and workspace box."""
@@ -66,6 +85,8 @@ class SafetyGuard:
         motion that starts where a compliant arm was pushed to (a held door) is not a jump.
         """
         lim = self.limits
+        if not (np.isfinite(dt) and dt > 0):
+            raise ArmError(f"safety stop: control period {dt} s is not a positive time: fix the arm's control rate")
         q = self._vector("position", q_cmd)
         step = q - self._vector("previous position", q_prev_cmd)
         if q_measured is not None:

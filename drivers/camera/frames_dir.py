@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from drivers.camera.base import Camera, Frame, Intrinsics
-from drivers.errors import RecordingError
+from drivers.errors import CameraError, RecordingError
 
 FORMAT = "axisloop-frames"
 VERSION = 1
@@ -39,10 +39,13 @@ def _pose_list(pose: np.ndarray | None, what: str) -> list[list[float]] | None:
 
 
 class FramesWriter:
-    """Writes a frames recording; every frame is flushed to disk before `write` returns.
+    """Writes a frames recording; every frame is on disk before `write` returns (its PNGs and their directory
+    entries fsynced, then its frames.jsonl line flushed and fsynced), so a reader in another process sees it at
+    once and a crash or power cut afterwards cannot lose it.
 
     `with FramesWriter(path, intrinsics) as w: w.write(frame, mask=...)`. An existing frames recording
-    at `path` is replaced; any other non-empty directory is refused.
+    at `path` is replaced; any other non-empty directory is refused. `camera` (the spec it came from) and
+    `simulated` (frames rendered by a simulator) go to meta.json: they choose the filter profile on replay.
     """
 
     def __init__(
@@ -51,6 +54,8 @@ class FramesWriter:
         intrinsics: Intrinsics,
         depth_scale: float = 0.001,
         T_base_camera: np.ndarray | None = None,
+        camera: str | None = None,
+        simulated: bool = False,
     ) -> None:
         if not (math.isfinite(depth_scale) and depth_scale > 0):
             raise ValueError(f"depth_scale must be a positive number of metres per unit, got {depth_scale}")
@@ -63,12 +68,16 @@ class FramesWriter:
             "intrinsics": intrinsics.to_dict(),
             "depth_scale": self.depth_scale,
             "T_base_camera": _pose_list(T_base_camera, "T_base_camera"),
+            "camera": camera,
+            "simulated": bool(simulated),
         }
         self._prepare_directory()
         for sub in ("color", "depth"):
             (self.path / sub).mkdir()
         _write_durably(self.path / "meta.json", (json.dumps(meta, indent=2) + "\n").encode())
         self._jsonl = open(self.path / "frames.jsonl", "a", encoding="utf-8")
+        self._sync_directory(self.path)
+        self._sync_directory(self.path.parent)
         self._count = 0
 
     def _prepare_directory(self) -> None:
@@ -116,9 +125,15 @@ class FramesWriter:
         name = _png_name(self._count)
         _write_png(self.path / "color" / name, cv2.cvtColor(color, cv2.COLOR_RGB2BGR))
         _write_png(self.path / "depth" / name, np.clip(units, 0, 65535).astype(np.uint16))
+        written = ["color", "depth"]
         if mask is not None:
-            (self.path / "mask").mkdir(exist_ok=True)
+            if not (self.path / "mask").is_dir():
+                (self.path / "mask").mkdir()
+                self._sync_directory(self.path)
             _write_png(self.path / "mask" / name, np.where(np.asarray(mask, bool), 255, 0).astype(np.uint8))
+            written.append("mask")
+        for sub in written:  # the PNGs' names must be on disk before the line that lists them
+            self._sync_directory(self.path / sub)
 
         record: dict = {"index": self._count, "t": float(frame.t)}
         if joint_positions is not None:
@@ -133,6 +148,15 @@ class FramesWriter:
     def close(self) -> None:
         """Close frames.jsonl (idempotent)."""
         self._jsonl.close()
+
+    @staticmethod
+    def _sync_directory(path: Path) -> None:
+        """fsync a directory: the names of the files created in it reach the disk."""
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
 
     def __enter__(self) -> FramesWriter:
         return self
@@ -163,6 +187,25 @@ def _is_frames_recording(path: Path) -> bool:
     return isinstance(meta, dict) and meta.get("format") == FORMAT
 
 
+def _check_record(record: object) -> None:
+    """ValueError unless `record` is a frames.jsonl object: index an integer >= 0, t finite, joint_positions
+    finite numbers and ee_pose a finite 4x4 matrix where given."""
+    if not isinstance(record, dict):
+        raise ValueError("not a JSON object")
+    index, t = record["index"], float(record["t"])
+    if not isinstance(index, int) or isinstance(index, bool) or index < 0:
+        raise ValueError(f"index {index!r} is not an integer >= 0")
+    if not math.isfinite(t):
+        raise ValueError(f"t {t} is not finite")
+    q = record.get("joint_positions")
+    if q is not None and not (isinstance(q, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                           and math.isfinite(v) for v in q)):
+        raise ValueError("joint_positions is not a list of finite numbers")
+    pose = record.get("ee_pose")
+    if pose is not None and (np.shape(pose) != (4, 4) or not np.all(np.isfinite(np.asarray(pose, np.float64)))):
+        raise ValueError("ee_pose is not a finite 4x4 matrix")
+
+
 class FramesRecording:
     """Reads a frames recording; meta.json is validated on open, frames.jsonl read on first use.
 
@@ -180,6 +223,9 @@ class FramesRecording:
         self.intrinsics: Intrinsics = meta["intrinsics"]
         self.depth_scale: float = meta["depth_scale"]
         self.T_base_camera: np.ndarray | None = meta["T_base_camera"]
+        self.camera: str | None = meta["camera"]
+        self.simulated: bool = meta["simulated"] or (self.path / "truth.json").is_file()
+        """Rendered by a simulator: meta.json says so, or the recording holds the simulator's truth.json."""
         self._records: list[dict] | None = None
 
     def _read_meta(self) -> dict:
@@ -189,7 +235,7 @@ class FramesRecording:
             meta = json.loads(file.read_text(encoding="utf-8"))
         except FileNotFoundError:
             raise RecordingError(f"{file} is missing: {self.path} is not a frames recording; {fix}") from None
-        except (OSError, ValueError) as e:
+        except (OSError, ValueError, RecursionError) as e:
             raise RecordingError(f"{file} is not valid JSON ({e}); {fix}") from None
         if not isinstance(meta, dict) or meta.get("format") != FORMAT:
             got = meta.get("format") if isinstance(meta, dict) else type(meta).__name__
@@ -212,17 +258,21 @@ class FramesRecording:
             depth_scale = float(meta.get("depth_scale", 0.001))
             pose = meta.get("T_base_camera")
             pose = None if pose is None else np.asarray(pose, np.float64)
-        except (TypeError, ValueError) as e:
+        except (TypeError, ValueError, OverflowError) as e:
             raise RecordingError(f"{file}: a field has the wrong type ({e}); {fix}") from None
         if min(intr.width, intr.height) <= 0 or not all(
             math.isfinite(v) and v > 0 for v in (intr.fx, intr.fy)
-        ):
+        ) or not all(math.isfinite(v) for v in (intr.cx, intr.cy)):
             raise RecordingError(f"{file}: intrinsics {intr.to_dict()} are not a valid camera; {fix}")
         if not (math.isfinite(depth_scale) and depth_scale > 0):
             raise RecordingError(f"{file}: depth_scale must be positive (m/unit), not {depth_scale}; {fix}")
         if pose is not None and (pose.shape != (4, 4) or not np.all(np.isfinite(pose))):
             raise RecordingError(f"{file}: T_base_camera must be a 4x4 row-major nested list or null; {fix}")
-        return {"intrinsics": intr, "depth_scale": depth_scale, "T_base_camera": pose}
+        camera, simulated = meta.get("camera"), meta.get("simulated", False)
+        if not (camera is None or isinstance(camera, str)) or not isinstance(simulated, bool):
+            raise RecordingError(f"{file}: camera must be a string or null and simulated true or false; {fix}")
+        return {"intrinsics": intr, "depth_scale": depth_scale, "T_base_camera": pose, "camera": camera,
+                "simulated": simulated}
 
     @property
     def records(self) -> list[dict]:
@@ -235,17 +285,19 @@ class FramesRecording:
         file = self.path / "frames.jsonl"
         if not file.exists():
             return []
-        lines = file.read_text(encoding="utf-8").split("\n")
+        try:
+            lines = file.read_text(encoding="utf-8").split("\n")
+        except UnicodeDecodeError as e:
+            raise RecordingError(f"{file} is not UTF-8 text ({e.reason} at byte {e.start}): it is damaged; "
+                                 "restore it from a copy or re-record") from None
         records = []
         for number, line in enumerate(lines, start=1):
             if not line.strip():
                 continue
             try:
                 record = json.loads(line)
-                if not isinstance(record, dict):
-                    raise ValueError("not a JSON object")
-                int(record["index"]), float(record["t"])
-            except (ValueError, KeyError, TypeError) as e:
+                _check_record(record)
+            except (ValueError, KeyError, TypeError, RecursionError) as e:
                 if number == len(lines):  # no newline after it: the recording was interrupted mid-line
                     break
                 raise RecordingError(
@@ -347,7 +399,10 @@ class FramesReplayCamera(Camera):
             raise RecordingError(
                 f"end of recording {rec.path} after {n} frames; pass loop=True to replay it again"
             )
-        frame = rec.frame(i)
+        try:
+            frame = rec.frame(i)
+        except RecordingError as exc:  # a damaged frame is a camera failure, not the end of the recording
+            raise CameraError(f"replay {rec.path}: frame {i} is damaged: {exc}") from None
         t0, t_last = float(rec.records[0]["t"]), float(rec.records[-1]["t"])
         period = (t_last - t0) * n / (n - 1) if n > 1 else 0.0
         frame.t += lap * period

@@ -5,9 +5,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
+
 from drivers.camera.base import Camera, Frame
 from drivers.camera.frames_dir import FramesWriter
 from drivers.errors import CameraError, RecordingError
+
+ArmReading = Callable[[], tuple[np.ndarray, np.ndarray]]  # () -> (joint positions rad/m, tool pose 4x4 base frame)
 
 
 def record(
@@ -17,26 +21,32 @@ def record(
     seconds: float | None = None,
     depth_scale: float = 0.001,
     progress: Callable[[Frame], None] | None = None,
+    source: str | None = None,
+    simulated: bool = False,
+    arm: ArmReading | None = None,
 ) -> dict:
     """Read `camera` (connected here) into the frames directory `out` until `frames` frames or `seconds`
     of camera time (whichever comes first), or until a replay ends (the only stop if neither is set).
 
+    source: the camera's spec and simulated: whether it renders a simulation (both go to meta.json); arm():
+    the arm's joint positions and tool pose, read right after each frame and stored with it.
     A camera failure (e.g. unplugged) stops the recording and raises CameraError saying how many frames
-    were kept; they stay readable. Returns {"out", "frames", "seconds"}.
+    were kept; they stay readable. Returns {"out", "frames", "seconds", "arm"}.
     """
     if (frames is not None and frames <= 0) or (seconds is not None and seconds <= 0):
         raise RecordingError(f"frames and seconds must be positive, got frames={frames} seconds={seconds}")
     count, t0, t = 0, None, 0.0
     with camera:
         first = camera.read()
-        with FramesWriter(out, camera.intrinsics, depth_scale, first.T_base_camera) as writer:
+        with FramesWriter(out, camera.intrinsics, depth_scale, first.T_base_camera, source, simulated) as writer:
             frame = first
             while True:
                 t0 = frame.t if t0 is None else t0
                 t = frame.t - t0
                 if seconds is not None and t >= seconds:
                     break
-                writer.write(frame)
+                q, tool = arm() if arm is not None else (None, None)
+                writer.write(frame, joint_positions=q, ee_pose=tool)
                 count += 1
                 if progress is not None:
                     progress(frame)
@@ -49,4 +59,4 @@ def record(
                 except CameraError as exc:
                     raise CameraError(f"{exc}; recording stopped: the {count} frames recorded so far are kept "
                                       f"in {out}") from None
-    return {"out": str(out), "frames": count, "seconds": t}
+    return {"out": str(out), "frames": count, "seconds": t, "arm": arm is not None}

@@ -16,7 +16,7 @@ CAMERAS: Registry[Camera] = Registry("camera", CameraError)  # factories: factor
 CAMERAS.register("d415", "drivers.camera.registry:open_d415", "RealSense D415 (first attached, or SERIAL)",
                  argument="[:SERIAL]", hardware=True)
 CAMERAS.register("replay", "drivers.camera.registry:open_replay",
-                 "a recording (frames dir, .bag, .db3)", argument=":PATH")
+                 "a recording (frames dir; RealSense .bag/.db3; ROS 2 bag .db3/.mcap/folder)", argument=":PATH")
 _REPLAY_OPTIONS = {"realtime", "loop"}
 
 
@@ -24,9 +24,24 @@ def open_camera(spec: str, **options: object) -> Camera:
     """The camera named by `spec`, not yet connected (use `with open_camera(spec) as camera:`).
 
     options: for d415, RealSenseConfig / FilterConfig fields (width, height, fps, visual_preset, spatial, ...);
-    for a frames directory, realtime and loop; for .bag/.db3, filters (a FilterConfig).
+    for a frames directory, realtime and loop; for a RealSense .bag/.db3, filters (a FilterConfig).
     """
     return CAMERAS.open(spec, **options)
+
+
+def simulated_source(spec: str) -> bool:
+    """Whether the frames of camera `spec` come from a simulation: a simulated kind, or a replay of a frames
+    recording made in simulation (its meta.json says so). Real cameras and RealSense recordings are not."""
+    entry, argument = CAMERAS.entry(spec)
+    if entry.simulated:
+        return True
+    from drivers.camera.realsense_convert import recording_kind
+
+    if entry.name != "replay" or recording_kind(Path(argument)) != "frames" or not Path(argument).is_dir():
+        return False
+    from drivers.camera.frames_dir import FramesRecording
+
+    return FramesRecording(argument).simulated
 
 
 def open_d415(serial: str, **options: object) -> Camera:
@@ -37,12 +52,20 @@ def open_d415(serial: str, **options: object) -> Camera:
 
 
 def open_replay(path: str, **options: object) -> Camera:
+    from drivers.camera.realsense_convert import recording_kind
+
     file = Path(path)
-    if file.suffix.lower() in (".bag", ".db3"):
+    kind = recording_kind(file)
+    if kind == "realsense":
         from drivers.camera.realsense_playback import RealSenseReplayCamera
 
         _check_options(path, options, {"filters"})
         return RealSenseReplayCamera(file, **options)  # type: ignore[arg-type]
+    if kind == "ros2":
+        from drivers.camera.ros2_bag import Ros2BagCamera
+
+        _check_options(path, options, set())
+        return Ros2BagCamera(file)
     from drivers.camera.frames_dir import FramesReplayCamera
 
     _check_options(path, options, _REPLAY_OPTIONS)

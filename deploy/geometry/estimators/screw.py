@@ -103,7 +103,10 @@ class ScrewEstimator(AxisEstimator):
         fitness = min(self._motions[i].fitness for i in used)
         latest_centre = clouds[usable[-1]].points.mean(axis=0)
         grip_at_poses, grip_path = _gripper_positions(window, used) if self.use_gripper else (None, None)
-        return fit_screw_joint(poses, model, latest_centre, fitness, joint, config, grip_at_poses, grip_path)
+        turn = start[:3, :3]
+        surface = (np.asarray(keyframe.target.points) @ turn.T + start[:3, 3], keyframe.normals @ turn.T)
+        return fit_screw_joint(poses, model, latest_centre, fitness, joint, config, grip_at_poses, grip_path,
+                               surface)
 
     def _cloud(self, observation: Observation) -> PartCloud:
         """The frame's cloud, cached by frame index."""

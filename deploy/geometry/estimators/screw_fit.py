@@ -22,7 +22,12 @@ _MODEL_POINTS = 200
 _FULL_FITNESS = 0.9
 _FULL_TRAVEL_M, _FULL_ROTATION_DEG = 0.05, 10.0
 _HALF_CONFIDENCE_RMS_M = 0.002
+_HALF_CONFIDENCE_SIGMA_DEG = 3.0
 _MAX_HINGE_TILT_DEG = 30.0  # a hinge lies in its door's plane: within this, w is projected into the plate
+_FRONT_CONE_DEG, _FRONT_SLAB_M, _MIN_FRONT_NORMALS = 20.0, 0.01, 50
+FREE_DIRECTION_EVIDENCE = 13.8
+"""chi-square with 2 degrees of freedom at 99.9 %: how much better a free drawer direction must explain the
+tracks than the front's normal (in track noise variances) to be used instead."""
 
 
 @dataclass(frozen=True)
@@ -34,24 +39,29 @@ class JointFit:
     point: np.ndarray
     rms_m: float
     bic: float
+    sigma_deg: float | None = None
 
 
 def fit_screw_joint(
     poses: np.ndarray, start: np.ndarray, latest_centre: np.ndarray, fitness: float, joint: JointType | None,
     config: ScrewConfig, grip_at_poses: np.ndarray | None = None, grip_path: np.ndarray | None = None,
+    surface: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> AxisResult:
     """The joint axis from the motions `poses` (K,4,4) of the window-start points `start` (M,3).
 
     `latest_centre` is the centroid of the latest frame's part, `fitness` the lowest registration
     fitness of the frames used. The gripper's positions, when known: `grip_at_poses` (K+1,3) at the
     start and after each motion (for a hinge, which needs the turns), `grip_path` (N,3) in every frame
-    of the window (for a line). NoAxis when the part moved less than config.min_travel_m and turned
+    of the window (for a line). `surface`: points of the part at the start and their unit normals, for a
+    drawer's front (`fit_prismatic`). NoAxis when the part moved less than config.min_travel_m and turned
     less than config.min_rotation_deg.
 
     Prismatic (`fit_prismatic`): origin = centroid of the model points at the window start. Revolute
     (`fit_revolute`): origin = the axis point nearest `latest_centre`, radius_m = distance from it to
     the axis. residual_m = the fit's RMS; confidence = fitness (1 from 90 %) x motion (1 from 5 cm or
-    10 deg) x 1 / (1 + (residual / 2 mm)^2).
+    10 deg) x 1 / (1 + (residual / 2 mm)^2), and for a drawer whose direction comes from its motion
+    alone (no front face), x 1 / (1 + (sigma / 3 deg)^2) with sigma its standard error
+    (direction_sigma_deg).
 
     Joint type when `joint` is None: BIC = n ln(rms^2 + sigma0^2) + k ln n with n = 6 per pose (what a
     registration measures), k = poses + 2 (prismatic) or poses + 4 (revolute), sigma0 =
@@ -72,7 +82,8 @@ def fit_screw_joint(
     fits = {}
     if joint is not JointType.REVOLUTE:
         tracks = part_and_grip_tracks(sample, moved, grip_path, config.part_noise_m, config.grip_noise_m)
-        fits[JointType.PRISMATIC] = fit_prismatic(sample, moved, tracks, config.grip_gate_m, config.noise_floor_m)
+        fits[JointType.PRISMATIC] = fit_prismatic(sample, moved, tracks, config.grip_gate_m, config.noise_floor_m,
+                                                  surface)
     if joint is not JointType.PRISMATIC:
         tracks = part_and_grip_tracks(sample, moved, grip_at_poses, config.part_noise_m, config.grip_noise_m)
         fits[JointType.REVOLUTE] = fit_revolute(
@@ -91,8 +102,11 @@ def fit_screw_joint(
     motion = min(1.0, max(travel_m / _FULL_TRAVEL_M, rotation_deg / _FULL_ROTATION_DEG))
     trust = min(fitness, _FULL_FITNESS) / _FULL_FITNESS
     confidence = float(np.clip(trust * motion / (1 + (fit.rms_m / _HALF_CONFIDENCE_RMS_M) ** 2), 0.0, 1.0))
+    if fit.sigma_deg is not None:  # a direction the motion alone pins down loosely
+        confidence /= 1 + (fit.sigma_deg / _HALF_CONFIDENCE_SIGMA_DEG) ** 2
     if joint is JointType.PRISMATIC:
-        return Axis(joint, centroid, fit.direction, confidence=confidence, residual_m=fit.rms_m)
+        return Axis(joint, centroid, fit.direction, confidence=confidence, residual_m=fit.rms_m,
+                    direction_sigma_deg=fit.sigma_deg)
     origin = fit.point + ((latest_centre - fit.point) @ fit.direction) * fit.direction
     return Axis(joint, origin, fit.direction, confidence=confidence, residual_m=fit.rms_m, radius_m=radius_m)
 
@@ -107,21 +121,94 @@ def part_and_grip_tracks(
 
 
 def fit_prismatic(
-    sample: np.ndarray, moved: np.ndarray, tracks: list[Track], grip_gate_m: float, noise_floor_m: float
+    sample: np.ndarray, moved: np.ndarray, tracks: list[Track], grip_gate_m: float, noise_floor_m: float,
+    surface: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> JointFit:
     """Points move by s_k d: d = principal direction of the tracks' positions (`principal_direction`),
     signed along the motion; a second (gripper) track farther than `grip_gate_m` RMS from its line is
-    left out. The line passes through the model points' centroid."""
+    left out. The line passes through the model points' centroid.
+
+    From the part alone (no gripper track), with its `surface` (points (M,3) and their unit normals),
+    d is the normal of its faces within 20 deg of that direction (`front_normal`: a drawer's front)
+    unless the free direction
+    explains the tracks better by more than FREE_DIRECTION_EVIDENCE (`free_direction_evidence`):
+    registration measures a drawer's motion along its front's normal well and barely across it (a
+    plate slides along itself), so a drift across the front is read as motion only when the tracks
+    show it beyond their scatter. sigma_deg: the free direction's standard error, None when d is the
+    front's normal.
+    """
     d = principal_direction(tracks)
     if len(tracks) > 1 and line_miss(tracks[1][0], d) > grip_gate_m:
-        d = principal_direction(tracks[:1])
+        tracks = tracks[:1]
+        d = principal_direction(tracks)
+    front = front_normal(*surface, d) if surface is not None and len(tracks) == 1 else None
+    evidence, sigma_deg = free_direction_evidence(tracks, d, d if front is None else front)
+    if front is not None and evidence <= FREE_DIRECTION_EVIDENCE:
+        d, sigma_deg = front, None
     shifts = moved.mean(axis=1) - sample.mean(axis=0)
     travel = shifts @ d
     if travel[np.argmax(np.abs(travel))] < 0:
         d, travel = -d, -travel
     predicted = sample[None] + travel[:, None, None] * d
     rms = float(np.sqrt(np.mean(np.sum((moved - predicted) ** 2, axis=2))))
-    return JointFit(d, sample.mean(axis=0), rms, bic(rms, 6 * len(moved), len(moved) + 2, noise_floor_m))
+    return JointFit(d, sample.mean(axis=0), rms, bic(rms, 6 * len(moved), len(moved) + 2, noise_floor_m), sigma_deg)
+
+
+def front_normal(points: np.ndarray, normals: np.ndarray, direction: np.ndarray) -> np.ndarray | None:
+    """The unit normal (signed like `direction`) of the part's largest face turned toward `direction`:
+    of the points whose surface normals lie within 20 deg of it, those in the most populated 1 cm slab
+    along their mean normal (one face, not the parallel handle or back panel), then a plane through
+    them by trimmed PCA (`_trimmed_plane`). The plane of many points, not the mean of the noisy local
+    normals, which lean toward the camera's rays. None with fewer than 50 such points."""
+    normals = np.asarray(normals, float)
+    signed = normals * np.where(normals @ direction < 0, -1.0, 1.0)[:, None]
+    facing = signed @ direction >= np.cos(np.radians(_FRONT_CONE_DEG))
+    if facing.sum() < _MIN_FRONT_NORMALS:
+        return None
+    points = np.asarray(points, float)[facing]
+    mean = signed[facing].sum(axis=0)
+    offsets = points @ (mean / np.linalg.norm(mean))
+    bins = np.floor((offsets - offsets.min()) / _FRONT_SLAB_M).astype(int)
+    slab = np.abs(offsets - (offsets.min() + (np.bincount(bins).argmax() + 0.5) * _FRONT_SLAB_M)) <= _FRONT_SLAB_M
+    if slab.sum() < _MIN_FRONT_NORMALS:
+        return None
+    normal, _, _ = _trimmed_plane(points[slab])
+    return normal if normal @ direction >= 0 else -normal
+
+
+def _trimmed_plane(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """(unit normal, singular values, points kept) of the plane most of `points` lie on: three rounds of
+    PCA, each of the points within 3 median distances (at least 2 mm) of the last plane."""
+    kept = points
+    for _ in range(3):
+        centre = kept.mean(axis=0)
+        _, spread, axes = np.linalg.svd(kept - centre, full_matrices=False)
+        distance = np.abs((points - centre) @ axes[2])
+        kept = points[distance <= max(3 * np.median(distance), 0.002)]
+    return axes[2], spread, len(kept)
+
+
+def free_direction_evidence(tracks: list[Track], free: np.ndarray, fixed: np.ndarray) -> tuple[float, float | None]:
+    """How much better the line along `free` explains the tracks (each about its own mean, weighted by
+    1 / its noise relative to the first's) than the line along `fixed`: (RSS_fixed - RSS_free) / s^2,
+    s^2 = RSS_free / its degrees of freedom, at least the first track's noise squared (a registration's
+    slide across a front is not white: it drifts with the opening, so the track's own scatter
+    understates it). Also the free direction's standard error (deg; None with too few positions)."""
+    weight0 = tracks[0][1]
+    rss_free = rss_fixed = spread = 0.0
+    count = 0
+    for positions, sigma in tracks:
+        centred = (positions - positions.mean(axis=0)) * (weight0 / sigma)
+        total = float(np.sum(centred**2))
+        rss_free += total - float(np.sum((centred @ free) ** 2))
+        rss_fixed += total - float(np.sum((centred @ fixed) ** 2))
+        spread += float(np.sum((centred @ free) ** 2))
+        count += len(positions)
+    dof = 2 * (count - len(tracks)) - 2
+    if dof < 1 or spread <= 0:
+        return 0.0, None
+    variance = max(rss_free / dof, weight0**2)
+    return (rss_fixed - rss_free) / variance, float(np.degrees(np.sqrt(variance / spread)))
 
 
 def fit_revolute(
@@ -208,15 +295,10 @@ def distance_to_line(point: np.ndarray, fit: JointFit) -> float:
 
 
 def plate_normal(points: np.ndarray) -> np.ndarray | None:
-    """Normal of the plate the points mostly lie on (trimmed PCA), None when they are not a plate:
+    """Normal of the plate the points mostly lie on (`_trimmed_plane`), None when they are not a plate:
     less than 60 % of them within 3 median distances (at least 2 mm) of the plane, or a thickness
     spread over 10 % of the width spread."""
-    kept = points
-    for _ in range(3):
-        centre = kept.mean(axis=0)
-        _, spread, axes = np.linalg.svd(kept - centre, full_matrices=False)
-        distance = np.abs((points - centre) @ axes[2])
-        kept = points[distance <= max(3 * np.median(distance), 0.002)]
-    if len(kept) < 0.6 * len(points) or spread[2] > 0.1 * spread[1]:
+    normal, spread, kept = _trimmed_plane(points)
+    if kept < 0.6 * len(points) or spread[2] > 0.1 * spread[1]:
         return None
-    return axes[2]
+    return normal

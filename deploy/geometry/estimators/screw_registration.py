@@ -13,6 +13,10 @@ import open3d as o3d
 
 from deploy.geometry.types import Box
 
+# Open3D's multithreaded ICP sums in a different order from run to run: one thread makes every registration,
+# and so every episode and benchmark, reproducible.
+o3d.utility.set_max_threads(1)
+
 _REG = o3d.pipelines.registration
 _TARGET_NORMAL_NEIGHBOURS = 10
 
@@ -33,12 +37,13 @@ class PartCloud:
 @dataclass(frozen=True)
 class Keyframe:
     """The registration target: frame `index`'s dense part with normals (`target`), its sparse
-    `points` (the model points of the joint fit) and their `centre`."""
+    `points` (the model points of the joint fit) and their `centre`, and the target's unit `normals`."""
 
     index: int
     target: o3d.geometry.PointCloud
     points: np.ndarray
     centre: np.ndarray
+    normals: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -78,7 +83,7 @@ def make_keyframe(index: int, cloud: PartCloud, voxel_m: float, max_target: int)
         keep = np.random.default_rng(0).permutation(len(target.points))[:max_target]
         target = target.select_by_index(np.sort(keep))
     target.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(_TARGET_NORMAL_NEIGHBOURS))
-    return Keyframe(index, target, cloud.points, cloud.points.mean(axis=0))
+    return Keyframe(index, target, cloud.points, cloud.points.mean(axis=0), np.asarray(target.normals))
 
 
 def icp(

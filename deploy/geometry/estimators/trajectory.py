@@ -1,240 +1,111 @@
 """The joint axis from the path of the gripper (handle) while it pulls: a line or a circular arc.
 
-Fits are robust: least-median-of-squares sampling over minimal sets (fixed seed), then least squares
-on the inliers. `fit_trajectory` picks the joint type when none is given (see its docstring).
+The path is first prepared (`trajectory_path.prepare_path`): its own noise level, tracking glitches
+dropped, pauses and uneven sampling evened out on a grid. Fits are robust (`trajectory_fit`). Joint
+type, when none is given, comes from `classify`: a revolute joint must be shown by an arc the line
+cannot explain beyond its extra freedom, or by a gripper turn that follows the travel, and otherwise
+the answer is prismatic, or undecided (NoAxis with the reason) when the evidence is too thin or
+contradicts itself.
 """
 
 from __future__ import annotations
 
-import re
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from deploy.geometry.estimators.base import AxisEstimator, Observation
+from deploy.geometry.estimators.trajectory_fit import (
+    circle_residuals,
+    fit_circle_3d,
+    fit_circle_inliers,
+    fit_line,
+    fit_line_inliers,
+    plane_basis,
+    refine_circle,
+)
+from deploy.geometry.estimators.trajectory_io import parse_trajectory, parse_trajectory_text
+from deploy.geometry.estimators.trajectory_path import (
+    PreparedPath,
+    effective_fraction,
+    jackknife_sigma_deg,
+    prepare_path,
+)
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 
+__all__ = ["TrajectoryEstimator", "classify", "fit_circle_3d", "fit_line", "fit_trajectory", "parse_trajectory",
+           "parse_trajectory_text"]
+
 NOISE_FLOOR_M = 5e-4
-"""sigma0 of the BIC: residuals below it count as noise, so noise-free data does not favour a model."""
+"""Residuals below this count as noise, so noise-free data does not favour a model."""
 OUTLIER_CAP_M = 0.01
-"""Residuals are truncated here when the two models are compared, so gross outliers weigh the same."""
+"""Residuals are truncated here (or at 8 noise levels) when the models are compared."""
 MAX_RADIUS_M = 3.0
-"""A circle wider than this is a line for classification (a door's radius is well under 1.5 m)."""
+"""A hinge farther than this from the path gives no revolute axis (the path is too straight)."""
+HINGE_MAX_RADIUS_M = 1.5
+"""For classification, a bend or turn about an axis farther than this is a line with play (a door's handle
+is well under 1.5 m from its hinge)."""
 MIN_SPREAD_M = 0.005
+"""Less motion than this gives no axis at all."""
+MIN_DECISION_TRAVEL_M = 0.03
+"""Less travel than this, without a gripper turn, leaves the joint type undecided."""
+MIN_ARC_DEG = 25.0
+"""From positions alone, an arc shorter than this is no proof of a hinge (a slide's play bends its path)."""
+MAX_GAP_SHARE = 0.25
+"""Without orientations, a stretch without samples longer than this share of the travel leaves the type undecided."""
 MIN_ROTATION_DEG = 3.0
-"""With orientations, a gripper rotation at least this large marks the joint as revolute."""
-_MIN_INLIER_M = 1e-4
-_SAMPLES = 300
-_SEED = 0
+"""A gripper turn smaller than this is not used (its axis would be noise)."""
+TYPE_EVIDENCE = 13.8
+"""chi-square with 2 degrees of freedom at 99.9 %: what the circle's 2 extra parameters must explain
+beyond chance, in effective samples times noise variance, to count."""
+_TURN_NOISE_RATIO = 4.0
+_LINE_MISS_PER_SAGITTA = 0.298  # RMS distance of an evenly sampled shallow arc from its best line / sagitta
+_MIN_TURN_CORRELATION = 0.9
+_FULL_TRAVEL_M, _FULL_ARC_DEG = 0.05, 20.0
+_JACKKNIFE_EVALUATIONS = 12  # a refit starts at the full fit's circle: a few steps reach its minimum
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v)
+@dataclass(frozen=True)
+class LineFit:
+    origin: np.ndarray
+    direction: np.ndarray
+    rms_m: float
+    inliers: np.ndarray
 
 
-def _inlier_threshold(residuals: np.ndarray, n_params: int) -> float:
-    """Rousseeuw's LMedS scale, times 2.5, with a floor for noise-free data."""
-    n = len(residuals)
-    scale = 1.4826 * (1 + 5 / max(n - n_params, 1)) * float(np.sqrt(np.median(residuals**2)))
-    return max(2.5 * scale, _MIN_INLIER_M)
+@dataclass(frozen=True)
+class CircleFit:
+    center: np.ndarray
+    normal: np.ndarray
+    radius_m: float
+    rms_m: float
+    inliers: np.ndarray
 
 
-def _sample_sets(n: int, size: int) -> np.ndarray:
-    """Up to `_SAMPLES` distinct random index sets of `size` distinct points (fixed seed)."""
-    rng = np.random.default_rng(_SEED)
-    sets = np.argsort(rng.random((_SAMPLES, n)), axis=1)[:, :size]
-    return np.unique(np.sort(sets, axis=1), axis=0)
+@dataclass(frozen=True)
+class Turn:
+    """The gripper's rotation: unit axis w (signed so the turn is positive), each cell's angle about it
+    (rad), the turn's extent and the per-axis scatter off the axis (deg), and |correlation| of the
+    angle with the travel along the line."""
+
+    axis: np.ndarray
+    angles: np.ndarray
+    total_deg: float
+    off_axis_deg: float
+    correlation: float
 
 
-def _line_residuals(points: np.ndarray, origin: np.ndarray, direction: np.ndarray) -> np.ndarray:
-    d = points - origin
-    return np.linalg.norm(d - np.outer(d @ direction, direction), axis=1)
+@dataclass(frozen=True)
+class Comparison:
+    """Line against circle on the cells: evidence = (RSS_line - RSS_circle) / noise variance x n_eff / n;
+    the noise variance sigma_m^2 (per axis), n_eff / n, and the circle's arc (deg)."""
 
-
-def _check_points(points: np.ndarray, minimum: int, what: str) -> np.ndarray:
-    points = np.asarray(points, float)
-    if points.ndim != 2 or points.shape[1] != 3:
-        raise ValueError(f"{what}: points must have shape (N, 3), got {points.shape}")
-    if len(points) < minimum:
-        raise ValueError(f"{what}: needs at least {minimum} points, got {len(points)}")
-    if not np.all(np.isfinite(points)):
-        raise ValueError(f"{what}: points contain NaN or inf; drop those samples first")
-    return points
-
-
-def fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """Robust 3D line: (origin, unit direction, RMS of the inliers' distances, m).
-
-    Raises ValueError for fewer than 2 points or when all points coincide.
-    """
-    line, _ = _fit_line(_check_points(points, 2, "fit_line"))
-    return line
-
-
-def _fit_line(points: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray, float], np.ndarray]:
-    """The line and its inlier mask."""
-    pairs = _sample_sets(len(points), 2)
-    starts, chords = points[pairs[:, 0]], points[pairs[:, 1]] - points[pairs[:, 0]]
-    lengths = np.linalg.norm(chords, axis=1)
-    keep = lengths > 1e-9
-    if not keep.any():
-        raise ValueError("fit_line: all points coincide, so they define no line")
-    starts, directions = starts[keep], chords[keep] / lengths[keep, None]
-    d = points[None] - starts[:, None]
-    along = np.einsum("mnk,mk->mn", d, directions)
-    medians = np.median(np.linalg.norm(d - along[..., None] * directions[:, None], axis=2), axis=1)
-    best = starts[np.argmin(medians)], directions[np.argmin(medians)]
-    inliers = np.ones(len(points), bool)
-    for _ in range(2):
-        residuals = _line_residuals(points, *best)
-        inliers = residuals <= _inlier_threshold(residuals, 4)
-        origin = points[inliers].mean(axis=0)
-        direction = np.linalg.svd(points[inliers] - origin)[2][0]
-        best = (origin, direction)
-    residuals = _line_residuals(points, *best)
-    rms = float(np.sqrt(np.mean(residuals[inliers] ** 2)))
-    return (best[0], best[1], rms), inliers
-
-
-def _circle_residuals(
-    points: np.ndarray, center: np.ndarray, normal: np.ndarray, radius: float
-) -> np.ndarray:
-    """Euclidean distance of each point to the circle."""
-    d = points - center
-    height = d @ normal
-    in_plane = np.sqrt(np.maximum(np.einsum("ij,ij->i", d, d) - height**2, 0.0))
-    return np.hypot(in_plane - radius, height)
-
-
-def _circumcircles(p1: np.ndarray, p2: np.ndarray, p3: np.ndarray):
-    """(centers, unit normals, radii) of the circles through (M,3) point triples, collinear ones dropped."""
-    a, b = p2 - p1, p3 - p1
-    n = np.cross(a, b)
-    nn = np.einsum("ij,ij->i", n, n)
-    aa, bb = np.einsum("ij,ij->i", a, a), np.einsum("ij,ij->i", b, b)
-    keep = nn > 1e-12 * aa * bb
-    a, b, n, nn, aa, bb, p1 = a[keep], b[keep], n[keep], nn[keep], aa[keep], bb[keep], p1[keep]
-    centers = p1 + np.cross(aa[:, None] * b - bb[:, None] * a, n) / (2 * nn[:, None])
-    return centers, n / np.sqrt(nn)[:, None], np.linalg.norm(centers - p1, axis=1)
-
-
-def _plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    u = _unit(np.cross(normal, [1.0, 0, 0] if abs(normal[0]) < 0.9 else [0, 1.0, 0]))
-    return u, np.cross(normal, u)
-
-
-def _kasa_circle(points: np.ndarray):
-    """Initial circle: plane by SVD, then Kasa's algebraic fit in that plane."""
-    mean = points.mean(axis=0)
-    normal = np.linalg.svd(points - mean)[2][2]
-    u, v = _plane_basis(normal)
-    x, y = (points - mean) @ u, (points - mean) @ v
-    (a, b, c), *_ = np.linalg.lstsq(np.column_stack([x, y, np.ones_like(x)]), x**2 + y**2, rcond=None)
-    r2 = c + (a / 2) ** 2 + (b / 2) ** 2
-    if r2 <= 0:
-        return None
-    return mean + a / 2 * u + b / 2 * v, normal, float(np.sqrt(r2))
-
-
-def _refine_circle(points: np.ndarray, center: np.ndarray, normal: np.ndarray, radius: float):
-    """Geometric least squares (analytic Jacobian) over centre, normal (two tilts) and radius."""
-    u, v = _plane_basis(normal)
-
-    def unpack(x):
-        return x[:3], normal + x[3] * u + x[4] * v, x[5]
-
-    def parts(x):
-        c, m, r = unpack(x)
-        n = m / np.linalg.norm(m)
-        d = points - c
-        height = d @ n
-        in_plane = np.sqrt(np.maximum(np.einsum("ij,ij->i", d, d) - height**2, 1e-18))
-        return n, d, height, in_plane, r, np.linalg.norm(m)
-
-    def residuals(x):
-        _, _, height, in_plane, r, _ = parts(x)
-        return np.concatenate([in_plane - r, height])
-
-    def jacobian(x):
-        n, d, height, in_plane, _, length = parts(x)
-        tilt = (np.column_stack([u, v]) - np.outer(n, n @ np.column_stack([u, v]))) / length
-        d_height = np.hstack([np.tile(-n, (len(d), 1)), d @ tilt, np.zeros((len(d), 1))])
-        d_in_plane = np.hstack([
-            (-d + height[:, None] * n) / in_plane[:, None],
-            -height[:, None] * (d @ tilt) / in_plane[:, None],
-            -np.ones((len(d), 1)),
-        ])
-        return np.vstack([d_in_plane, d_height])
-
-    x0 = np.concatenate([center, [0.0, 0.0, radius]])
-    solution = least_squares(residuals, x0, jac=jacobian, method="lm")
-    c, m, r = unpack(solution.x)
-    return c, _unit(m), float(abs(r))
-
-
-def fit_circle_3d(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """Robust 3D circle: (center, unit normal, radius, RMS of the inliers' distances, m).
-
-    Raises ValueError for fewer than 3 points or when the points are collinear (no circle).
-    """
-    circle, _ = _fit_circle(_check_points(points, 3, "fit_circle_3d"))
-    return circle
-
-
-def _fit_circle(points: np.ndarray):
-    """The circle and its inlier mask."""
-    triples = _sample_sets(len(points), 3)
-    centers, normals, radii = _circumcircles(*(points[triples[:, i]] for i in range(3)))
-    if len(centers) == 0:
-        raise ValueError("fit_circle_3d: the points are collinear, so they define no circle")
-    d = points[None] - centers[:, None]
-    height = np.einsum("mnk,mk->mn", d, normals)
-    in_plane = np.sqrt(np.maximum(np.einsum("mnk,mnk->mn", d, d) - height**2, 0.0))
-    m = int(np.argmin(np.median(np.hypot(in_plane - radii[:, None], height), axis=1)))
-    best = centers[m], normals[m], float(radii[m])
-    residuals = _circle_residuals(points, *best)
-    inliers = residuals <= _inlier_threshold(residuals, 6)
-    if inliers.sum() < 3:
-        inliers[:] = True
-    candidates = [best] + [c for c in [_kasa_circle(points[inliers])] if c is not None]
-    refined = [_refine_circle(points[inliers], *c) for c in candidates]
-    cost = [np.sum(_circle_residuals(points[inliers], *c) ** 2) for c in refined]
-    center, normal, radius = refined[int(np.argmin(cost))]
-    residuals = _circle_residuals(points, center, normal, radius)
-    inliers = residuals <= _inlier_threshold(residuals, 6)
-    rms = float(np.sqrt(np.mean(residuals[inliers] ** 2)))
-    return (center, normal, float(radius), rms), inliers
-
-
-def _bic(residuals: np.ndarray, n_params: int) -> float:
-    n = len(residuals)
-    rss = float(np.sum(np.minimum(residuals, OUTLIER_CAP_M) ** 2))
-    return n * np.log(rss / n + NOISE_FLOOR_M**2) + n_params * np.log(n)
-
-
-def _trend(values: np.ndarray, mask: np.ndarray) -> float:
-    """Sign-bearing trend of `values` with the sample order, over the masked samples."""
-    order = np.arange(len(values), dtype=float)[mask]
-    return float(np.sum((order - order.mean()) * values[mask]))
-
-
-def _gripper_turn(quaternions: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """Rotation axis w of the orientations relative to the first, and each sample's angle about it (rad).
-
-    w from least squares over R_k w = w, signed so the total rotation is positive; None when the
-    gripper turned by less than MIN_ROTATION_DEG (the axis would be noise).
-    """
-    rotations = Rotation.from_quat(quaternions)
-    relative = rotations * rotations[0].inv()
-    m = relative.as_matrix() - np.eye(3)
-    w = np.linalg.eigh(np.einsum("kji,kjl->il", m, m))[1][:, 0]
-    rotvecs = relative.as_rotvec()
-    if np.degrees(np.max(np.linalg.norm(rotvecs, axis=1))) < MIN_ROTATION_DEG:
-        return None
-    w = w if rotvecs.sum(axis=0) @ w >= 0 else -w
-    return w, rotvecs @ w
+    evidence: float
+    sigma_m: float
+    fraction: float
+    arc_deg: float
 
 
 def _confidence(inlier_fraction: float, motion: float, rms_m: float) -> float:
@@ -242,22 +113,223 @@ def _confidence(inlier_fraction: float, motion: float, rms_m: float) -> float:
     return float(np.clip(inlier_fraction * min(motion, 1.0) / (1 + (rms_m / 0.002) ** 2), 0.0, 1.0))
 
 
-def fit_trajectory(
-    positions: np.ndarray, quaternions: np.ndarray | None = None, joint: JointType | None = None
-) -> AxisResult:
-    """The joint axis from gripper positions (N,3) and optional orientations (N,4, xyzw), oldest first.
+def _fit_line(cells: np.ndarray) -> LineFit:
+    (origin, direction, rms), inliers = fit_line_inliers(cells)
+    return LineFit(origin, direction, rms, inliers)
 
-    Prismatic: a robust line; direction along the motion (first -> last). Revolute: with orientations,
-    the direction comes from the gripper's rotation (least squares over R_k w = w, reliable for short
-    arcs) and the centre from a circle fit in the plane normal to it; without, from a 3D circle fit.
-    Opening is a positive rotation about the direction; origin = circle centre (the axis point level
-    with the handle); radius_m = circle radius.
 
-    Joint type when `joint` is None: revolute when the gripper rotated by >= MIN_ROTATION_DEG, or when
-    BIC = n ln(RSS/n + sigma0^2) + k ln n (residuals capped at OUTLIER_CAP_M, sigma0 = NOISE_FLOOR_M,
-    k = 4 for a line, 6 for a circle) favours the circle; but a circle wider than MAX_RADIUS_M is a line.
-    NoAxis for fewer than 3 samples, non-finite values, less than MIN_SPREAD_M of motion, or no fit.
+def _fit_circle(cells: np.ndarray) -> CircleFit | None:
+    if len(cells) < 3:
+        return None
+    try:
+        (center, normal, radius, rms), inliers = fit_circle_inliers(cells)
+    except ValueError:
+        return None
+    return CircleFit(center, normal, radius, rms, inliers)
+
+
+def _line_vectors(points: np.ndarray, line: LineFit) -> np.ndarray:
+    d = points - line.origin
+    return d - np.outer(d @ line.direction, line.direction)
+
+
+def _circle_vectors(points: np.ndarray, center: np.ndarray, normal: np.ndarray, radius: float) -> np.ndarray:
+    """Each point minus its nearest point on the circle."""
+    d = points - center
+    in_plane = d - np.outer(d @ normal, normal)
+    norms = np.maximum(np.linalg.norm(in_plane, axis=1, keepdims=True), 1e-12)
+    return d - in_plane / norms * radius
+
+
+def _arc_deg(points: np.ndarray, center: np.ndarray, normal: np.ndarray) -> float:
+    u, v = plane_basis(normal)
+    d = points - center
+    return float(np.degrees(np.ptp(np.unwrap(np.arctan2(d @ v, d @ u)))))
+
+
+def _rss(vectors: np.ndarray, cap_m: float) -> float:
+    return float(np.sum(np.minimum(np.linalg.norm(vectors, axis=1), cap_m) ** 2))
+
+
+def compare(path: PreparedPath, line: LineFit, circle: CircleFit | None) -> Comparison:
+    """How much better the circle explains the cells than the line (`Comparison`)."""
+    cells = path.cells
+    floor = max(path.noise_m, NOISE_FLOOR_M)
+    if circle is None:
+        return Comparison(0.0, floor, effective_fraction(_line_vectors(cells, line)), 0.0)
+    cap = max(OUTLIER_CAP_M, 8 * path.noise_m)
+    circle_vectors = _circle_vectors(cells, circle.center, circle.normal, circle.radius_m)
+    inliers = circle.inliers
+    variance = _rss(circle_vectors[inliers], cap) / max(2 * inliers.sum() - 6, 1)
+    sigma = max(float(np.sqrt(variance)), floor)
+    fraction = effective_fraction(circle_vectors[inliers])
+    gain = _rss(_line_vectors(cells, line), cap) - _rss(circle_vectors, cap)
+    arc = _arc_deg(cells[inliers], circle.center, circle.normal)
+    return Comparison(gain / sigma**2 * fraction, sigma, fraction, arc)
+
+
+def gripper_turn(path: PreparedPath, line: LineFit) -> Turn | None:
+    """The gripper's turn over the cells (`Turn`); None without orientations."""
+    if path.rotvecs is None:
+        return None
+    rotvecs = path.rotvecs
+    w = _rotation_axis(rotvecs)
+    if rotvecs.sum(axis=0) @ w < 0:
+        w = -w
+    angles = rotvecs @ w
+    low, high = np.percentile(angles, [2, 98]) if len(angles) >= 20 else (angles.min(), angles.max())
+    off = np.sum((rotvecs - np.outer(angles, w)) ** 2, axis=1)
+    off_axis = float(np.degrees(np.sqrt(np.median(off) / 1.386)))  # chi-square 2 dof median
+    along = (path.cells - line.origin) @ line.direction
+    correlation = 0.0
+    if np.ptp(angles) > 0 and np.ptp(along) > 0:
+        correlation = abs(float(np.corrcoef(angles, along)[0, 1]))
+    return Turn(w, angles, float(np.degrees(high - low)), off_axis, correlation)
+
+
+def _rotation_axis(rotvecs: np.ndarray) -> np.ndarray:
+    """Least squares over R_k w = w (unit w, sign arbitrary)."""
+    m = Rotation.from_rotvec(rotvecs).as_matrix() - np.eye(3)
+    return np.linalg.eigh(np.einsum("kji,kjl->il", m, m))[1][:, 0]
+
+
+def _turn_follows_travel(turn: Turn | None, path: PreparedPath) -> bool:
+    """The gripper turned clearly (>= MIN_ROTATION_DEG and 4x its scatter), with the travel, about a
+    hinge no farther than HINGE_MAX_RADIUS_M."""
+    if turn is None or turn.total_deg < max(MIN_ROTATION_DEG, _TURN_NOISE_RATIO * turn.off_axis_deg):
+        return False
+    radius = path.travel_m / (2 * np.sin(np.radians(turn.total_deg) / 2))
+    return turn.correlation >= _MIN_TURN_CORRELATION and radius <= HINGE_MAX_RADIUS_M
+
+
+def rigid_turn_fit(cells: np.ndarray, w: np.ndarray, angles: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+    """The positions as a point held rigidly while turning by `angles` (rad) about the unit axis w:
+    x_k = c + Rot(theta_k) v at a constant height, c and v by linear least squares in the plane normal
+    to w. Returns (centre at the cells' median height, radius, residual vectors)."""
+    u, v = plane_basis(w)
+    heights = cells @ w
+    x = np.column_stack([cells @ u, cells @ v])
+    cos, sin = np.cos(angles), np.sin(angles)
+    ones, zeros = np.ones_like(cos), np.zeros_like(cos)
+    design = np.vstack([np.column_stack([ones, zeros, cos, -sin]), np.column_stack([zeros, ones, sin, cos])])
+    solution = np.linalg.lstsq(design, np.concatenate([x[:, 0], x[:, 1]]), rcond=None)[0]
+    predicted = (design @ solution).reshape(2, -1).T
+    level = float(np.median(heights))
+    misfit = (x - predicted) @ np.vstack([u, v]) + np.outer(heights - level, w)
+    center = solution[0] * u + solution[1] * v + level * w
+    return center, float(np.hypot(solution[2], solution[3])), misfit
+
+
+def _undecided(reason: str, **details: float) -> NoAxis:
+    return NoAxis(f"joint type undecided: {reason}", {"undecided": True, **details})
+
+
+def classify(path: PreparedPath, line: LineFit, circle: CircleFit | None, turn: Turn | None) -> JointType | NoAxis:
+    """Prismatic, revolute, or NoAxis (undecided, with the reason).
+
+    Revolute when the gripper turned with the travel about an axis within HINGE_MAX_RADIUS_M
+    (`_turn_follows_travel`) and the positions do not contradict that turn (an arc that should bend the
+    path by more than 4 TYPE_EVIDENCE must not leave it straight), or, without orientations, when the
+    circle beats the line by more than TYPE_EVIDENCE (`compare`, which discounts correlated misfit such
+    as play or tremor), lies within HINGE_MAX_RADIUS_M and spans MIN_ARC_DEG. Prismatic when the circle
+    does not beat the line or is wider, or, with orientations that did not turn, bends less than
+    MIN_ARC_DEG. Undecided below
+    MIN_DECISION_TRAVEL_M of travel, for an arc too short to tell, for a path with a stretch of more
+    than MAX_GAP_SHARE of its travel without samples (positions only), and for contradicting evidence.
     """
+    comparison = compare(path, line, circle)
+    details = {"travel_m": path.travel_m, "noise_m": comparison.sigma_m, "evidence": comparison.evidence}
+    if _turn_follows_travel(turn, path):
+        radius = path.travel_m / (2 * np.sin(np.radians(turn.total_deg) / 2))
+        expected = _expected_evidence(path, turn, radius, comparison)
+        if expected > 4 * TYPE_EVIDENCE and comparison.evidence <= TYPE_EVIDENCE:
+            return _undecided(
+                f"the gripper turned {turn.total_deg:.1f} deg with the travel, but the path does not bend like "
+                f"the {radius:.2f} m arc that turn implies (a slipping grasp or a wobbling part)",
+                turn_deg=turn.total_deg, **details)
+        return JointType.REVOLUTE
+    if path.travel_m < MIN_DECISION_TRAVEL_M:
+        return _undecided(f"only {path.travel_m * 100:.1f} cm of travel and no clear gripper turn; need "
+                          f"{MIN_DECISION_TRAVEL_M * 100:.0f} cm to tell a slide from a hinge", **details)
+    if circle is None or comparison.evidence <= TYPE_EVIDENCE or circle.radius_m > HINGE_MAX_RADIUS_M:
+        gap = path.largest_gap_m
+        if turn is None and gap > MAX_GAP_SHARE * path.travel_m:
+            return _undecided(
+                f"{gap * 100:.0f} cm of the {path.travel_m * 100:.0f} cm path has no samples (tracking lost?), and "
+                "without orientations a line through the rest proves nothing", gap_m=gap, **details)
+        return JointType.PRISMATIC
+    details.update(arc_deg=comparison.arc_deg, radius_m=circle.radius_m)
+    if turn is not None:  # a hinge turns the handle with it; this one did not
+        if comparison.arc_deg < MIN_ARC_DEG:
+            return JointType.PRISMATIC  # a shallow bend: the part's play
+        return _undecided(
+            f"the path bends like a {comparison.arc_deg:.0f} deg arc but the gripper did not turn with it "
+            f"({turn.total_deg:.1f} deg, correlation {turn.correlation:.2f}): a loose grasp?",
+            turn_deg=turn.total_deg, **details)
+    if comparison.arc_deg < MIN_ARC_DEG:
+        return _undecided(
+            f"the path bends like a {comparison.arc_deg:.0f} deg arc of radius {circle.radius_m:.2f} m, too short "
+            f"an arc (< {MIN_ARC_DEG:.0f} deg) to tell a hinge from a wobbling slide; pull further or record "
+            "orientations", **details)
+    return JointType.REVOLUTE
+
+
+def _expected_evidence(path: PreparedPath, turn: Turn, radius_m: float, comparison: Comparison) -> float:
+    """The evidence `compare` would find if the cells lay on the arc the turn implies: each cell's
+    distance from the chord at its turn angle, less their mean (the best line's offset), capped."""
+    total = np.radians(turn.total_deg)
+    angles = np.clip(turn.angles - np.percentile(turn.angles, 2 if len(turn.angles) >= 20 else 0), 0, total)
+    bow = radius_m * (np.cos(angles - total / 2) - np.cos(total / 2))
+    cap = max(OUTLIER_CAP_M, 8 * path.noise_m)
+    return float(np.sum(np.minimum(np.abs(bow - bow.mean()), cap) ** 2) / comparison.sigma_m**2 * comparison.fraction)
+
+
+def fit_trajectory(
+    positions: np.ndarray, quaternions: np.ndarray | None = None, joint: JointType | None = None, *,
+    times: np.ndarray | None = None,
+) -> AxisResult:
+    """The joint axis from gripper positions (N,3) and optional orientations (N,4, xyzw), oldest first
+    (or in any order with `times` (N,) s, which sorts them).
+
+    Prismatic: a robust line through the path's cells; direction along the motion (first -> last).
+    Revolute: the direction from the circle's normal and the gripper's turn, each weighted by its
+    block-jackknife variance; the centre from a circle in the plane normal to it, or with a turn from
+    the rigid turn model (`rigid_turn_fit`) when its misfit is within twice the circle's, plus what
+    the turn's own scatter explains, plus 1 mm (a slipping grasp breaks it). Opening is a positive
+    rotation about the direction; origin = the axis point level with the handle; radius_m = circle
+    radius. `direction_sigma_deg` is the direction's block-jackknife standard deviation.
+
+    Joint type when `joint` is None: `classify`, which may answer NoAxis ("joint type undecided: ...",
+    details["undecided"] = True). NoAxis also for fewer than 3 samples, non-finite values, less than
+    MIN_SPREAD_M of motion, or no fit.
+    """
+    checked = _checked(positions, quaternions, times)
+    if isinstance(checked, NoAxis):
+        return checked
+    positions, quaternions = checked
+    centred = positions - positions.mean(axis=0)
+    spread = float(np.ptp(centred @ np.linalg.svd(centred)[2][0]))
+    if spread < MIN_SPREAD_M:
+        return NoAxis(
+            f"not enough motion yet: {spread * 1000:.1f} mm of {MIN_SPREAD_M * 1000:.0f} mm",
+            {"spread_m": spread},
+        )
+    path = prepare_path(positions, quaternions)
+    line = _fit_line(path.cells)
+    circle = _fit_circle(path.cells) if joint is not JointType.PRISMATIC else None
+    turn = gripper_turn(path, line)
+    if joint is None:
+        decided = classify(path, line, circle, turn)
+        if isinstance(decided, NoAxis):
+            return decided
+        joint = decided
+    if joint is JointType.REVOLUTE:
+        return revolute_axis(path, circle, turn)
+    return prismatic_axis(path, line)
+
+
+def _checked(positions, quaternions, times) -> tuple[np.ndarray, np.ndarray | None] | NoAxis:
+    """Validated arrays in time order, or NoAxis naming what is wrong."""
     positions = np.asarray(positions, float)
     if positions.ndim != 2 or positions.shape[1] != 3 or len(positions) < 3:
         return NoAxis(f"need at least 3 gripper positions (N, 3), got shape {positions.shape}")
@@ -269,134 +341,113 @@ def fit_trajectory(
             return NoAxis("orientations contain NaN, inf or zero quaternions")
     if not np.all(np.isfinite(positions)):
         return NoAxis("gripper positions contain NaN or inf")
-    centred = positions - positions.mean(axis=0)
-    spread = float(np.ptp(centred @ np.linalg.svd(centred)[2][0]))
-    if spread < MIN_SPREAD_M:
-        return NoAxis(
-            f"not enough motion yet: {spread * 1000:.1f} mm of {MIN_SPREAD_M * 1000:.0f} mm",
-            {"spread_m": spread},
-        )
-    turn = _gripper_turn(quaternions) if quaternions is not None else None
+    if times is not None:
+        times = np.asarray(times, float)
+        if times.shape != (len(positions),) or not np.all(np.isfinite(times)):
+            return NoAxis(f"times must be {len(positions)} finite values, got shape {times.shape}")
+        order = np.argsort(times, kind="stable")
+        positions, quaternions = positions[order], None if quaternions is None else quaternions[order]
+    return positions, quaternions
 
-    (origin, direction, line_rms), line_inliers = _fit_line(positions)
-    if joint is not JointType.PRISMATIC:
-        try:
-            circle, circle_inliers = _revolute_fit(positions, turn)
-        except ValueError as error:
-            if joint is JointType.REVOLUTE:
-                return NoAxis(f"no hinge circle fits the gripper path: {error}")
-            circle = None
-        if joint is None and circle is not None:
-            line_bic = _bic(_line_residuals(positions, origin, direction), 4)
-            circle_bic = _bic(_circle_residuals(positions, *circle[:3]), 6)
-            revolute = (turn is not None or circle_bic < line_bic) and circle[2] <= MAX_RADIUS_M
-            joint = JointType.REVOLUTE if revolute else JointType.PRISMATIC
-        elif joint is None:
-            joint = JointType.PRISMATIC
-        if joint is JointType.REVOLUTE:
-            if circle[2] > MAX_RADIUS_M:
-                return NoAxis(
-                    f"the gripper path is too straight to locate a hinge: circle radius {circle[2]:.1f} m",
-                    {"radius_m": circle[2]},
-                )
-            return _revolute_axis(positions, circle, circle_inliers, turn)
 
-    start = origin + ((positions[0] - origin) @ direction) * direction
-    along = (positions - start) @ direction
-    if _trend(along, line_inliers) < 0:
+def prismatic_axis(path: PreparedPath, line: LineFit) -> Axis:
+    """The line as a prismatic axis: origin = the first cell's foot on the line, direction along the motion."""
+    cells, inliers = path.cells, line.inliers
+    direction = line.direction
+    start = line.origin + ((cells[0] - line.origin) @ direction) * direction
+    along = (cells - start) @ direction
+    if _trend(along, inliers) < 0:
         direction = -direction
-    motion = float(np.ptp(along[line_inliers])) / 0.05
+
+    def refit(keep: np.ndarray) -> np.ndarray | None:
+        chosen = cells[inliers & keep]
+        return None if len(chosen) < 2 else np.linalg.svd(chosen - chosen.mean(axis=0))[2][0]
+
+    sigma = jackknife_sigma_deg(direction, refit, len(cells))
+    motion = float(np.ptp(along[inliers])) / _FULL_TRAVEL_M
     return Axis(
-        JointType.PRISMATIC, start, direction,
-        confidence=_confidence(line_inliers.mean(), motion, line_rms), residual_m=line_rms,
+        JointType.PRISMATIC, start, direction, confidence=_confidence(inliers.mean(), motion, line.rms_m),
+        residual_m=line.rms_m, direction_sigma_deg=None if np.isnan(sigma) else sigma,
     )
 
 
-def _revolute_fit(positions: np.ndarray, turn: tuple[np.ndarray, np.ndarray] | None):
-    """(center, normal, radius, rms) and inliers; normal and centre from the gripper turn when there is one.
-
-    With a turn, the positions in the plane normal to w must follow x_k = c + Rot(theta_k) v (rigid
-    grasp): linear least squares in (c, v), kept when its RMS is within 2x + 1 mm of the plain circle
-    fit's (a grasp that slipped breaks the model, and then the circle fit alone gives the centre).
-    """
-    if turn is None:
-        return _fit_circle(positions)
-    w, angles = turn
-    heights = positions @ w
-    flat = positions - np.outer(heights - np.median(heights), w)
-    (center, _, radius, _), inliers = _fit_circle(flat)
-    u, v = _plane_basis(w)
-    x = np.column_stack([(flat - center) @ u, (flat - center) @ v])[inliers]
-    cos, sin = np.cos(angles[inliers]), np.sin(angles[inliers])
-    ones, zeros = np.ones_like(cos), np.zeros_like(cos)
-    design = np.vstack([
-        np.column_stack([ones, zeros, cos, -sin]),
-        np.column_stack([zeros, ones, sin, cos]),
-    ])
-    solution, *_ = np.linalg.lstsq(design, np.concatenate([x[:, 0], x[:, 1]]), rcond=None)
-    circle_rms = float(np.sqrt(np.mean(_circle_residuals(flat, center, w, radius)[inliers] ** 2)))
-    rigid_rms = float(np.sqrt(np.mean((design @ solution - np.concatenate([x[:, 0], x[:, 1]])) ** 2) * 2))
-    if rigid_rms <= 2 * circle_rms + 1e-3:
-        center = center + solution[0] * u + solution[1] * v
-        radius = float(np.hypot(solution[2], solution[3]))
-    residuals = _circle_residuals(positions, center, w, radius)
-    rms = float(np.sqrt(np.mean(residuals[inliers] ** 2)))
-    return (center, w, radius, rms), inliers
+def _trend(values: np.ndarray, mask: np.ndarray) -> float:
+    """Sign-bearing trend of `values` with the cell order, over the masked cells."""
+    order = np.arange(len(values), dtype=float)[mask]
+    return float(np.sum((order - order.mean()) * values[mask]))
 
 
-def _revolute_axis(positions, circle, inliers, turn) -> Axis:
-    center, normal, radius, rms = circle
-    u, v = _plane_basis(normal)
-    d = positions - center
+def revolute_axis(path: PreparedPath, circle: CircleFit | None, turn: Turn | None) -> AxisResult:
+    """The hinge (`fit_trajectory`), or NoAxis when no circle fits or it is wider than MAX_RADIUS_M."""
+    use_turn = turn is not None and turn.total_deg >= MIN_ROTATION_DEG
+    if circle is None and not use_turn:
+        return NoAxis("no hinge circle fits the gripper path: the points are collinear")
+    direction, sigma = _hinge_direction(path, circle, turn if use_turn else None)
+    cells = path.cells
+    flat = cells - np.outer(cells @ direction - np.median(cells @ direction), direction)
+    planar = _fit_circle(flat)
+    if planar is None:
+        return NoAxis("no hinge circle fits the gripper path: the points are collinear")
+    center, radius, inliers = planar.center, planar.radius_m, planar.inliers
+    if use_turn:
+        rigid_center, rigid_radius, misfit = rigid_turn_fit(cells, direction, path.rotvecs @ direction)
+        circle_rms = float(np.sqrt(np.mean(circle_residuals(flat, center, direction, radius)[inliers] ** 2)))
+        in_plane = misfit - np.outer(misfit @ direction, direction)
+        rigid_rms = float(np.sqrt(np.mean(np.sum(in_plane[inliers] ** 2, axis=1))))
+        turn_noise_m = rigid_radius * np.radians(turn.off_axis_deg) * np.sqrt(2)  # the turn's own scatter
+        if rigid_rms <= 2 * circle_rms + turn_noise_m + 1e-3:
+            center, radius = rigid_center, rigid_radius
+    if radius > MAX_RADIUS_M:
+        return NoAxis(f"the gripper path is too straight to locate a hinge: circle radius {radius:.1f} m",
+                      {"radius_m": radius})
+    u, v = plane_basis(direction)
+    d = cells - center
     angles = np.unwrap(np.arctan2(d @ v, d @ u))
-    if turn is None and _trend(angles, inliers) < 0:
-        normal = -normal
+    if not use_turn and _trend(angles, inliers) < 0:
+        direction = -direction
+    residuals = circle_residuals(cells, center, direction, radius)
+    rms = float(np.sqrt(np.mean(residuals[inliers] ** 2)))
     swept_deg = float(np.degrees(np.ptp(angles[inliers])))
     return Axis(
-        JointType.REVOLUTE, center, normal,
-        confidence=_confidence(inliers.mean(), swept_deg / 20.0, rms), residual_m=rms, radius_m=radius,
+        JointType.REVOLUTE, center, direction, confidence=_confidence(inliers.mean(), swept_deg / _FULL_ARC_DEG, rms),
+        residual_m=rms, radius_m=radius, direction_sigma_deg=sigma,
     )
 
 
-def parse_trajectory_text(text: str) -> tuple[np.ndarray, np.ndarray | None]:
-    """Samples from text, one per line: `x y z` or `x y z qx qy qz qw` (metres, quaternion xyzw).
+def _hinge_direction(
+    path: PreparedPath, circle: CircleFit | None, turn: Turn | None
+) -> tuple[np.ndarray, float | None]:
+    """The hinge direction and its standard deviation (deg): the circle's normal and the turn's axis
+    weighted by their block-jackknife variances; when they disagree by more than 3 combined standard
+    deviations, the surer one (its sigma at least a third of the disagreement)."""
+    cells, candidates = path.cells, []
+    if turn is not None:
+        rotvecs = path.rotvecs
 
-    Whitespace or commas separate values; `#` starts a comment; blank lines are skipped. Returns
-    positions (N,3) and unit quaternions (N,4) or None. Raises ValueError naming the bad line.
-    """
-    rows: list[list[float]] = []
-    columns = None
-    for number, raw in enumerate(text.splitlines(), start=1):
-        line = raw.split("#", 1)[0].strip()
-        if not line:
-            continue
-        fields = [f for f in re.split(r"[\s,]+", line) if f]
-        if len(fields) not in (3, 7):
-            raise ValueError(
-                f"trajectory line {number}: expected 3 values (x y z) or 7 (x y z qx qy qz qw), "
-                f"got {len(fields)}: {raw.strip()!r}"
-            )
-        try:
-            values = [float(f) for f in fields]
-        except ValueError:
-            raise ValueError(f"trajectory line {number}: not a number in {raw.strip()!r}") from None
-        if not np.all(np.isfinite(values)):
-            raise ValueError(f"trajectory line {number}: NaN or inf in {raw.strip()!r}")
-        if columns is not None and len(values) != columns:
-            raise ValueError(
-                f"trajectory line {number}: {len(values)} values but earlier lines have {columns}; "
-                "use the same format (with or without quaternions) on every line"
-            )
-        if len(values) == 7 and np.linalg.norm(values[3:]) < 1e-9:
-            raise ValueError(f"trajectory line {number}: zero quaternion in {raw.strip()!r}")
-        columns = len(values)
-        rows.append(values)
-    if not rows:
-        return np.zeros((0, 3)), None
-    data = np.array(rows)
-    if columns == 3:
-        return data, None
-    return data[:, :3], data[:, 3:] / np.linalg.norm(data[:, 3:], axis=1, keepdims=True)
+        def refit_turn(keep: np.ndarray) -> np.ndarray | None:
+            return _rotation_axis(rotvecs[keep]) if keep.sum() >= 2 else None
+
+        candidates.append((turn.axis, jackknife_sigma_deg(turn.axis, refit_turn, len(cells))))
+    if circle is not None:
+        normal = circle.normal if turn is None or circle.normal @ turn.axis >= 0 else -circle.normal
+
+        def refit_circle(keep: np.ndarray) -> np.ndarray | None:
+            chosen = cells[circle.inliers & keep]
+            if len(chosen) < 4:
+                return None
+            return refine_circle(chosen, circle.center, normal, circle.radius_m, _JACKKNIFE_EVALUATIONS)[1]
+
+        candidates.append((normal, jackknife_sigma_deg(normal, refit_circle, len(cells))))
+    if len(candidates) == 1 or any(np.isnan(s) for _, s in candidates):
+        direction, sigma = candidates[0]
+        return direction, None if np.isnan(sigma) else sigma
+    (a, sa), (b, sb) = candidates
+    disagreement = float(np.degrees(np.arccos(np.clip(a @ b, -1.0, 1.0))))
+    if disagreement > 3 * np.hypot(sa, sb):
+        direction, sigma = (a, sa) if sa <= sb else (b, sb)
+        return direction, max(sigma, disagreement / 3)
+    combined = a / sa**2 + b / sb**2
+    return combined / np.linalg.norm(combined), float(1 / np.sqrt(1 / sa**2 + 1 / sb**2))
 
 
 class TrajectoryEstimator(AxisEstimator):

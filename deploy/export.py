@@ -1,0 +1,163 @@
+"""`deploy export`: a frames-directory recording in the layouts other tools load.
+
+- `tum`: the TUM RGB-D benchmark layout: `rgb/T.png` (8-bit RGB), `depth/T.png` (16-bit, 5000 units per
+  metre), `rgb.txt` and `depth.txt` (`timestamp filename`, seconds since the recording started),
+  `associations.txt` (colour and depth of one frame on one line), `groundtruth.txt` (`timestamp tx ty tz qx qy
+  qz qw`, the camera pose in the robot base frame) when the recording has T_base_camera, and `tool.txt` (the
+  gripper's poses, same format; `deploy axis fit-trajectory` reads it) when it has ee_pose.
+- `open3d`: the layout of Open3D's reconstruction system: `color/NNNNNN.png`, `depth/NNNNNN.png` (mm),
+  `camera_intrinsic.json` (`open3d.io.read_pinhole_camera_intrinsic` reads it), `config.json` pointing at them,
+  and `trajectory.log` (camera poses, `open3d.io.read_pinhole_camera_trajectory`) with T_base_camera.
+- `rrd`: a rerun recording (extra `axisloop[viewer]`): the camera in 3D with colour, depth and masks, and the
+  gripper's pose.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+from typing import Literal
+
+import cv2
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from deploy.errors import RecordingError
+from drivers.camera.base import Frame
+from drivers.camera.frames_dir import FramesRecording
+
+Format = Literal["tum", "open3d", "rrd"]
+TUM_DEPTH_PER_M = 5000.0  # the TUM RGB-D benchmark's depth PNG scale
+OPEN3D_DEPTH_PER_M = 1000.0
+Progress = Callable[[float, float], None]
+
+
+MARKERS = {"tum": "rgb.txt", "open3d": "camera_intrinsic.json"}  # what an earlier export of ours holds
+
+
+def export_recording(recording: Path, out: Path, fmt: Format, progress: Progress | None = None,
+                     overwrite: bool = False) -> dict:
+    """Write the frames recording at `recording` to `out` in layout `fmt`; a summary {"format", "out", "frames",
+    "files"} (files: the index files written, relative to `out`). An earlier export at `out` is replaced only
+    with `overwrite`; anything else there is refused."""
+    rec = FramesRecording(recording)
+    if len(rec) == 0:
+        raise RecordingError(f"recording {recording} has no frames: nothing to export; record again")
+    _prepare(Path(out), fmt, overwrite)
+    writer = {"tum": _tum, "open3d": _open3d, "rrd": _rrd}[fmt]
+    files = writer(rec, Path(out), progress)
+    return {"format": fmt, "out": str(out), "frames": len(rec), "files": files}
+
+
+def _prepare(out: Path, fmt: Format, overwrite: bool) -> None:
+    """Make room for the export at `out`: RecordingError unless it is new, empty, or ours and `overwrite`."""
+    if not out.exists() or (out.is_dir() and not any(out.iterdir())):
+        return
+    ours = out.is_file() and out.suffix == ".rrd" if fmt == "rrd" else (out / MARKERS[fmt]).is_file()
+    if not ours:
+        raise RecordingError(f"--out {out} exists and is not a {fmt} export: refusing to write there; choose a new "
+                             "path")
+    if not overwrite:
+        raise RecordingError(f"--out {out}: a {fmt} export is already there: pass --overwrite to replace it, or "
+                             "choose another --out")
+    if out.is_dir():
+        shutil.rmtree(out)
+    else:
+        out.unlink()
+
+
+def _frames(rec: FramesRecording, progress: Progress | None):
+    for i in range(len(rec)):
+        yield i, rec.frame(i)
+        if progress is not None:
+            progress(i + 1, len(rec))
+
+
+def _png(path: Path, image: np.ndarray) -> None:
+    if not cv2.imwrite(str(path), image):
+        raise RecordingError(f"could not write {path}: check the disk space and permissions")
+
+
+def _depth_units(frame: Frame, per_m: float) -> np.ndarray:
+    return np.clip(np.round(np.nan_to_num(frame.depth_m) * per_m), 0, 65535).astype(np.uint16)
+
+
+def _tum_pose(t: float, T: np.ndarray) -> str:
+    qx, qy, qz, qw = Rotation.from_matrix(np.asarray(T)[:3, :3]).as_quat()
+    x, y, z = np.asarray(T)[:3, 3]
+    return f"{t:.6f} {x:.6f} {y:.6f} {z:.6f} {qx:.6f} {qy:.6f} {qz:.6f} {qw:.6f}"
+
+
+def _tum(rec: FramesRecording, out: Path, progress: Progress | None) -> list[str]:
+    for sub in ("rgb", "depth"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+    header = f"# file: '{rec.path.name}' (axisloop export)\n# timestamp filename\n"
+    rgb, depth, pairs, camera, tool = [], [], [], [], []
+    for i, frame in _frames(rec, progress):
+        stamp = f"{frame.t:.6f}"
+        _png(out / "rgb" / f"{stamp}.png", cv2.cvtColor(frame.color, cv2.COLOR_RGB2BGR))
+        _png(out / "depth" / f"{stamp}.png", _depth_units(frame, TUM_DEPTH_PER_M))
+        rgb.append(f"{stamp} rgb/{stamp}.png")
+        depth.append(f"{stamp} depth/{stamp}.png")
+        pairs.append(f"{stamp} rgb/{stamp}.png {stamp} depth/{stamp}.png")
+        if frame.T_base_camera is not None:
+            camera.append(_tum_pose(frame.t, frame.T_base_camera))
+        pose = rec.records[i].get("ee_pose")
+        if pose is not None:
+            tool.append(_tum_pose(frame.t, np.asarray(pose)))
+    files = {"rgb.txt": ("# color images\n" + header, rgb), "depth.txt": ("# depth maps\n" + header, depth),
+             "associations.txt": ("", pairs)}
+    if camera:
+        files["groundtruth.txt"] = ("# camera pose in the robot base frame\n# timestamp tx ty tz qx qy qz qw\n",
+                                    camera)
+    if tool:
+        files["tool.txt"] = ("# gripper pose in the robot base frame\n# timestamp tx ty tz qx qy qz qw\n", tool)
+    for name, (head, lines) in files.items():
+        (out / name).write_text(head + "\n".join(lines) + "\n", encoding="utf-8")
+    return list(files)
+
+
+def _open3d(rec: FramesRecording, out: Path, progress: Progress | None) -> list[str]:
+    for sub in ("color", "depth"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+    poses = []
+    for i, frame in _frames(rec, progress):
+        _png(out / "color" / f"{i:06d}.png", cv2.cvtColor(frame.color, cv2.COLOR_RGB2BGR))
+        _png(out / "depth" / f"{i:06d}.png", _depth_units(frame, OPEN3D_DEPTH_PER_M))
+        if frame.T_base_camera is not None:
+            poses.append(frame.T_base_camera)
+    intr = rec.intrinsics
+    K = intr.K
+    (out / "camera_intrinsic.json").write_text(json.dumps({
+        "width": intr.width, "height": intr.height,
+        "intrinsic_matrix": [float(v) for v in K.T.ravel()],  # column-major, as Open3D writes it
+    }, indent=2) + "\n", encoding="utf-8")
+    (out / "config.json").write_text(json.dumps({
+        "name": rec.path.name, "path_dataset": str(out.resolve()),
+        "path_intrinsic": str((out / "camera_intrinsic.json").resolve()),
+        "depth_scale": OPEN3D_DEPTH_PER_M, "depth_max": 3.0,
+    }, indent=2) + "\n", encoding="utf-8")
+    files = ["camera_intrinsic.json", "config.json"]
+    if poses:
+        blocks = [f"{i} {i} {len(poses)}\n" + "\n".join(" ".join(f"{v:.9f}" for v in row) for row in T)
+                  for i, T in enumerate(poses)]
+        (out / "trajectory.log").write_text("\n".join(blocks) + "\n", encoding="utf-8")
+        files.append("trajectory.log")
+    return files
+
+
+def _rrd(rec: FramesRecording, out: Path, progress: Progress | None) -> list[str]:
+    from deploy.control.viewer import RerunViewer
+
+    if out.suffix != ".rrd":
+        raise RecordingError(f"export to {out}: a rerun recording is one file: give --out NAME.rrd")
+    viewer = RerunViewer(out, spawn=False, name=f"axisloop {rec.path.name}")
+    try:
+        for i, frame in _frames(rec, progress):
+            pose = rec.records[i].get("ee_pose")
+            viewer.frame(frame.t, frame, frame.mask, None if pose is None else np.asarray(pose))
+    finally:
+        viewer.close()
+    return [out.name]

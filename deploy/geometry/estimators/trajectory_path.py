@@ -1,0 +1,137 @@
+"""A recorded handle path made fit for model selection: its noise level, glitches removed, pauses and
+uneven sampling evened out, and the statistics that compare fits on it.
+
+Pure numpy functions; metres, radians inside, degrees where a name says so.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+_CHI3_MEDIAN = 1.5382  # median of the chi distribution with 3 degrees of freedom
+_SG5_RESIDUAL = np.array([3.0, -12.0, 18.0, -12.0, 3.0]) / 35  # sample minus its 5-point quadratic fit
+_GLITCH_WINDOW = 7
+_MIN_GLITCH_M = 0.01
+_CELLS_ALONG_PATH = 100
+_MIN_SIGMA_DEG = 0.01
+
+
+@dataclass(frozen=True)
+class PreparedPath:
+    """The samples as the fits see them.
+
+    cells (M,3): median position of the samples in each occupied cell of a grid of `cell_m`, ordered by
+    the mean time rank of their samples (pauses and dense sampling count once per cell, not per
+    sample); rotvecs (M,3): each cell's mean orientation relative to the first kept sample (rotation
+    vectors, base frame), None without orientations; kept (N,): samples that are not glitches;
+    noise_m: white noise per axis estimated from the samples themselves (0 for noise-free data);
+    travel_m: extent of the kept samples along their principal direction; largest_gap_m: the largest
+    distance between cells consecutive in time (a stretch of the path without samples).
+    """
+
+    cells: np.ndarray
+    rotvecs: np.ndarray | None
+    kept: np.ndarray
+    noise_m: float
+    travel_m: float
+    cell_m: float
+    largest_gap_m: float
+
+
+def white_noise_m(positions: np.ndarray) -> float:
+    """Per-axis noise (m) of time-ordered samples: the robust scale of each sample's distance from the
+    quadratic through it and its 4 neighbours in time (smooth motion, however uneven, cancels)."""
+    if len(positions) < 5:
+        return 0.0
+    windows = np.lib.stride_tricks.sliding_window_view(positions, 5, axis=0)  # (N-4, 3, 5)
+    residuals = np.linalg.norm(windows @ _SG5_RESIDUAL, axis=1)
+    return float(np.median(residuals) / (_CHI3_MEDIAN * np.linalg.norm(_SG5_RESIDUAL)))
+
+
+def glitch_mask(positions: np.ndarray, noise_m: float) -> np.ndarray:
+    """True for the samples to keep: a sample farther than max(8 noise, 1 cm) from the per-axis median of
+    the 7 samples around it in time is a tracking glitch."""
+    n = len(positions)
+    if n < _GLITCH_WINDOW:
+        return np.ones(n, bool)
+    half = _GLITCH_WINDOW // 2
+    padded = np.concatenate([np.repeat(positions[:1], half, 0), positions, np.repeat(positions[-1:], half, 0)])
+    windows = np.lib.stride_tricks.sliding_window_view(padded, _GLITCH_WINDOW, axis=0)
+    deviation = np.linalg.norm(positions - np.median(windows, axis=2), axis=1)
+    kept = deviation <= max(8 * noise_m, _MIN_GLITCH_M)
+    return kept if kept.sum() >= 3 else np.ones(n, bool)
+
+
+def relative_rotvecs(quaternions: np.ndarray) -> np.ndarray:
+    """Each orientation relative to the first, as a rotation vector in the base frame (N,3)."""
+    rotations = Rotation.from_quat(quaternions)
+    return (rotations * rotations[0].inv()).as_rotvec()
+
+
+def prepare_path(positions: np.ndarray, quaternions: np.ndarray | None = None) -> PreparedPath:
+    """Noise level, glitches and cells (`PreparedPath`) of time-ordered positions (N,3) and orientations
+    (N,4, xyzw) or None. Cells are max(3 noise, travel / 100) wide: noise-free samples keep a cell each."""
+    noise_m = white_noise_m(positions)
+    kept = glitch_mask(positions, noise_m)
+    points = positions[kept]
+    centred = points - points.mean(axis=0)
+    travel_m = float(np.ptp(centred @ np.linalg.svd(centred, full_matrices=False)[2][0]))
+    cell_m = max(3 * noise_m, travel_m / _CELLS_ALONG_PATH, 1e-6)
+    keys = np.floor(points / cell_m).astype(np.int64)
+    _, cell_of, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    cell_of = cell_of.ravel()
+    rank = np.bincount(cell_of, weights=np.arange(len(points), dtype=float)) / counts
+    order = np.argsort(rank, kind="stable")
+    cells = np.array([np.median(points[cell_of == c], axis=0) for c in order])
+    rotvecs = None
+    if quaternions is not None:
+        relative = relative_rotvecs(quaternions[kept])
+        rotvecs = np.array([relative[cell_of == c].mean(axis=0) for c in order])
+    gap = float(np.max(np.linalg.norm(np.diff(cells, axis=0), axis=1))) if len(cells) > 1 else 0.0
+    return PreparedPath(cells, rotvecs, kept, noise_m, travel_m, cell_m, gap)
+
+
+def effective_fraction(residuals: np.ndarray) -> float:
+    """n_eff / n of a sequence of residual vectors (n,k): 1 / the integrated autocorrelation time, summed
+    up to the first lag whose autocorrelation is not positive. Correlated misfit (a wobble, tremor
+    sampled densely, a pause) counts as fewer independent samples than white noise."""
+    r = residuals - residuals.mean(axis=0)
+    total = float(np.sum(r * r))
+    n = len(r)
+    if n < 6 or total <= 0:
+        return 1.0
+    tau = 1.0
+    for lag in range(1, n // 3):
+        rho = float(np.sum(r[:-lag] * r[lag:])) / total
+        if rho <= 0:
+            break
+        tau += 2 * rho
+    return 1.0 / tau
+
+
+def blocks(n: int, count: int = 5) -> list[np.ndarray]:
+    """Index arrays of up to `count` contiguous blocks of range(n) (at least 3 items each)."""
+    count = min(count, n // 3)
+    return [] if count < 2 else np.array_split(np.arange(n), count)
+
+
+def jackknife_sigma_deg(direction: np.ndarray, refit: Callable[[np.ndarray], np.ndarray | None], n: int) -> float:
+    """Block-jackknife standard deviation (deg) of a fitted unit `direction`: `refit(keep)` gives the
+    direction from the items `keep` (a boolean mask of n) or None; each block of contiguous items is
+    left out once. Contiguous blocks keep correlated errors (wobble, drift) in the estimate."""
+    replicates = []
+    for block in blocks(n):
+        keep = np.ones(n, bool)
+        keep[block] = False
+        d = refit(keep)
+        if d is not None:
+            replicates.append(d if d @ direction >= 0 else -d)
+    if len(replicates) < 2:
+        return float("nan")
+    r = np.array(replicates)
+    spread = np.sum((r - r.mean(axis=0)) ** 2) * (len(r) - 1) / len(r)
+    return max(float(np.degrees(np.sqrt(spread))), _MIN_SIGMA_DEG)

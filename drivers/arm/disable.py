@@ -1,0 +1,104 @@
+"""Disabling every motor and knowing which ones did: a Damiao motor answers a disable with a feedback frame whose
+status is no longer "enabled", so a disable counts only once that answer came. A motor that never answers (a
+bus-off, a silent or unpowered motor, lost frames) may still be enabled, and every message says so by name.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterable
+
+from drivers.arm.can_bus import CanBus
+from drivers.arm.damiao import Special, Status, is_param_reply, special
+from drivers.arm.motor_channels import MotorChannel
+from drivers.errors import ArmError
+from drivers.interrupts import critical
+
+DISABLE_ROUNDS = 3  # a motor whose answer did not come is sent the disable again, this often in all
+MOTORS_DISABLED = "motors disabled"  # the words fault messages use for "every motor was disabled"
+
+
+def disable_and_confirm(bus: CanBus, channels: Iterable[MotorChannel], timeout_s: float, lock: threading.RLock,
+                        now: Callable[[], float], rounds: int = DISABLE_ROUNDS) -> list[MotorChannel]:
+    """Send disable to every motor and wait up to `timeout_s` for each one's answer (stored as its feedback,
+    under `lock`, stamped with `now()`); resend to the silent ones, `rounds` sends in all. Returns the channels
+    that never confirmed. Never raises: a dead bus only means nobody confirms; a signal waits for its end."""
+    with critical:
+        return _disable(bus, list(channels), timeout_s, lock, now, rounds)
+
+
+def _disable(bus: CanBus, channels: list[MotorChannel], timeout_s: float, lock: threading.RLock,
+             now: Callable[[], float], rounds: int) -> list[MotorChannel]:
+    pending = {c.config.master_id: c for c in channels}
+    for _ in range(rounds):
+        for c in pending.values():
+            try:
+                bus.send(c.config.can_id, special(Special.DISABLE))
+            except ArmError:  # bus-off, full queue: the motor counts as unconfirmed
+                pass
+        deadline = time.perf_counter() + timeout_s
+        while pending and (remaining := deadline - time.perf_counter()) > 0:
+            try:
+                msg = bus.recv(remaining)
+            except ArmError:  # an error frame: keep listening until the deadline
+                time.sleep(min(remaining, 1e-3))
+                continue
+            if msg is None:
+                break
+            c = pending.get(msg.arbitration_id)
+            if c is None or is_param_reply(bytes(msg.data), c.config.can_id):
+                continue
+            fb = c.decode(bytes(msg.data))
+            if fb is None:
+                continue
+            with lock:
+                c.feedback, c.t_feedback = fb, now()
+            if fb.status != Status.ENABLED:
+                del pending[c.config.master_id]
+        if not pending:
+            break
+    try:
+        bus.flush()
+    except ArmError:
+        pass
+    return list(pending.values())
+
+
+def motor_states(channels: Iterable[MotorChannel], unconfirmed: set[str]) -> list[dict]:
+    """Every motor's final state as the driver knows it: name, CAN id, enabled (True where a disable was not
+    confirmed: it may still be), status (the last feedback's, "no answer" where a disable went unanswered)."""
+    states = []
+    for c in channels:
+        fb = c.feedback
+        if c.name in unconfirmed:
+            states.append({"name": c.name, "can_id": c.config.can_id, "enabled": True, "status": "no answer"})
+        else:
+            status = fb.status.name.lower().replace("_", "-") if fb is not None else "no feedback"
+            states.append({"name": c.name, "can_id": c.config.can_id,
+                           "enabled": fb is not None and fb.status == Status.ENABLED, "status": status})
+    return states
+
+
+def disable_summary(states: list[dict]) -> str:
+    """"all N motors disabled", or the motors that may still be enabled and what to do about them."""
+    left = [s["name"] for s in states if s["enabled"]]
+    if not left:
+        return f"all {len(states)} {MOTORS_DISABLED}"
+    if len(left) == len(states):
+        return (f"no motor answered the disable ({', '.join(left)}): all may still be enabled: switch off their "
+                "power")
+    its = "its" if len(left) == 1 else "their"
+    return (f"{MOTORS_DISABLED} except {', '.join(left)}, which did not answer the disable and may still be "
+            f"enabled: switch off {its} power")
+
+
+def with_summary(message: str, states: list[dict]) -> str:
+    """`message` telling the truth about the motors: its "motors disabled" replaced by what happened when a motor
+    did not confirm, and the outcome added where it says nothing about them."""
+    summary = disable_summary(states)
+    if summary in message:
+        return message
+    if MOTORS_DISABLED in message:
+        return message if summary.startswith("all ") else message.replace(MOTORS_DISABLED, summary, 1)
+    return f"{message}; {summary}"

@@ -1,0 +1,91 @@
+"""`deploy export REC --format tum|open3d|rrd` on a synthetic drawer recording (masks, camera pose, gripper
+path): the files other tools read, read back with those tools' conventions (Open3D's own readers)."""
+
+import json
+
+import cv2
+import numpy as np
+import open3d as o3d
+import pytest
+from rerun_files import entities
+
+from deploy.cli import main
+from deploy.synthetic.sequence import synthetic_sequence, write_sequence
+from drivers.camera.depth_noise import DepthNoise
+from drivers.camera.frames_dir import FramesRecording
+
+N = 6
+
+
+def run(capsys, *args):
+    code = main([str(a) for a in args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    seq = synthetic_sequence("drawer", np.random.default_rng(3), travel=0.10, n_frames=N, noise=DepthNoise.d415())
+    path = tmp_path_factory.mktemp("export") / "drawer"
+    write_sequence(seq, path)
+    return path
+
+
+def test_tum_layout(capsys, recording, tmp_path):
+    out = tmp_path / "tum"
+    code, printed, err = run(capsys, "export", recording, "--format", "tum", "--out", out, "--json")
+    assert code == 0, err
+    assert json.loads(printed)["files"] == ["rgb.txt", "depth.txt", "associations.txt", "groundtruth.txt", "tool.txt"]
+    rec = FramesRecording(recording)
+    rgb = [line.split() for line in (out / "rgb.txt").read_text().splitlines() if not line.startswith("#")]
+    depth = [line.split() for line in (out / "depth.txt").read_text().splitlines() if not line.startswith("#")]
+    assert len(rgb) == len(depth) == N and rgb[1] == [f"{rec.frame(1).t:.6f}", f"rgb/{rec.frame(1).t:.6f}.png"]
+    image = cv2.imread(str(out / depth[2][1]), cv2.IMREAD_UNCHANGED)
+    assert image.dtype == np.uint16
+    np.testing.assert_allclose(image / 5000.0, rec.frame(2).depth_m, atol=1e-3)  # TUM: 5000 units per metre
+    colour = cv2.cvtColor(cv2.imread(str(out / rgb[2][1])), cv2.COLOR_BGR2RGB)
+    np.testing.assert_array_equal(colour, rec.frame(2).color)
+    truth = np.loadtxt(out / "groundtruth.txt")
+    assert truth.shape == (N, 8)
+    np.testing.assert_allclose(truth[0, 1:4], rec.T_base_camera[:3, 3], atol=1e-6)
+    code, printed, _ = run(capsys, "axis", "fit-trajectory", out / "tool.txt", "--json")  # the gripper's path
+    assert code == 0 and json.loads(printed)["joint_type"] == "prismatic"
+    code, _, err = run(capsys, "export", recording, "--format", "tum", "--out", out)
+    assert code == 2 and "pass --overwrite" in err
+    assert run(capsys, "export", recording, "--format", "tum", "--out", out, "--overwrite")[0] == 0
+
+
+def test_open3d_layout_reads_with_open3d(capsys, recording, tmp_path):
+    out = tmp_path / "o3d"
+    code, _, err = run(capsys, "export", recording, "--format", "open3d", "--out", out)
+    assert code == 0, err
+    intr = FramesRecording(recording).intrinsics
+    read = o3d.io.read_pinhole_camera_intrinsic(str(out / "camera_intrinsic.json"))
+    assert (read.width, read.height) == (intr.width, intr.height)
+    np.testing.assert_allclose(read.intrinsic_matrix, intr.K)
+    trajectory = o3d.io.read_pinhole_camera_trajectory(str(out / "trajectory.log"))
+    assert len(trajectory.parameters) == N
+    np.testing.assert_allclose(np.linalg.inv(trajectory.parameters[0].extrinsic),
+                               FramesRecording(recording).T_base_camera, atol=1e-6)
+    depth = o3d.io.read_image(str(out / "depth" / "000003.png"))
+    colour = o3d.io.read_image(str(out / "color" / "000003.png"))
+    config = json.loads((out / "config.json").read_text())
+    rgbd = o3d.geometry.RGBDImage.create_from_color_and_depth(colour, depth, depth_scale=config["depth_scale"],
+                                                              convert_rgb_to_intensity=False)
+    cloud = o3d.geometry.PointCloud.create_from_rgbd_image(rgbd, read)
+    assert len(cloud.points) > 0.5 * intr.width * intr.height
+
+
+def test_rrd_export_and_a_folder_that_is_not_an_export(capsys, recording, tmp_path):
+    code, _, err = run(capsys, "export", recording, "--format", "rrd", "--out", tmp_path / "drawer.rrd")
+    assert code == 0, err
+    found = entities(tmp_path / "drawer.rrd")
+    assert found["/world/camera/image/color"]["rows"] == N and found["/world/camera/image/mask"]["rows"] == N
+    assert "Pinhole:image_from_camera" in found["/world/camera/image"]["components"]
+    assert found["/world/gripper"]["rows"] == N
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("keep")
+    code, _, err = run(capsys, "export", recording, "--out", tmp_path / "mine", "--overwrite")
+    assert code == 2 and "is not a tum export" in err and (tmp_path / "mine" / "notes.txt").exists()
+    code, _, err = run(capsys, "export", recording, "--format", "rrd", "--out", tmp_path / "x.txt")
+    assert code == 2 and "give --out NAME.rrd" in err

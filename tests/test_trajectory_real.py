@@ -1,0 +1,214 @@
+"""fit_trajectory on paths like real recordings: each failure class of hand-recorded handle trajectories."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from deploy.bench.axis_paths import bench_axis_paths
+from deploy.geometry.estimators.trajectory import fit_trajectory, parse_trajectory
+from deploy.geometry.metrics import axis_angle_error_deg
+from deploy.geometry.types import Axis, JointType, NoAxis
+from deploy.synthetic.handle_paths import handle_path_set, random_object, record_path
+
+HZ = 60.0
+
+
+def unit(v) -> np.ndarray:
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v)
+
+
+def progress(n: int, pauses: int = 0, seed: int = 0) -> np.ndarray:
+    """0..1 over n samples, minimum-jerk, with `pauses` stretches of 25 % of the samples standing still."""
+    rng = np.random.default_rng(seed)
+    moving = n - pauses * (n // 4)
+    s = np.linspace(0, 1, moving)
+    values = list(10 * s**3 - 15 * s**4 + 6 * s**5)
+    for _ in range(pauses):
+        at = int(rng.integers(1, len(values) - 1))
+        values[at:at] = [values[at]] * (n // 4)
+    return np.array(values)
+
+
+def tremor(n: int, amplitude_m: float, seed: int) -> np.ndarray:
+    """Band-limited (5-12 Hz) hand tremor sampled at HZ: (n,3) of RMS `amplitude_m` per axis."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n)[:, None, None] / HZ
+    f, phase = rng.uniform(5, 12, (6, 3)), rng.uniform(0, 2 * np.pi, (6, 3))
+    return amplitude_m * np.sqrt(2 / 6) * np.sum(np.sin(2 * np.pi * f * t + phase), axis=1)
+
+
+def drawer(direction=(-1.0, 0.2, 0.0), travel_m=0.3, n=240, pauses=0, seed=0):
+    """Positions and a constant orientation of a handle pulled along `direction`."""
+    q = progress(n, pauses, seed) * travel_m
+    positions = np.array([0.7, 0.1, 0.6]) + np.outer(q, unit(direction))
+    quaternions = np.tile(Rotation.from_euler("xyz", [5, 80, 0], degrees=True).as_quat(), (n, 1))
+    return positions, quaternions
+
+
+def door(axis=(0.0, 0.0, 1.0), arc_deg=60.0, radius_m=0.45, n=240, pauses=0, seed=0):
+    """Positions and orientations of a handle turning about a hinge through (0.8, 0.3, 0.5)."""
+    axis = unit(axis)
+    lever = unit(np.cross(axis, [0.3, 1.0, 0.2])) * radius_m
+    turns = Rotation.from_rotvec(np.outer(np.radians(progress(n, pauses, seed) * arc_deg), axis))
+    positions = np.array([0.8, 0.3, 0.5]) + turns.apply(lever)
+    return positions, (turns * Rotation.from_euler("z", 20, degrees=True)).as_quat()
+
+
+def jitter(positions, quaternions, seed, tremor_m=1.0e-3, sensor_m=0.4e-3, turn_deg=0.5):
+    rng = np.random.default_rng(seed)
+    noisy = positions + tremor(len(positions), tremor_m, seed) + rng.normal(0, sensor_m, positions.shape)
+    rotations = Rotation.from_rotvec(np.radians(turn_deg) * rng.normal(size=(len(positions), 3)))
+    return noisy, (rotations * Rotation.from_quat(quaternions)).as_quat()
+
+
+def check(result, joint_type, direction, max_deg):
+    assert isinstance(result, Axis), getattr(result, "reason", result)
+    assert result.joint_type is joint_type
+    assert axis_angle_error_deg(direction, result.direction) < max_deg
+    assert result.direction_sigma_deg is not None and np.isfinite(result.direction_sigma_deg)
+
+
+@pytest.mark.parametrize("with_orientation", [True, False])
+def test_hand_jitter(with_orientation):
+    for seed in range(4):
+        positions, quaternions = jitter(*drawer(seed=seed), seed)
+        check(fit_trajectory(positions, quaternions if with_orientation else None), JointType.PRISMATIC,
+              [-1.0, 0.2, 0.0], 1.0)
+        positions, quaternions = jitter(*door(seed=seed), seed)
+        check(fit_trajectory(positions, quaternions if with_orientation else None), JointType.REVOLUTE,
+              [0, 0, 1], 2.0)
+
+
+def test_pauses_count_once():
+    """Two long pauses (half the samples standing still, trembling) do not turn a slide into an arc."""
+    for seed in range(4):
+        positions, quaternions = jitter(*drawer(pauses=2, seed=seed), seed, tremor_m=1.5e-3)
+        check(fit_trajectory(positions), JointType.PRISMATIC, [-1.0, 0.2, 0.0], 1.0)
+        positions, quaternions = jitter(*door(pauses=2, seed=seed), seed, tremor_m=1.5e-3)
+        check(fit_trajectory(positions, quaternions), JointType.REVOLUTE, [0, 0, 1], 2.0)
+
+
+def test_short_travel_is_undecided_unless_the_joint_is_given():
+    positions, _ = jitter(*drawer(travel_m=0.02, n=60), 0)
+    result = fit_trajectory(positions)
+    assert isinstance(result, NoAxis) and result.details["undecided"] and "travel" in result.reason
+    assert fit_trajectory(positions, joint=JointType.PRISMATIC).joint_type is JointType.PRISMATIC
+
+
+def test_a_short_arc_without_orientations_is_undecided_and_with_them_revolute():
+    positions, quaternions = door(arc_deg=12, radius_m=0.5, n=120)
+    result = fit_trajectory(positions)
+    assert isinstance(result, NoAxis) and "too short an arc" in result.reason
+    check(fit_trajectory(positions, quaternions), JointType.REVOLUTE, [0, 0, 1], 0.5)
+
+
+@pytest.mark.parametrize("with_orientation", [True, False])
+def test_tracking_glitches(with_orientation):
+    rng = np.random.default_rng(3)
+    for make, joint, direction in ((drawer, JointType.PRISMATIC, [-1.0, 0.2, 0.0]),
+                                   (door, JointType.REVOLUTE, [0, 0, 1])):
+        positions, quaternions = jitter(*make(seed=3), 3)
+        picked = rng.choice(len(positions), 8, replace=False)
+        positions[picked] += rng.normal(size=(8, 3)) * rng.uniform(0.03, 0.15, (8, 1))
+        check(fit_trajectory(positions, quaternions if with_orientation else None), joint, direction, 2.0)
+
+
+def wobbling_slide(seed: int, amplitude_m: float = 4e-3, wobble_deg: float = 2.5):
+    """A sliding door moved 40 cm along its front, its handle swaying across the track and turning back
+    and forth as the rollers pass (wavelength 25 cm)."""
+    positions, quaternions = drawer(direction=(0.1, 1.0, 0.0), travel_m=0.4, seed=seed)
+    along = (positions - positions[0]) @ unit([0.1, 1.0, 0.0])
+    sway = np.sin(2 * np.pi * along / 0.25 + seed)
+    positions = positions + amplitude_m * np.outer(sway - sway[0], [0.3, 0.0, 1.0])
+    turn = Rotation.from_rotvec(np.outer(np.radians(wobble_deg) * (sway - sway[0]), [0.0, 0.0, 1.0]))
+    return jitter(positions, (turn * Rotation.from_quat(quaternions)).as_quat(), seed)
+
+
+def test_a_wobbling_sliding_part_is_never_called_revolute():
+    for seed in range(5):
+        positions, quaternions = wobbling_slide(seed)
+        check(fit_trajectory(positions, quaternions), JointType.PRISMATIC, [0.1, 1.0, 0.0], 2.0)
+        result = fit_trajectory(positions)
+        assert isinstance(result, NoAxis) or result.joint_type is JointType.PRISMATIC
+
+
+def test_a_tilted_hinge_keeps_its_tilt():
+    for tilt in ([0.09, 0.0, 1.0], [0.0, -0.06, 1.0], [1.0, 0.0, 0.05]):  # 5, 3.4 deg off vertical; a flap
+        for seed in range(3):
+            positions, quaternions = jitter(*door(axis=tilt, arc_deg=50, seed=seed), seed)
+            for q in (quaternions, None):
+                check(fit_trajectory(positions, q), JointType.REVOLUTE, tilt, 1.5)
+
+
+def test_uneven_sampling_and_shuffled_samples_with_times():
+    rng = np.random.default_rng(0)
+    positions, quaternions = jitter(*door(n=400), 0)
+    keep = np.sort(rng.choice(400, 150, replace=False))  # dropped samples, gaps of varying length
+    positions, quaternions = positions[keep], quaternions[keep]
+    times = keep / HZ
+    ordered = fit_trajectory(positions, quaternions)
+    shuffle = rng.permutation(len(times))
+    shuffled = fit_trajectory(positions[shuffle], quaternions[shuffle], times=times[shuffle])
+    check(ordered, JointType.REVOLUTE, [0, 0, 1], 2.0)
+    np.testing.assert_allclose(shuffled.direction, ordered.direction)
+    assert isinstance(fit_trajectory(positions, times=times[:3]), NoAxis)
+
+
+def test_a_stretch_without_samples_leaves_a_line_undecided():
+    positions, quaternions = jitter(*door(arc_deg=70), 0)
+    along = np.linspace(0, 1, len(positions))
+    lost = (along > 0.15) & (along < 0.85)  # tracking lost for most of the swing
+    assert isinstance(fit_trajectory(positions[~lost]), (Axis, NoAxis))
+    line = drawer(n=100)[0]
+    line = line[np.r_[0:20, 80:100]]
+    result = fit_trajectory(line)
+    assert isinstance(result, NoAxis) and "no samples" in result.reason
+    assert fit_trajectory(line, drawer(n=40)[1]).joint_type is JointType.PRISMATIC  # orientations: no turn
+
+
+def test_a_turn_the_path_does_not_follow_is_undecided():
+    """The gripper turned 30 deg with the travel, but the positions run straight: a slipping grasp."""
+    positions, _ = jitter(*drawer(travel_m=0.25), 0)
+    turning = door(arc_deg=30, n=len(positions))[1]
+    result = fit_trajectory(positions, turning)
+    assert isinstance(result, NoAxis) and "does not bend" in result.reason
+
+
+def test_the_recorded_like_set_meets_the_targets():
+    """60 paths of 12 objects (deploy.synthetic.handle_paths): type right in >= 95 %, never wrong, every
+    object's median direction error <= 3 deg."""
+    data = bench_axis_paths(seed=0)
+    assert data["paths"] == 60 and data["joint_type_accuracy"] >= 0.95 and data["wrong_type"] == 0
+    assert max(data["object_median_angle_deg"].values()) <= 3.0
+    assert {row["kind"] for row in data["rows"]} == {"drawer", "door", "flap", "slider"}
+
+
+def test_handle_paths_are_reproducible_and_carry_the_truth():
+    rng = np.random.default_rng(5)
+    obj = random_object(rng, "door", "door-x")
+    a, b = record_path(obj, np.random.default_rng(1)), record_path(obj, np.random.default_rng(1))
+    np.testing.assert_array_equal(a.positions, b.positions)
+    assert np.all(np.diff(a.times) > 0) and a.quaternions.shape == (len(a.times), 4)
+    start = np.linalg.norm(np.cross(obj.axis.direction, obj.start - obj.axis.origin))
+    assert 0.3 <= start <= 0.6
+    paths = handle_path_set(1, objects_per_kind=(1, 1, 1, 1), paths_per_object=2)
+    assert [p.kind for p in paths] == ["drawer"] * 2 + ["door"] * 2 + ["flap"] * 2 + ["slider"] * 2
+
+
+def test_tum_and_csv_files_are_read():
+    tum = "# timestamp tx ty tz qx qy qz qw\n2.0 0.1 0 0 0 0 0 1\n1.0 0 0 0 0 0 0 2\n"
+    trajectory = parse_trajectory(tum)
+    assert trajectory.format == "tum" and trajectory.times.tolist() == [2.0, 1.0]
+    assert trajectory.quaternions[1].tolist() == [0, 0, 0, 1]
+    csv = "time,Pos X [m],pos_y,pos_z,qw,qx,qy,qz\n0.0,1,2,3,1,0,0,0\n0.1,4,5,6,0,0,0,1\n"
+    trajectory = parse_trajectory(csv)
+    assert trajectory.format == "csv" and trajectory.positions.tolist() == [[1, 2, 3], [4, 5, 6]]
+    assert trajectory.quaternions.tolist() == [[0, 0, 0, 1], [0, 0, 1, 0]] and trajectory.times[1] == 0.1
+    assert parse_trajectory("x;y;z\n1;2;3\n").positions.tolist() == [[1, 2, 3]]
+    with pytest.raises(ValueError, match="line 1: header a, b, c names no position columns"):
+        parse_trajectory("a,b,c\n1,2,3\n")
+    with pytest.raises(ValueError, match="line 3: 2 values but the header has 3"):
+        parse_trajectory("x,y,z\n1,2,3\n1,2\n")
+    with pytest.raises(ValueError, match="line 2: zero quaternion"):
+        parse_trajectory("x y z qx qy qz qw\n1 2 3 0 0 0 0\n")
