@@ -63,7 +63,7 @@ def choose(camera: str, arm: str | None, robot: Path | None, pivot_mm: tuple[flo
            pivot_from_record: bool = False) -> DeviceChoice:
     """Check the camera and arm specs, the pivot (needed on a real arm unless a stored calibration gives it) and
     load the robot config (default arm: sim with the sim camera, can with a D415; default robot for sim arms:
-    configs/robots/panda_sim.toml). ConfigError naming the fix otherwise."""
+    the shipped panda_sim). ConfigError naming the fix otherwise."""
     kind = camera.partition(":")[0]
     if kind == "replay":
         raise ConfigError(f"--camera {camera}: calibration moves the arm and needs live images of each pose, which a "
@@ -77,14 +77,14 @@ def choose(camera: str, arm: str | None, robot: Path | None, pivot_mm: tuple[flo
         raise ConfigError(f"--camera {camera} cannot see --arm {arm}: pair the simulated camera with a simulated arm "
                           "(--camera sim --arm sim|sim-can) and a D415 with the real one (--camera d415 --arm can)")
     if robot is None and arm in REAL_ARMS:
-        raise ConfigError(f"--arm {arm} needs --robot CONFIG.toml: your arm's config (configs/robots/damiao_6dof.toml "
+        raise ConfigError(f"--arm {arm} needs --robot CONFIG.toml: your arm's config (`--robot damiao_6dof` "
                           "is the template; docs/arm.md)")
     if arm in REAL_ARMS and pivot_mm is None and not pivot_from_record:
         raise ConfigError(NO_PIVOT)
     config = load_robot_config(robot or PANDA_SIM_CONFIG)
     if arm in SIM_ARMS and config.joint_names != load_robot_config(PANDA_SIM_CONFIG).joint_names:
-        raise ConfigError(f"robot config {config.name!r} is not the simulated Panda: use --robot "
-                          f"{PANDA_SIM_CONFIG.relative_to(PANDA_SIM_CONFIG.parents[2])} (or none) with the simulation")
+        raise ConfigError(f"robot config {config.name!r} is not the simulated Panda: use --robot panda_sim (or none) "
+                          "with the simulation")
     return DeviceChoice(camera, arm, config, pivot_mm, robot)
 
 

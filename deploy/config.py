@@ -37,7 +37,7 @@ from deploy.perception.config import PerceptionConfig
 
 Task = Literal["drawer", "door", "auto"]
 Policy = Literal["closed", "open", "paper"]
-Fusion = Literal["vision", "trajectory", "fused"]
+Fusion = Literal["vision", "trajectory", "fused", "force"]
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -114,7 +114,10 @@ class OpeningConfig(_Section):
     axis, "paper" runs the paper's straight steps with its estimator (`paper-obb`). fusion: "vision" acts on
     the camera's estimate only; "trajectory" on a fit to the gripper's own path (FK) once it fits, vision
     before; "fused" on the trajectory fit once the gripper has moved `trajectory_min_travel` (m or deg) and the
-    fit is confident, on vision otherwise and for the joint type. A vision estimate below
+    fit is confident, on vision otherwise and for the joint type; "force" on vision, except after a pull whose
+    force across its path reached `force_cue_n` (the commanded axis was off and the compliant path yielded to
+    the object): then on the fit to the gripper's path once it has moved `trajectory_min_travel`. A vision
+    estimate below
     `vision_min_confidence` (doors: `door_vision_min_confidence`, and only past `vision_min_travel_deg`) is not
     acted on: the previous axis is kept, at first the prior from the first frame (drawer: the front normal;
     door: the front's far edge).
@@ -124,7 +127,9 @@ class OpeningConfig(_Section):
     target_distance_m: float = Field(default=0.30, gt=0, le=1.0)
     target_angle_deg: float = Field(default=45.0, gt=0, le=170)
     policy: Policy = "closed"
-    fusion: Fusion = "vision"
+    fusion: Fusion = "force"
+    force_cue_n: float = Field(default=10.0, gt=0, description="fusion force: a pull resisted across its path "
+                               "by this much (N) was off the object's axis")
     first_pull_m: float = Field(default=0.05, gt=0, le=0.15)
     probe_pull_m: float = Field(default=0.025, gt=0, le=0.1, description="task auto: straight pull that classifies")
     drawer_step_m: float = Field(default=0.08, gt=0, le=0.3)
@@ -143,6 +148,9 @@ class OpeningConfig(_Section):
     pull_speed_m_s: float = Field(default=0.08, gt=0, le=0.5)
     pull_speed_deg_s: float = Field(default=12.0, gt=0, le=90)
     min_mask_fraction: float = Field(default=0.2, gt=0, lt=1, description="tracking lost below this")
+    pull_force_limit_n: float | None = Field(default=60.0, gt=0, le=500, description="a pull ends \"blocked\" "
+                                             "when the force the tool applies (from the joint torques) exceeds "
+                                             "this; a Panda-class arm's. None: no limit")
 
     @property
     def target(self) -> float:

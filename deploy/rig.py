@@ -47,11 +47,13 @@ SIM_SERIAL = "sim-d415"  # the simulated camera's serial, naming its calibration
 
 @dataclass(frozen=True)
 class SimScene:
-    """The simulated opening scenario: a cabinet with a drawer or a door (`Scenario.make(task, seed, split)`)."""
+    """The simulated opening scenario: a cabinet with a drawer or a door (`Scenario.make(task, seed, split)`) whose
+    joint is in `condition` ("normal", "locked" or "stiff": 3x the friction); the controller is never told."""
 
     task: Literal["drawer", "door"] = "drawer"
     seed: int = 0
     split: Literal["train", "test"] = "train"
+    condition: Literal["normal", "locked", "stiff"] = "normal"
 
 
 @dataclass(frozen=True)
@@ -136,7 +138,7 @@ def check_spec(spec: RigSpec) -> None:
                           "the simulated camera sees only the simulated Panda")
     if arm is not None and not arm.simulated and spec.robot is None:
         raise ConfigError(f"--arm {spec.arm} needs --robot CONFIG.toml: your arm's config "
-                          "(configs/robots/damiao_6dof.toml is the template; docs/arm.md)")
+                          "(`--robot damiao_6dof` is the shipped template; docs/arm.md)")
 
 
 @contextmanager
@@ -167,7 +169,8 @@ def _open_simulated(rig: Rig, stack: ExitStack) -> None:
         from sim_fallback.world import SimWorld
 
         scene = spec.scene
-        rig.world = stack.enter_context(SimWorld(Scenario.make(scene.task, scene.seed, scene.split)))
+        rig.world = stack.enter_context(SimWorld(Scenario.make(scene.task, scene.seed, scene.split,
+                                                               condition=scene.condition)))
         sim_camera = CAMERAS.open(spec.camera, world=rig.world, seed=scene.seed, labels=spec.segmenter == "oracle",
                                   **spec.camera_options)
         T_calibrated = simulated_calibration(sim_camera.T_base_camera, *spec.calibration_error,

@@ -83,4 +83,4 @@ def sim_can_arm(config: RobotConfig, world: SimWorld | None = None, faults: dict
 def _check_panda(config: RobotConfig, world: SimWorld) -> None:
     if tuple(config.joint_names) != tuple(world.robot_spec.arm_joints):
         raise ArmError(f"robot config {config.name!r} is not the simulated Panda (joints {config.joint_names}): "
-                       "use configs/robots/panda_sim.toml with the simulation")
+                       "use --robot panda_sim with the simulation")

@@ -14,6 +14,8 @@ import numpy as np
 from sim_fallback.cabinet_urdf import KINDS, SPLITS, CabinetSpec, Split, random_cabinet
 
 Task = Literal["drawer", "door"]
+Condition = Literal["normal", "locked", "stiff"]  # the object's joint: as drawn, held fast, 3x the friction
+CONDITIONS: tuple[Condition, ...] = ("normal", "locked", "stiff")
 
 # Robot base to the centre of the cabinet's front face (horizontal) and grip centre above the robot base
 # (a pedestal lifts the cabinet), per task. A drawer is pulled toward the robot: its ranges keep a 45 cm
@@ -43,7 +45,8 @@ class CameraPlacement:
 
 @dataclass(frozen=True)
 class Scenario:
-    """One episode's set-up: cabinet, its pose on a pedestal, camera placement and arm start (rad)."""
+    """One episode's set-up: cabinet, its pose on a pedestal, camera placement, arm start (rad) and the joint's
+    `condition` ("locked": held fast; "stiff": three times its friction)."""
 
     task: Task
     seed: int
@@ -54,12 +57,17 @@ class Scenario:
     pedestal_height_m: float
     camera: CameraPlacement
     q_start: tuple[float, ...]
+    condition: Condition = "normal"
 
     @classmethod
     def make(
-        cls, task: Task, seed: int, split: Split = "train", camera: CameraPlacement | None = None
+        cls, task: Task, seed: int, split: Split = "train", camera: CameraPlacement | None = None,
+        condition: Condition = "normal",
     ) -> Scenario:
-        """A random scenario, deterministic from (task, seed, split); `camera` overrides the random one."""
+        """A random scenario, deterministic from (task, seed, split); `camera` overrides the random one; the
+        condition changes the joint only (same cabinet, placement and camera)."""
+        if condition not in CONDITIONS:
+            raise ValueError(f"unknown object condition {condition!r}: use one of {', '.join(CONDITIONS)}")
         cabinet = random_cabinet(task, seed, split)
         rng = np.random.default_rng([SPLITS.index(split), KINDS.index(task), seed, 1])  # not the cabinet's
         distance = rng.uniform(*CABINET_DISTANCE_M[task])
@@ -80,7 +88,7 @@ class Scenario:
             cabinet_xy=(float(centre[0]), float(centre[1])),
             cabinet_yaw=float(np.arctan2(np.sin(yaw), np.cos(yaw))), pedestal_height_m=float(pedestal),
             camera=camera or random_camera,
-            q_start=tuple(float(v) for v in q),
+            q_start=tuple(float(v) for v in q), condition=condition,
         )
 
     @property

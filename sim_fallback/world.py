@@ -27,6 +27,8 @@ from sim_fallback.scenario import Scenario
 
 PHYSICS_HZ = 240
 VISUAL_TRIANGLE_FRACTION = 0.25  # robot visuals: decimated collision meshes (0.1 drops the IoU to 0.9)
+STIFF_FRICTION_FACTOR = 3.0  # condition "stiff": the joint's Coulomb friction times this
+LOCKED_FORCE = 1e5  # condition "locked": the joint's brake (N or N m), far above anything the arm can pull
 FLOOR_SIZE_M = 4.0  # a floor box: about +15 ms a 640x480 frame (pybullet_data's plane doubles the time)
 
 
@@ -114,7 +116,10 @@ class SimWorld:
         pb.changeDynamics(self.cabinet_id, self.cabinet_joint, jointDamping=spec.damping, linearDamping=0.0,
                           angularDamping=0.0, physicsClientId=c)
         pb.setJointMotorControl2(self.cabinet_id, self.cabinet_joint, pb.VELOCITY_CONTROL, targetVelocity=0.0,
-                                 force=spec.friction, physicsClientId=c)  # Coulomb friction
+                                 force=self.joint_friction(), physicsClientId=c)  # Coulomb friction
+        if sc.condition == "locked":  # a velocity brake alone creeps under a sustained pull: no range either
+            pb.changeDynamics(self.cabinet_id, self.cabinet_joint, jointLowerLimit=0.0, jointUpperLimit=0.0,
+                              physicsClientId=c)
 
         half = [spec.depth_m / 2 - 0.01, spec.width_m / 2 - 0.01, sc.pedestal_height_m / 2]
         centre = T[:3, :3] @ [0.0, 0.0, -sc.pedestal_height_m / 2] + T[:3, 3]
@@ -126,6 +131,12 @@ class SimWorld:
     @property
     def time(self) -> float:
         return self.clock.time
+
+    def joint_friction(self) -> float:
+        """The cabinet joint's Coulomb friction (N or N m) in the scenario's condition: locked holds it fast."""
+        friction = self.scenario.cabinet.friction
+        return {"normal": friction, "stiff": STIFF_FRICTION_FACTOR * friction,
+                "locked": LOCKED_FORCE}[self.scenario.condition]
 
     def joint_value(self) -> float:
         """The cabinet joint's value (m or rad; ground truth)."""

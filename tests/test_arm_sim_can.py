@@ -24,7 +24,8 @@ def _episode(world, arm, target=0.2):
     camera = SimCamera(world, intrinsics=d415_intrinsics(640, 480), seed=0, fps=config.opening.camera_hz, labels=True,
                        posed=True)
     return run_episode(camera, arm, arm.kin, OracleSegmenter(), config, None,
-                       MotionLimits.for_robot(world.robot_spec, arm.kin, 0.3))
+                       MotionLimits.for_robot(world.robot_spec, arm.kin, 0.3),
+                       compliance=PANDA.compliance.gains())  # the robot config's, as `deploy open` runs it
 
 
 def test_closed_loop_drawer_opening_through_the_can_driver():

@@ -126,7 +126,7 @@ def test_open_drawer_in_simulation_json(capsys, tmp_path):
     data = json.loads(out)
     lines = [line for line in err.splitlines() if line.startswith("step ")]
     assert len(lines) == data["steps"] + 1, err  # one line per estimate: after the first pull and every step
-    assert re.fullmatch(r"step 0: opened 0\.0\d\d m, axis prismatic, confidence \d\.\d\d", lines[0].strip())
+    assert re.fullmatch(r"step 0: opened 0\.0\d\d m, axis prismatic from .+, confidence \d\.\d\d", lines[0].strip())
     found = entities(tmp_path / "run" / "episode.rrd")
     assert found["/world/axis/estimated"]["rows"] == len(lines) and found["/world/axis/true"]["rows"] == 1
     assert "Pinhole:image_from_camera" in found["/world/camera/image"]["components"]

@@ -127,11 +127,11 @@ def test_a_grasp_that_slips_twice_ends_grasp_lost_after_one_regrasp(tmp_path):
 
 
 def test_a_locked_drawer_with_a_firm_grasp_ends_blocked(tmp_path):
-    def locked_and_held(world, arm):
-        _lock_drawer(world, arm)
+    def held(world, arm):
         arm.grasp_force_limit_n = 1e5  # the grasp holds, so the arm itself feels the lock
 
-    result, watch, run = _episode(tmp_path, locked_and_held)
+    # the tracking-error check behind the force limit (out of reach here), on a drawer locked fast
+    result, watch, run = _episode(tmp_path, held, pull_force_limit_n=500.0, condition="locked")
     steps = _assert_ended(result, watch, run, "blocked", "no more motion during first pull (blocked: tracking error ")
     assert "the joint is at its limit or locked" in result["message"]
     assert not result["regrasped"] and result["steps"] == 0 and result["true_opened_m"] < 0.005

@@ -9,6 +9,7 @@ import pytest
 import typer
 from realsense_recordings import scene, write_db3
 from rerun_files import entities
+from ros2_bags import write_bag
 
 from deploy.cli import app, main
 from deploy.config import Config, filter_profile_for, load_config
@@ -50,6 +51,7 @@ def test_the_filter_follows_the_camera(tmp_path):
     convert_recording(db3, tmp_path / "converted")
     assert not FramesRecording(tmp_path / "converted").simulated
     assert filter_profile_for(f"replay:{tmp_path / 'converted'}") == "sparse"
+    assert filter_profile_for(f"replay:{write_bag(tmp_path / 'ros', scene(2), aligned=True)}") == "sparse"
     (tmp_path / "real" / "truth.json").write_text("{}")  # an older simulated recording: meta.json says nothing
     assert filter_profile_for(f"replay:{tmp_path / 'real'}") == "sim"
     resolved = OpenRequest(task="drawer", camera="d415").config().filter.resolve()
@@ -96,7 +98,7 @@ def test_episode_view_logs_one_line_per_step(caplog, tmp_path):
         view.close()
     assert [r.getMessage() for r in caplog.records] == [
         "step 0: opened 12.500 deg, axis revolute, confidence 0.73",
-        "step 1: opened 24.000 deg, axis from trajectory, confidence 0.73"]
+        "step 1: opened 24.000 deg, axis revolute from trajectory, confidence 0.73"]
 
 
 def test_rerun_viewer_saves_the_camera_in_3d_the_axes_and_the_truth(tmp_path):
@@ -119,12 +121,15 @@ def test_rerun_viewer_saves_the_camera_in_3d_the_axes_and_the_truth(tmp_path):
 def test_verbose_logs_info_and_version(capsys):
     code, out, _ = run(capsys, "--version")
     assert code == 0 and out.startswith("axisloop ")
-    logging.getLogger("deploy.test").info("details")
-    run(capsys, "--verbose", "axis", "demo", "--seed", "0", "--json")
-    assert logging.getLogger("deploy").getEffectiveLevel() == logging.DEBUG
+    run(capsys, "--verbose", "cameras", "list", "--json")
+    logging.getLogger("deploy.test").debug("details of our own")
+    logging.getLogger("urllib3").debug("details of a library")
+    err = capsys.readouterr().err
+    assert "details of our own" in err and "details of a library" not in err
     assert logging.getLogger().getEffectiveLevel() == logging.INFO
     run(capsys, "cameras", "list", "--json")
-    assert logging.getLogger("deploy.x").getEffectiveLevel() == logging.WARNING
+    logging.getLogger("deploy.test").info("quiet")
+    assert "quiet" not in capsys.readouterr().err
     assert logging.getLogger(STEP_LOGGER).getEffectiveLevel() == logging.INFO  # step lines without --verbose
 
 

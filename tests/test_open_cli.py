@@ -48,8 +48,9 @@ def test_sim_can_arm_opens_through_the_can_driver(capsys, tmp_path):
 
 def test_hardware_path_on_a_recording_with_the_kinematic_arm(capsys, tmp_path):
     rec = tmp_path / "rec"
-    assert main(["sim", "record", "--task", "drawer", "--seed", "0", "--fps", "2", "--out", str(rec)]) == 0
-    capsys.readouterr()
+    assert main(["sim", "record", "--task", "drawer", "--seed", "0", "--fps", "2", "--out", str(rec), "--json"]) == 0
+    recorded = json.loads(capsys.readouterr().out)
+    assert recorded["frames"] >= 10 and recorded["target_m"] == 0.2 and recorded["opened_m"] > 0.15
     code, out, _ = run(capsys, "open-drawer", "--camera", f"replay:{rec}", "--arm", "ideal", "--robot", ROBOT,
                        "--segmenter", "oracle", "--dry-run", "--run-dir", tmp_path / "run", "--json")
     data = json.loads(out)
@@ -65,6 +66,8 @@ def test_hardware_path_on_a_recording_with_the_kinematic_arm(capsys, tmp_path):
     (("--camera", "webcam", "--arm", "ideal", "--robot", ROBOT), "unknown camera 'webcam'"),
     (("--camera", "d415", "--arm", "ideal", "--robot", ROBOT, "--segmenter", "oracle"),
      "no RealSense camera is connected"),
+    (("--camera", "d415", "--arm", "ideal", "--robot", ROBOT, "--condition", "locked"),
+     "--condition locked is for a simulated object"),
 ])
 def test_bad_combinations_are_one_clear_error(capsys, args, text):
     code, _, err = run(capsys, "open-drawer", *args)

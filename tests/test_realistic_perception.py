@@ -169,3 +169,21 @@ def test_the_handle_turns_in_the_fingers_about_its_bar():
             arm.sync()
         assert arm.state().gripper_width_m > 0.005  # still held
         assert abs(world.truth().value - hinge.value) < np.radians(3)  # the door hardly moved
+
+
+def test_rgbd_tracking_recovers_after_an_occlusion():
+    from dataclasses import replace
+
+    with SimWorld(Scenario.make("drawer", 2, "test")) as world:
+        frame = SimCamera(world, posed=True).read()
+        unblocked = RGBDSegmenter(PerceptionConfig())
+        unblocked.start(frame)
+        expected = unblocked.track(frame)
+        segmenter = RGBDSegmenter(PerceptionConfig())
+        segmenter.start(frame)
+        depth = frame.depth_m.copy()
+        depth[:, : depth.shape[1] * 3 // 4] = 0.0  # three quarters of the view blocked for one frame
+        hidden = segmenter.track(replace(frame, depth_m=depth))
+        assert 0 < hidden.sum() < 0.2 * expected.sum()
+        again = segmenter.track(frame)
+        assert mask_iou(again, expected) > 0.98

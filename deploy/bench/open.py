@@ -12,6 +12,9 @@ import numpy as np
 
 from deploy.bench.executors import make_executor
 from deploy.control.session import OpenRequest, Setup, open_object
+from deploy.evaluation import Evaluation
+from deploy.geometry.metrics import axis_angle_error_deg, axis_position_error_m
+from deploy.geometry.types import Axis, JointType
 from deploy.perception.registry import default_segmenter
 
 CALIBRATION_ERROR = (5.0, 0.5)  # a field-grade hand-eye calibration: translation mm, rotation deg
@@ -21,19 +24,40 @@ def simulate_episode(task: str, seed: int, split: str = "train", target: float |
                      policy: str = "closed", auto_joint: bool = False, arm: str = "sim",
                      segmenter: str | None = None, calibration_error: tuple[float, float] = CALIBRATION_ERROR,
                      overrides: dict[str, Any] | None = None, run_dir: Path | None = None,
-                     setup: Setup | None = None, **options: Any) -> dict:
+                     setup: Setup | None = None, condition: str = "normal", **options: Any) -> dict:
     """One simulated episode of `task` ("drawer" | "door") on scenario `seed`, `target` in m (drawer) or deg
     (door), with what a real robot senses: `segmenter` (default: the machine's default, `rgbd` without
     weights) and a camera pose calibrated with `calibration_error` (mm, deg). `options` override `[opening]`
-    settings, `overrides` any setting by dotted name; `setup(world, arm)` changes the world first (tests).
-    The episode's JSON with the truth-based fields."""
+    settings, `overrides` any setting by dotted name; `setup(world, arm)` changes the world first (tests);
+    `condition` is the object's joint ("normal", "locked", "stiff"). The episode's JSON with the truth-based
+    fields."""
     target_field = {"drawer": "distance_m", "door": "angle_deg"}[task]
     request = OpenRequest(task="auto" if auto_joint else task, scene=task, seed=seed, split=split,  # type: ignore
                           policy=policy, arm=arm, run_dir=run_dir, segmenter=segmenter,  # type: ignore[arg-type]
                           calibration_error=tuple(calibration_error),  # type: ignore[arg-type]
+                          condition=condition,  # type: ignore[arg-type]
                           overrides={**{f"opening.{k}": v for k, v in options.items()}, **(overrides or {})},
                           **({target_field: target} if target is not None else {}))
-    return open_object(request, setup=setup, keep_run_dir=run_dir is not None)
+    truth: list[Axis] = []
+
+    def set_up(world: Any, arm: Any) -> None:
+        truth.append(Evaluation(world).true_axis())
+        if setup is not None:
+            setup(world, arm)
+
+    data = open_object(request, setup=set_up, keep_run_dir=run_dir is not None)
+    return {**data, **_vision_alone_errors(data.get("vision_axis"), truth[0])}
+
+
+def _vision_alone_errors(vision: dict | None, true_axis: Axis) -> dict:
+    """The errors of what vision alone would have acted on last (deg, and m for a hinge), against the truth."""
+    if vision is None:
+        return {"vision_axis_angle_error_deg": None, "vision_axis_position_error_m": None}
+    origin, direction = np.asarray(vision["origin"], float), np.asarray(vision["direction"], float)
+    position = axis_position_error_m(true_axis.origin, true_axis.direction, origin, direction) \
+        if true_axis.joint_type is JointType.REVOLUTE else None
+    return {"vision_axis_angle_error_deg": axis_angle_error_deg(true_axis.direction, direction),
+            "vision_axis_position_error_m": position}
 
 
 def bench_open(
@@ -48,17 +72,21 @@ def bench_open(
     ray_address: str | None = None,
     segmenter: str | None = None,
     calibration_error: tuple[float, float] = CALIBRATION_ERROR,
+    condition: str = "normal",
     **options: Any,
 ) -> dict:
     """`episodes` consecutive scenario seeds from `seed`; success rate (truth), mean true opening,
     median axis angle error (and, for doors, position error), per-frame perception + geometry time, seconds
     per episode and failure causes {stop_reason: count}. Realistic by default: the machine's default
     segmenter and a calibrated camera pose off by `calibration_error` (mm, deg); the JSON states both.
-    Episodes run in `workers` local processes, or on a Ray cluster at `ray_address` (deploy/bench/executors.py)."""
+    `condition`: every object's joint "normal", "locked" or "stiff" (3x the friction); the largest force any
+    pull applied is `peak_pull_force_n_max` (N). Episodes run in `workers` local processes, or on a Ray cluster
+    at `ray_address` (deploy/bench/executors.py)."""
     segmenter = segmenter or default_segmenter()
     unit = "m" if task == "drawer" else "deg"
     jobs = [dict(task=task, seed=s, split=split, target=target, policy=policy, segmenter=segmenter,
-                 calibration_error=tuple(calibration_error), **options) for s in range(seed, seed + episodes)]
+                 calibration_error=tuple(calibration_error), condition=condition, **options)
+            for s in range(seed, seed + episodes)]
     results = []
     with make_executor(workers, ray_address) as executor:
         for result in executor.map(simulate_episode, jobs):
@@ -67,21 +95,39 @@ def bench_open(
                 progress(result)
     angles = [r["axis_angle_error_deg"] for r in results if r["axis_angle_error_deg"] is not None]
     positions = [r["axis_position_error_m"] for r in results if r["axis_position_error_m"] is not None]
+    forces = [r["peak_pull_force_n"] for r in results]
     failures = Counter(r["stop_reason"] if r["stop_reason"] != "target reached" else "short of target (truth)"
                        for r in results if not r["success"])
     frame_ms = [r["timings"]["frame_ms_median"] for r in results if "frame_ms_median" in r["timings"]]
     frame_p90 = [r["timings"]["frame_ms_p90"] for r in results if "frame_ms_p90" in r["timings"]]
     return {
         "task": task, f"target_{unit}": target, "split": split, "policy": policy, "episodes": episodes,
-        "segmenter": segmenter,
+        "segmenter": segmenter, "condition": condition,
         "calibration_error": {"translation_mm": calibration_error[0], "rotation_deg": calibration_error[1]},
         "success_rate": float(np.mean([r["success"] for r in results])) if results else 0.0,
         f"mean_opened_{unit}": float(np.mean([r[f"true_opened_{unit}"] for r in results])) if results else 0.0,
         "axis_angle_error_deg_median": float(np.median(angles)) if angles else None,
         "axis_position_error_m_median": float(np.median(positions)) if positions else None,
+        **_acted_on_vs_vision_alone(results),
         "frame_ms_median": float(np.median(frame_ms)) if frame_ms else None,
         "frame_ms_p90_max": float(np.max(frame_p90)) if frame_p90 else None,
         "regrasps": int(sum(r["regrasped"] for r in results)),
+        "peak_pull_force_n_median": float(np.median(forces)) if forces else 0.0,
+        "peak_pull_force_n_max": float(np.max(forces)) if forces else 0.0,
         "seconds_per_episode": float(np.mean([r["seconds"] for r in results])) if results else 0.0,
         "failures": dict(failures),
     }
+
+
+def _acted_on_vs_vision_alone(results: list[dict]) -> dict:
+    """Axis errors of the estimate the loop acted on and of what vision alone would have acted on, over the same
+    episodes (those with both): median and p90 of the angle (deg) and, for doors, the position (m)."""
+    both = [r for r in results
+            if r["axis_angle_error_deg"] is not None and r["vision_axis_angle_error_deg"] is not None]
+    out: dict[str, Any] = {"axis_error_episodes_compared": len(both)}
+    for who, prefix in (("acted_on", "axis"), ("vision_alone", "vision_axis")):
+        for kind in ("angle_error_deg", "position_error_m"):
+            values = [r[f"{prefix}_{kind}"] for r in both if r[f"{prefix}_{kind}"] is not None]
+            for name, q in (("median", 50), ("p90", 90)):
+                out[f"{who}_axis_{kind}_{name}"] = float(np.percentile(values, q)) if values else None
+    return out

@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from deploy.commands.open import Condition, ConditionOpt
 from deploy.commands.options import (
     CalibrationErrorOpt,
     JsonOpt,
@@ -123,6 +124,7 @@ def bench_open_cmd(
     auto_joint: Annotated[bool, typer.Option("--auto-joint", hidden=True, help="Old name of --joint auto.")] = False,
     segmenter: SegmenterOpt = None,
     calibration_error: CalibrationErrorOpt = (5.0, 0.5),
+    condition: ConditionOpt = Condition.normal,
     json_out: JsonOpt = False,
 ) -> None:
     """Success rate of simulated openings (success = the true joint value exceeds the target, like the paper),
@@ -130,6 +132,7 @@ def bench_open_cmd(
 
     Example: deploy bench open --task door --angle 45 --episodes 20 --workers 2 --json
     Example: deploy bench open --task drawer --distance 0.30 --episodes 1000 --ray ray://head:10001 --json
+    Example: deploy bench open --task drawer --condition locked --episodes 20 --workers 2 --json
     """
     from deploy.bench.open import bench_open
 
@@ -138,7 +141,7 @@ def bench_open_cmd(
     with progress_bar(f"bench open {task.value}", episodes) as bar:
         data = bench_open(task.value, goal, episodes, split.value, policy.value, seed, workers,
                           progress=bar.advance, ray_address=ray, auto_joint=auto_joint or joint is JointTold.auto,
-                          segmenter=segmenter, calibration_error=calibration_error)
+                          segmenter=segmenter, calibration_error=calibration_error, condition=condition.value)
     if json_out:
         print_json(data)
         return

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from enum import Enum
 from pathlib import Path
 from typing import Annotated
 
@@ -53,6 +54,17 @@ AngleOpt = Annotated[float | None, typer.Option(
     "--angle", help="Target opening of a door, in degrees \\[default: the config's, 45].")]
 
 
+class Condition(str, Enum):
+    normal = "normal"
+    locked = "locked"
+    stiff = "stiff"
+
+
+ConditionOpt = Annotated[Condition, typer.Option(
+    help="The simulated object's joint (--camera sim; the controller is not told): normal, locked (held fast) or "
+    "stiff (three times the friction).")]
+
+
 def _overrides(filter_profile: FilterChoice | None, prompt: str | None,
                box: tuple[float, float, float, float] | None) -> dict:
     """--filter, --prompt and --box as settings by dotted name (None: the config's)."""
@@ -66,9 +78,9 @@ def _print_episode(data: dict, json_out: bool) -> None:
         return
     where = f"seed {data['seed']}" if "seed" in data else data.get("camera", "")
     keys = ("success", "opened_m", "opened_deg", "target_m", "target_deg", "true_opened_m", "true_opened_deg",
-            "steps", "stop_reason", "message", "axis_angle_error_deg", "axis_position_error_m", "run_dir")
+            "steps", "stop_reason", "message", "peak_pull_force_n", "axis_angle_error_deg", "axis_position_error_m",
+            "run_dir")
     rows = {k: data[k] for k in keys if k in data}
-    used = data["filter"]
     used = data["filter"]
     rows["filter"] = f"{used['profile']}: radius {used['radius_m']:g} m, eps {used['eps']}"
     print_rows(f"{data['task']} episode ({where}, {data['policy']} loop)", rows)
@@ -79,8 +91,8 @@ def _value(choice: PolicyChoice | None) -> str | None:
 
 
 def _open(request_fields: dict, json_out: bool, sim_fault: list[str] | None, overwrite: bool) -> None:
-    """Check the request (--calibration only with a real camera, --sim-fault only with sim-can, the run folder
-    new or --overwrite), then run it."""
+    """Check the request (--calibration only with a real camera, --condition only with a simulated one,
+    --sim-fault only with sim-can, the run folder new or --overwrite), then run it."""
     from dataclasses import replace
 
     from deploy.arm_bringup import inject_sim_faults, parse_sim_faults
@@ -94,6 +106,8 @@ def _open(request_fields: dict, json_out: bool, sim_fault: list[str] | None, ove
     if request.calibration is not None and CAMERAS.entry(request.camera)[0].simulated:
         raise ConfigError(f"--calibration {request.calibration} is for a real camera: the simulated camera's pose "
                           "comes from the simulation; drop --calibration, or use --camera d415")
+    if request.condition != "normal" and not CAMERAS.entry(request.camera)[0].simulated:
+        raise ConfigError(f"--condition {request.condition} is for a simulated object: drop it, or use --camera sim")
     request = replace(request, run_dir=request.folder())
     prepare_output(request.run_dir, overwrite, "run folder", "--run-dir")
     data = open_object(request, confirm=lambda question: typer.confirm(question, abort=True),
@@ -123,6 +137,7 @@ def open_drawer(
     yes: YesOpt = False,
     view: ViewOpt = False,
     calibration_error: CalibrationErrorOpt = (5.0, 0.5),
+    condition: ConditionOpt = Condition.normal,
     sim_fault: SimFaultOpt = None,
     overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
@@ -136,7 +151,8 @@ def open_drawer(
     _open(dict(task="drawer", scene="drawer", distance_m=distance, camera=camera, arm=arm, robot=robot,
                calibration=calibration, segmenter=segmenter, seed=seed, split=split.value, policy=_value(policy),
                run_dir=run_dir, dry_run=dry_run, yes=yes, view=view, calibration_error=calibration_error,
-               config_file=config, overrides=_overrides(filter_profile, prompt, box)), json_out, sim_fault, overwrite)
+               condition=condition.value, config_file=config, overrides=_overrides(filter_profile, prompt, box)),
+          json_out, sim_fault, overwrite)
 
 
 @top_level.command("open-door")
@@ -159,6 +175,7 @@ def open_door(
     yes: YesOpt = False,
     view: ViewOpt = False,
     calibration_error: CalibrationErrorOpt = (5.0, 0.5),
+    condition: ConditionOpt = Condition.normal,
     sim_fault: SimFaultOpt = None,
     overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
@@ -170,7 +187,8 @@ def open_door(
     _open(dict(task="door", scene="door", angle_deg=angle, camera=camera, arm=arm, robot=robot,
                calibration=calibration, segmenter=segmenter, seed=seed, split=split.value, policy=_value(policy),
                run_dir=run_dir, dry_run=dry_run, yes=yes, view=view, calibration_error=calibration_error,
-               config_file=config, overrides=_overrides(filter_profile, prompt, box)), json_out, sim_fault, overwrite)
+               condition=condition.value, config_file=config, overrides=_overrides(filter_profile, prompt, box)),
+          json_out, sim_fault, overwrite)
 
 
 @top_level.command("open")
@@ -198,6 +216,7 @@ def open_any(
     yes: YesOpt = False,
     view: ViewOpt = False,
     calibration_error: CalibrationErrorOpt = (5.0, 0.5),
+    condition: ConditionOpt = Condition.normal,
     sim_fault: SimFaultOpt = None,
     overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
@@ -210,5 +229,5 @@ def open_any(
     _open(dict(task=told, scene=(scene or task).value, distance_m=distance, angle_deg=angle, camera=camera,
                arm=arm, robot=robot, calibration=calibration, segmenter=segmenter, seed=seed, split=split.value,
                policy=_value(policy), run_dir=run_dir, dry_run=dry_run, yes=yes, view=view,
-               calibration_error=calibration_error, config_file=config,
+               calibration_error=calibration_error, condition=condition.value, config_file=config,
                overrides=_overrides(filter_profile, prompt, box)), json_out, sim_fault, overwrite)

@@ -15,7 +15,7 @@ from deploy.control.state import EpisodeState
 from deploy.perception.base import Segmenter
 from drivers.arm.base import Arm, ArmState
 from drivers.arm.kinematics import Kinematics
-from drivers.arm.motion import PathFn, PathResult, follow_cartesian_path
+from drivers.arm.motion import Compliance, PathFn, PathResult, follow_cartesian_path
 from drivers.arm.trajectory import MotionLimits
 from drivers.camera.base import Camera
 
@@ -37,6 +37,7 @@ class Episode:
     observer: Observer
     state: EpisodeState
     folder: RunFolder | None = None
+    compliance: Compliance = Compliance()  # how pulls yield (the robot config's [compliance])
 
     def tool(self) -> np.ndarray:
         """The measured tool pose (4x4, base frame)."""
@@ -69,7 +70,8 @@ class Episode:
     def pull(self, path: PathFn, length: float, label: str, limits: MotionLimits | None = None,
              step: bool = False) -> PathResult:
         """One compliant motion along `path` with frames grabbed on the way (an axis-guided `step` is counted
-        once it has moved), then the frames processed. The caller decides what a slip or a block means."""
+        once it has moved), then the frames processed. The path yields to the object and the force is bounded
+        by `[opening] pull_force_limit_n` (`Compliance`); the caller decides what a slip or a block means."""
         clock = time.perf_counter()
 
         def on_tick(state: ArmState, _t: float) -> bool:
@@ -78,8 +80,9 @@ class Episode:
 
         self.arm.set_compliance(True)
         try:
+            compliance = self.compliance.with_force_limit(self.config.opening.pull_force_limit_n)
             result = follow_cartesian_path(self.arm, self.kin, path, max(length, 1e-4),
-                                           limits or self.line_limits(), on_tick)
+                                           limits or self.line_limits(), on_tick, compliance=compliance)
             self.wait(SETTLE_S)
         finally:
             self.arm.set_compliance(False)
@@ -87,6 +90,8 @@ class Episode:
         self.observer.capture(self.arm.state())  # the settled end of the motion
         self.state.timings["motion_s"] += time.perf_counter() - clock
         self.state.steps += step
+        self.state.peak_pull_force_n = max(self.state.peak_pull_force_n, result.peak_force_n)
+        self.state.across_force_n = result.across_force_n
         self.state.commanded.extend(result.planned)
         self.state.measured.extend(result.measured)
         if self.folder is not None:

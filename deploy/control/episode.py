@@ -25,6 +25,7 @@ from deploy.perception.base import Segmenter
 from deploy.perception.self_filter import SelfFilter
 from drivers.arm.base import Arm
 from drivers.arm.kinematics import Kinematics
+from drivers.arm.motion import Compliance
 from drivers.arm.robots import panda
 from drivers.arm.trajectory import MotionLimits
 from drivers.camera.base import Camera
@@ -45,17 +46,20 @@ def run_episode(
     viewer: RerunViewer | None = None,
     dry_run: bool = False,
     self_filter: SelfFilter | None = None,
+    compliance: Compliance | None = None,
 ) -> EpisodeResult:
     """Open the object in view to `config.opening`'s target; always leaves the arm stopped.
 
     folder: the run folder (frames and motions are written as they come; the caller finishes it with
     `RunFolder.finish`). joint_limits: free-space joint moves (default 0.3 of the Panda's limits).
     dry_run: perceive and plan the grasp, command nothing. self_filter: removes the arm's own pixels.
+    compliance: how pulls yield (the robot config's [compliance]; default `Compliance()`).
     """
     state = EpisodeState(t0=arm.time(), joint=TASK_JOINT.get(config.opening.task))
     observer = Observer(camera, segmenter, kin, config, state.joint, state.t0, folder, viewer, self_filter)
     episode = Episode(camera, arm, kin, segmenter, config,
-                      joint_limits or MotionLimits.for_robot(panda(), kin, 0.3), observer, state, folder)
+                      joint_limits or MotionLimits.for_robot(panda(), kin, 0.3), observer, state, folder,
+                      compliance or Compliance())
     interrupted = None
     try:
         with interrupts():  # Ctrl-C / SIGTERM end the episode here, so that its run folder can be finished
@@ -93,7 +97,8 @@ def _result(episode: Episode, reason: StopReason, message: str) -> EpisodeResult
         success=state.axis is not None and state.opened >= episode.target(), opened=state.opened,
         target=episode.target(), steps=state.steps, joint_type=state.joint_type().value, axis=state.axis,
         stop_reason=reason, message=message, run_dir=None if episode.folder is None else episode.folder.path,
-        timings=state.timings, regrasped=state.regrasped, estimates=state.estimates,
+        timings=state.timings, regrasped=state.regrasped, peak_pull_force_n=state.peak_pull_force_n,
+        vision_axis=state.vision_axis, estimates=state.estimates,
         commanded=np.array(state.commanded).reshape(-1, 4, 4), measured=np.array(state.measured).reshape(-1, 4, 4),
         opening_curve=state.opening_curve, first_frame=episode.observer.first_frame,
     )

@@ -38,13 +38,16 @@ def opening(axis: Axis, p_start: np.ndarray, p_now: np.ndarray) -> float:
 
 
 def choose_axis(
-    vision: AxisResult, trajectory: AxisResult, joint: JointType | None, moved: float, config: OpeningConfig
+    vision: AxisResult, trajectory: AxisResult, joint: JointType | None, moved: float, config: OpeningConfig,
+    strained: bool = False,
 ) -> tuple[AxisResult, str]:
-    """The axis to act on and where it came from ("vision" | "trajectory" | "none").
+    """The axis to act on and where it came from ("vision" | "trajectory" | "trajectory (force)" | "none").
 
-    `moved` is the opening so far (m or rad, by the joint type). Rule ("fused"): the trajectory fit
-    when it has the expected joint type, moved >= the trajectory minimum and confidence >= the minimum;
-    vision otherwise. "trajectory" drops the travel and confidence gates; "vision" never uses it.
+    `moved` is the opening so far (m or rad, by the joint type); `strained`: the last pull was resisted across
+    its path by `force_cue_n` or more. Rule ("fused"): the trajectory fit when it has the expected joint type,
+    moved >= the trajectory minimum and confidence >= the minimum; vision otherwise. "force": the trajectory
+    fit of the expected type when strained and moved >= the minimum (the compliant path followed the object
+    where the commanded axis was off), vision otherwise. "trajectory" drops the gates; "vision" never uses it.
     """
     expected = joint if joint is not None else (vision.joint_type if isinstance(vision, Axis) else None)
     use_trajectory = (
@@ -52,12 +55,14 @@ def choose_axis(
         and isinstance(trajectory, Axis)
         and (expected is None or trajectory.joint_type is expected)
     )
-    if use_trajectory and config.fusion == "fused":
+    if use_trajectory and config.fusion in ("fused", "force"):
         min_travel = (config.trajectory_min_travel_m if trajectory.joint_type is JointType.PRISMATIC
                       else np.radians(config.trajectory_min_travel_deg))
-        use_trajectory = moved >= min_travel and trajectory.confidence >= config.trajectory_min_confidence
+        confident = strained if config.fusion == "force" else \
+            trajectory.confidence >= config.trajectory_min_confidence
+        use_trajectory = moved >= min_travel and confident
     if use_trajectory:
-        return trajectory, "trajectory"
+        return trajectory, "trajectory (force)" if config.fusion == "force" else "trajectory"
     door = isinstance(vision, Axis) and vision.joint_type is JointType.REVOLUTE
     min_confidence = config.door_vision_min_confidence if door else config.vision_min_confidence
     if isinstance(vision, Axis) and (joint is None or vision.joint_type is joint) \

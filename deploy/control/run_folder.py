@@ -29,7 +29,10 @@ AXIS_HALF_LENGTH_M = 0.4  # drawn axis segments reach this far either side of th
 class RunFolder:
     """Writes one episode's run folder as it goes; `finish` adds steps.json and the PNG report."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, camera: str | None = None, simulated: bool = False) -> None:
+        """`camera`: the camera spec, and whether it is `simulated`, stored with the frames (they pick the
+        recording's filter profile when it is replayed)."""
+        self.camera, self.simulated = camera, simulated
         self.path = Path(path)
         self.path.mkdir(parents=True, exist_ok=True)
         self._writer: FramesWriter | None = None
@@ -37,7 +40,8 @@ class RunFolder:
 
     def write_frame(self, frame: Frame, mask: np.ndarray, q: np.ndarray, ee_pose: np.ndarray) -> None:
         if self._writer is None:
-            self._writer = FramesWriter(self.path / "frames", frame.intrinsics, T_base_camera=frame.T_base_camera)
+            self._writer = FramesWriter(self.path / "frames", frame.intrinsics, T_base_camera=frame.T_base_camera,
+                                        camera=self.camera, simulated=self.simulated)
         self._writer.write(frame, mask=mask, joint_positions=q, ee_pose=ee_pose)
 
     def add_motion(self, label: str, result: PathResult) -> None:
@@ -94,7 +98,7 @@ def write_report(path: Path, result: EpisodeResult, errors: list[tuple[float, fl
         ax_img.set_ylim(h, 0)
         if axes:
             ax_img.legend(fontsize=6, loc="lower right")
-    ax_img.set_title(f"axis estimates ({result.stop_reason})")
+    ax_img.set_title(f"axis estimates ({result.stop_reason.value})")
     ax_img.axis("off")
     if result.opening_curve:
         t, opened = np.array(result.opening_curve).T

@@ -53,6 +53,7 @@ class OpenRequest:
     view: bool = False
     resolution: tuple[int, int] = (640, 480)
     calibration_error: tuple[float, float] = (5.0, 0.5)
+    condition: Literal["normal", "locked", "stiff"] = "normal"  # the simulated object's joint (never told)
     config_file: Path | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
 
@@ -66,7 +67,8 @@ class OpenRequest:
         width, height = self.resolution
         return RigSpec(camera=self.camera, arm=self.arm, robot=self.robot, calibration=self.calibration,
                        segmenter=self.segmenter or default_segmenter(config.perception),
-                       perception=config.perception, scene=SimScene(self.scene, self.seed, self.split),
+                       perception=config.perception,
+                       scene=SimScene(self.scene, self.seed, self.split, self.condition),
                        calibration_error=self.calibration_error,
                        camera_options={"width": width, "height": height, "fps": config.opening.camera_hz}
                        if simulated else {})
@@ -84,7 +86,8 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
     wall = time.perf_counter()
     config = request.config()
     run_dir = request.folder() if keep_run_dir else None
-    folder = RunFolder(run_dir) if run_dir is not None else None
+    folder = None if run_dir is None else RunFolder(
+        run_dir, request.camera, CAMERAS.entry(request.camera)[0].simulated)
     with open_rig(request.rig_spec(config)) as rig:
         if setup is not None:
             setup(rig.world, rig.arm)
@@ -95,13 +98,14 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
         with rig.arm:
             try:
                 result = run_episode(rig.camera, rig.arm, rig.kin, rig.segmenter, config, folder,
-                                     rig.motion_limits(), view, request.dry_run, rig.self_filter())
+                                     rig.motion_limits(), view, request.dry_run, rig.self_filter(),
+                                     rig.robot.compliance.gains())
             except Interrupted as stop:  # Ctrl-C / SIGTERM: finish the run folder up to here, then stop
                 if folder is not None and stop.result is not None:
                     folder.finish(stop.result, evaluation.axis_error if evaluation is not None else None)
                     stop.run_dir = folder.path
                 raise
-        data = {**_with_units(result.to_dict(), result.scale), "task": request.task, "camera": request.camera,
+        data = {**result.to_dict(), "task": request.task, "camera": request.camera,
                 "arm": request.arm, "policy": config.opening.policy, "segmenter": rig.spec.segmenter,
                 "filter": _filter(config)}
         if hasattr(rig.arm, "motor_states"):  # a CAN arm: every motor's final state (name, enabled, status)
@@ -114,12 +118,6 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
     if folder is not None:
         folder.finish(result, evaluation.axis_error if evaluation is not None else None)
     return data
-
-
-def _with_units(data: dict, scale: float) -> dict:
-    """The result's openings under keys that name their unit: opened_m / target_m, or _deg for a door."""
-    unit = "m" if scale == 1.0 else "deg"
-    return {f"{key}_{unit}" if key in ("opened", "target") else key: value for key, value in data.items()}
 
 
 def _filter(config: Config) -> dict:

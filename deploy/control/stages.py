@@ -23,9 +23,9 @@ from deploy.control.grasp import (
     protruding_points,
 )
 from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
-from deploy.control.state import EpisodeStop, StopReason, display_scale
+from deploy.control.state import EpisodeStop, StopReason, display_scale, opening_unit
 from deploy.geometry.estimators.trajectory import fit_trajectory
-from deploy.geometry.types import Axis, JointType, NoAxis
+from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 from drivers.arm.motion import (
     Outcome,
     PathFn,
@@ -137,7 +137,7 @@ def plan(episode: Episode, handle: Handle) -> tuple[StopReason, str]:
     state.axis = _prior(episode, handle)
     state.commanded.extend([kin.fk(q_pre), T_grasp])
     state.estimates.append({"step": 0, "t": 0.0, "source": "plan (prior)", "axis": state.axis.to_dict(),
-                            "opened": 0.0, "vision": "dry run"})
+                            f"opened_{opening_unit(state.joint_type())}": 0.0, "vision": "dry run"})
     p = T_grasp[:3, 3]
     return StopReason.DRY_RUN, (f"planned: handle at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m, pre-grasp joints "
                                 f"{np.round(q_pre, 3).tolist()}, {state.joint_type().value} prior axis; nothing moved")
@@ -209,9 +209,11 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
         poses = np.array(state.measured)
         joint = state.joint or (vision.joint_type if isinstance(vision, Axis) else None)
         trajectory = fit_trajectory(poses[:, :3, 3], Rotation.from_matrix(poses[:, :3, :3]).as_quat(), joint)
-        result, source = choose_axis(vision, trajectory, state.joint, state.opened, episode.config.opening)
+        strained = state.across_force_n >= episode.config.opening.force_cue_n
+        result, source = choose_axis(vision, trajectory, state.joint, state.opened, episode.config.opening, strained)
         chosen = orient_axis(result, _measured_pull(episode, pull), state.p_grasp) \
             if isinstance(result, Axis) else None
+        _follow_vision_alone(episode, vision, pull)
         state.estimated |= chosen is not None
         if chosen is None:
             chosen = state.axis if state.axis is not None else Axis(JointType.PRISMATIC, state.p_grasp, pull,
@@ -223,6 +225,15 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
     _log_estimate(episode, chosen, source)
     state.timings["estimate_s"] += time.perf_counter() - clock
     return chosen, source
+
+
+def _follow_vision_alone(episode: Episode, vision: AxisResult, pull: np.ndarray) -> None:
+    """Keep what the loop would act on with vision alone (fusion "vision"), to measure the other cues against."""
+    state = episode.state
+    alone, _ = choose_axis(vision, NoAxis("not used"), state.joint, state.opened,
+                           episode.config.opening.model_copy(update={"fusion": "vision"}))
+    if isinstance(alone, Axis):
+        state.vision_axis = orient_axis(alone, _measured_pull(episode, pull), state.p_grasp)
 
 
 def _estimate_once(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
@@ -338,9 +349,11 @@ def _log_estimate(episode: Episode, axis: Axis, source: str) -> None:
     shown = _shown(episode, state.opened)
     state.opening_curve.append((episode.now(), state.opened))
     if episode.observer.viewer is not None:
-        episode.observer.viewer.axis(episode.now(), axis, shown)
+        episode.observer.viewer.axis(episode.now(), axis, shown, source)
     state.estimates.append({
-        "step": state.steps, "t": episode.now(), "source": source, "axis": axis.to_dict(), "opened": shown,
+        "step": state.steps, "t": episode.now(), "source": source, "axis": axis.to_dict(),
+        f"opened_{opening_unit(state.joint_type())}": shown,
+        "across_force_n": state.across_force_n,
         "vision": vision.reason if isinstance(vision, NoAxis)
         else f"{vision.joint_type.value}, confidence {vision.confidence:.3f}"})
 

@@ -56,6 +56,9 @@ class EpisodeState:
     open_width_m: float = 0.0
     steps: int = 0
     regrasped: bool = False
+    peak_pull_force_n: float = 0.0  # the largest force the tool applied while pulling (N, joint torques)
+    across_force_n: float = 0.0  # the last pull's largest force across its path (N): its axis was off
+    vision_axis: Axis | None = None  # vision's latest estimate, oriented (what vision alone would act on)
     estimates: list[dict] = field(default_factory=list)
     commanded: list[np.ndarray] = field(default_factory=list)
     measured: list[np.ndarray] = field(default_factory=list)
@@ -71,6 +74,11 @@ class EpisodeState:
 def display_scale(joint_type: JointType | str | None) -> float:
     """Factor from SI to the units shown to users: degrees for a revolute joint, metres otherwise."""
     return float(np.degrees(1.0)) if JointType(joint_type or "prismatic") is JointType.REVOLUTE else 1.0
+
+
+def opening_unit(joint_type: JointType | str | None) -> str:
+    """The unit openings are shown in: "deg" for a revolute joint, "m" otherwise."""
+    return "deg" if JointType(joint_type or "prismatic") is JointType.REVOLUTE else "m"
 
 
 @dataclass
@@ -89,6 +97,8 @@ class EpisodeResult:
     run_dir: Path | None
     timings: dict[str, float]
     regrasped: bool = False
+    peak_pull_force_n: float = 0.0
+    vision_axis: Axis | None = None
     estimates: list[dict] = field(default_factory=list)
     commanded: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
     measured: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
@@ -99,11 +109,21 @@ class EpisodeResult:
     def scale(self) -> float:
         return display_scale(self.joint_type)
 
+    @property
+    def unit(self) -> str:
+        return opening_unit(self.joint_type)
+
     def to_dict(self) -> dict:
-        """The JSON result of `deploy open --json` (openings in m for a drawer, deg for a door)."""
-        axis = None if self.axis is None else {
-            k: v for k, v in self.axis.to_dict().items() if k in ("joint_type", "origin", "direction")}
-        return {"success": self.success, "opened": self.opened * self.scale, "target": self.target * self.scale,
-                "steps": self.steps, "axis": axis, "stop_reason": self.stop_reason.value, "message": self.message,
-                "regrasped": self.regrasped, "run_dir": None if self.run_dir is None else str(self.run_dir),
+        """The JSON result of `deploy open --json`: openings under keys naming their unit (opened_m / opened_deg)."""
+        def axis_dict(axis: Axis | None) -> dict | None:
+            return None if axis is None else {
+                k: v for k, v in axis.to_dict().items() if k in ("joint_type", "origin", "direction")}
+
+        axis = axis_dict(self.axis)
+        return {"success": self.success, f"opened_{self.unit}": self.opened * self.scale,
+                f"target_{self.unit}": self.target * self.scale, "steps": self.steps, "axis": axis,
+                "stop_reason": self.stop_reason.value, "message": self.message,
+                "regrasped": self.regrasped, "peak_pull_force_n": self.peak_pull_force_n,
+                "vision_axis": axis_dict(self.vision_axis),
+                "run_dir": None if self.run_dir is None else str(self.run_dir),
                 "timings": self.timings}

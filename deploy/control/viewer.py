@@ -143,7 +143,7 @@ class EpisodeView:
     def axis(self, t: float, axis: Axis, opened: float, source: str | None = None) -> None:
         """Step `steps`: its line (opening with unit, where the axis came from, confidence), then the viewer."""
         unit = "deg" if axis.joint_type is JointType.REVOLUTE else "m"
-        where = f"from {source}" if source else axis.joint_type.value
+        where = f"{axis.joint_type.value} from {source}" if source else axis.joint_type.value
         step_log.info("step %d: opened %.3f %s, axis %s, confidence %.2f", self.steps, opened, unit, where,
                       axis.confidence)
         if self.viewer is not None:

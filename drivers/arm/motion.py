@@ -10,7 +10,7 @@ Any exception while streaming stops the arm before it propagates.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import Enum
 
 import numpy as np
@@ -18,7 +18,8 @@ import pinocchio as pin
 
 from drivers.arm.base import Arm, ArmState
 from drivers.arm.kinematics import Kinematics
-from drivers.arm.trajectory import JointTrajectory, MotionLimits, PathProfile, joint_trajectory
+from drivers.arm.trajectory import JointTrajectory, MotionLimits, OnlineRetargeter, PathProfile, joint_trajectory
+from drivers.arm.wrench import WrenchEstimator
 from drivers.errors import ArmError, IKError
 
 OnTick = Callable[[ArmState, float], bool | None]
@@ -27,6 +28,11 @@ PathFn = Callable[[float], np.ndarray]
 START_TOLERANCE_M = 0.01  # a Cartesian path must start this close to the measured tool position
 TRACKING_TOL_POS_M, TRACKING_TOL_ROT_RAD = 1e-6, 1e-5  # per-tick IK: tight, so commands stay smooth
 POSTURE_GAIN_PER_S = 1.0  # per-tick IK: null-space pull toward the rest posture, 1/s at the path's top speed
+TANGENT_STEP = 1e-4  # compliant pulls: the path's tangent from poses this far (m or rad) either side of s
+STALL_SCALE = 0.02  # compliant pulls: a path slowed below this share of its speed is held still (braking
+# goes on at least this fast, so that it ends)
+RELEASE_SPEED_SHARE, RELEASE_JERK_PER_ACCELERATION = 0.2, 100.0  # easing back after a force stop ...
+SCALE_RISE_PER_S = 2.0  # compliant pulls: the force bound gives the path its speed back this slowly
 
 
 class Outcome(Enum):
@@ -53,6 +59,9 @@ class PathResult:
     reason: str
     max_tracking_error_m: float
     s_reached: float
+    peak_force_n: float = 0.0  # compliant pulls: the largest force the pull added (N, filtered)
+    max_offset_m: float = 0.0  # compliant pulls: how far the path yielded at most (m)
+    across_force_n: float = 0.0  # compliant pulls: the largest force it added across the path (N)
 
     @property
     def stopped_early(self) -> bool:
@@ -137,6 +146,7 @@ def follow_cartesian_path(
     max_tracking_error_m: float = 0.02,
     sample_every: int = 10,
     q_rest: np.ndarray | None = None,
+    compliance: Compliance | None = None,
 ) -> PathResult:
     """Move the tool along path_fn(s), s in [0, length], with a jerk-limited profile of s and IK every tick.
 
@@ -147,6 +157,8 @@ def follow_cartesian_path(
     way: ArmError otherwise ("ik: ..." naming where), with the arm untouched. A tracking error (commanded
     vs measured tool position) above `max_tracking_error_m` means the arm is blocked: the motion brakes
     along the path and reports reason "blocked: ...". `sample_every` ticks go into the PathResult.
+    With `compliance` (and an arm that measures joint torques) the pull yields and is force-bounded
+    (`CompliantPull`): the ticks are re-solved online around the checked path.
     """
     dt = arm.control_period_s
     profile = PathProfile(length, *(float(x[0]) for x in profile_limits.arrays(1)))
@@ -158,9 +170,11 @@ def follow_cartesian_path(
             "mm): move the tool to its start first (move_to_pose)"
         )
     q_rest = q.copy() if q_rest is None else np.asarray(q_rest, float)
-    track = _Tracker(kin, path_fn, length, q_rest, kin.v_max * dt, POSTURE_GAIN_PER_S * dt,
+    track = Tracker(kin, path_fn, length, q_rest, kin.v_max * dt, POSTURE_GAIN_PER_S * dt,
                      float(profile.limits.v_max) * dt)
     plan_s, plan_q = track.plan(profile, dt, q)
+    if compliance is not None and arm.state().tau is not None:
+        return CompliantPull(arm, kin, track, profile, compliance).run(on_tick, max_tracking_error_m, sample_every)
 
     samples: list[tuple[float, float, np.ndarray, np.ndarray]] = []
     braking: PathProfile | None = None
@@ -189,25 +203,33 @@ def follow_cartesian_path(
             keep_going = on_tick is None or on_tick(state, t) is not False
             if braking is None and (error > max_tracking_error_m or not keep_going):
                 outcome = Outcome.STOPPED if not keep_going else Outcome.BLOCKED
-                reason = outcome.value if not keep_going else (
-                    f"blocked: tracking error {error * 1e3:.1f} mm > {max_tracking_error_m * 1e3:.1f} mm "
-                    f"at s = {s:.4f}"
-                )
+                reason = outcome.value if not keep_going else tracking_reason(error, max_tracking_error_m, s)
                 braking, t_brake, done = profile.stopping(t), t, False
             if done or k % sample_every == 0:
                 samples.append((t, s, T, T_measured))
     except BaseException:
         arm.stop()
         raise
+    return path_result(samples, outcome, reason, max_error, kin, arm, path_fn)
+
+
+def tracking_reason(error_m: float, limit_m: float, s: float) -> str:
+    return f"blocked: tracking error {error_m * 1e3:.1f} mm > {limit_m * 1e3:.1f} mm at s = {s:.4f}"
+
+
+def path_result(samples: list[tuple[float, float, np.ndarray, np.ndarray]], outcome: Outcome, reason: str,
+                max_error: float, kin: Kinematics, arm: Arm, path_fn: PathFn,
+                forces: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> PathResult:
+    """The PathResult of sampled ticks (t, s, commanded pose, measured pose) and `forces` (peak force N, largest
+    offset m, largest force across the path N); the start when none was sampled."""
     if not samples:
-        T = path_fn(0.0)
-        samples.append((0.0, 0.0, T, kin.fk(arm.state().q)))
+        samples.append((0.0, 0.0, path_fn(0.0), kin.fk(arm.state().q)))
     t_s, s_s, planned, measured = (np.array(x) for x in zip(*samples, strict=True))
-    return PathResult(t_s, s_s, planned, measured, outcome, reason, max_error, float(s_s[-1]))
+    return PathResult(t_s, s_s, planned, measured, outcome, reason, max_error, float(s_s[-1]), *forces)
 
 
 @dataclass(frozen=True)
-class _Tracker:
+class Tracker:
     """Per-tick IK along one path: joint steps within `max_step` (rad), the posture taking `posture_gain`
     per tick at the path's top speed `s_step` (s per tick), proportionally less when slower."""
 
@@ -219,12 +241,13 @@ class _Tracker:
     posture_gain: float
     s_step: float
 
-    def __call__(self, q: np.ndarray, s_prev: float, s: float) -> np.ndarray:
-        """Joints at path_fn(s), one tick after joints q at s_prev; ArmError "ik: ..." if out of reach."""
+    def __call__(self, q: np.ndarray, s_prev: float, s: float, T: np.ndarray | None = None) -> np.ndarray:
+        """Joints at pose T (default path_fn(s)), one tick after joints q at s_prev; ArmError "ik: ..." if out
+        of reach."""
         speed = min(1.0, abs(s - s_prev) / self.s_step)
         try:
-            return self.kin.track(self.path_fn(s), q, self.max_step, self.q_rest, self.posture_gain, speed,
-                                  TRACKING_TOL_POS_M, TRACKING_TOL_ROT_RAD)
+            return self.kin.track(self.path_fn(s) if T is None else T, q, self.max_step, self.q_rest,
+                                  self.posture_gain, speed, TRACKING_TOL_POS_M, TRACKING_TOL_ROT_RAD)
         except IKError as exc:
             where = f"ik: lost the Cartesian path at s = {s:.4f} of {self.length:.4f}"
             raise IKError(f"{where}: {str(exc).removeprefix('ik: ')}") from exc
@@ -252,3 +275,158 @@ def _unit(v: np.ndarray, name: str) -> np.ndarray:
     if not np.isfinite(n) or n < 1e-9:
         raise ValueError(f"{name} must be a finite non-zero 3-vector, got {v}")
     return v / n
+
+
+@dataclass(frozen=True)
+class Compliance:
+    """How a pull yields to the object and how hard it may pull (the robot config's `[compliance]`, the
+    force limit from the run's `[opening]`).
+
+    Admittance: the commanded tool position gets an offset x that follows the force the object resists with
+    across the path (the filtered force's component normal to the path's tangent, less `deadband_n`):
+    `damping_n_s_per_m` dx/dt = -F_across - `stiffness_n_per_m` x, |x| <= `max_offset_m`. The damping is high
+    because a position-controlled arm holding a handle is stiff (about 1e6 N/m): the offset is an integrator
+    that must not out-run it. Force bound: past `slow_from` of `force_limit_n` the path slows down, to a
+    halt at `halt_at` of it, and above that it backs off along the path (the speed changing by at most
+    `stop_acceleration_m_s2`), so the force settles at `halt_at` of the limit on an object that does not give.
+    Held there (not progressing) for `stall_s`, or above the limit, the pull ends "blocked" and the command
+    stops where it is (joint accelerations within `release_acceleration_rad_s2`), pressing no further. None:
+    no force limit. The
+    pull's force is what it adds to the force held when it began (the grasp's squeeze, about 20 N in
+    simulation, is not the object's resistance), and so is the force the admittance follows.
+    """
+
+    stiffness_n_per_m: float = 1000.0
+    damping_n_s_per_m: float = 8000.0
+    max_offset_m: float = 0.03
+    deadband_n: float = 3.0
+    filter_time_constant_s: float = 0.01
+    force_limit_n: float | None = None
+    slow_from: float = 0.5
+    halt_at: float = 0.85
+    stop_acceleration_m_s2: float = 1.0
+    stall_s: float = 0.3
+    release_acceleration_rad_s2: float = 5.0
+
+    def with_force_limit(self, force_limit_n: float | None) -> Compliance:
+        return replace(self, force_limit_n=force_limit_n)
+
+
+class CompliantPull:
+    """One compliant, force-bounded pull along `track`'s path (see `Compliance`), re-solving each tick's IK
+    around the commanded position plus the admittance offset."""
+
+    def __init__(self, arm: Arm, kin: Kinematics, track: Tracker, profile: PathProfile,
+                 compliance: Compliance) -> None:
+        self.arm, self.kin, self.track, self.profile, self.c = arm, kin, track, profile, compliance
+        self.wrench = WrenchEstimator(kin, compliance.filter_time_constant_s)
+        self.offset = np.zeros(3)
+        self.scale = 1.0  # path speed factor of the force bound
+        self.peak_force_n = self.max_offset_m = self.across_force_n = self.pull_n = 0.0
+        self.bias = np.zeros(3)
+
+    def run(self, on_tick: OnTick | None, max_tracking_error_m: float, sample_every: int) -> PathResult:
+        arm, dt, path_fn = self.arm, self.arm.control_period_s, self.track.path_fn
+        q = arm.state().q
+        dq = np.zeros_like(q)
+        self.wrench.update(arm.state())
+        self.bias = self.wrench.force  # held before the pull (the grasp's squeeze): not the object's resistance
+        active, clock, s, still_s = self.profile, 0.0, 0.0, 0.0
+        release: OnlineRetargeter | None = None
+        q_hold, T = q, path_fn(0.0)
+        samples: list[tuple[float, float, np.ndarray, np.ndarray]] = []
+        outcome, reason, max_error, stopping, k, done = Outcome.COMPLETED, "completed", 0.0, False, 0, False
+        blocked_at: tuple[float, float, float] | None = None  # force N, time held still s, s
+        try:
+            while not done:
+                k += 1
+                t = k * dt
+                if release is None:
+                    clock += dt * (max(self.scale, STALL_SCALE) if stopping else self._speed(active, clock))
+                    clock = max(clock, 0.0)
+                    s_prev, s = s, active.at(clock)[0]
+                    done = clock >= active.duration
+                    T = path_fn(s)
+                    T[:3, 3] += self.offset
+                    q_next = self.track(q, s_prev, s, T)
+                    dq = (q_next - q) / dt
+                else:
+                    q_next, dq, _ = release.step(q_hold)
+                    done = release.finished
+                arm.command(q_next, dq)
+                arm.sync()
+                q = q_next
+                state = arm.state()
+                force = self._feel(state, s, release is None)
+                T_measured = self.kin.fk(state.q)
+                error = float(np.linalg.norm(T[:3, 3] - T_measured[:3, 3]))
+                max_error = max(max_error, error)
+                still_s = still_s + dt if self.scale < STALL_SCALE else 0.0
+                keep_going = on_tick is None or on_tick(state, t) is not False
+                if not stopping:
+                    limit = self.c.force_limit_n
+                    if limit is not None and (force > limit or still_s >= self.c.stall_s):
+                        outcome, blocked_at = Outcome.BLOCKED, (force, still_s, s)
+                        release, q_hold, done = self._release(q, dq), q, False
+                    elif error > max_tracking_error_m or not keep_going:
+                        outcome = Outcome.STOPPED if not keep_going else Outcome.BLOCKED
+                        reason = outcome.value if not keep_going else tracking_reason(error, max_tracking_error_m, s)
+                        active, clock, done = active.stopping(clock), 0.0, False
+                    stopping = outcome is not Outcome.COMPLETED
+                if done or k % sample_every == 0:
+                    samples.append((t, s, T, T_measured))
+        except BaseException:
+            arm.stop()
+            raise
+        if blocked_at is not None:  # named once the command has stopped: the peak includes the stop
+            reason = self._force_reason(*blocked_at)
+        return path_result(samples, outcome, reason, max_error, self.kin, arm, path_fn,
+                           (self.peak_force_n, self.max_offset_m, self.across_force_n))
+
+    def _feel(self, state: ArmState, s: float, admit: bool) -> float:
+        """Fold in the measured torques; update the admittance offset; the pull's force (N): how far the filtered
+        force has changed since the pull began."""
+        self.wrench.update(state)
+        force = self.wrench.force
+        self.pull_n = float(np.linalg.norm(force - self.bias))
+        self.peak_force_n = max(self.peak_force_n, self.pull_n)
+        if admit:
+            p0, p1 = self.track.path_fn(s - TANGENT_STEP)[:3, 3], self.track.path_fn(s + TANGENT_STEP)[:3, 3]
+            tangent = (p1 - p0) / max(float(np.linalg.norm(p1 - p0)), 1e-12)
+            added = force - self.bias
+            across = added - (added @ tangent) * tangent
+            size = float(np.linalg.norm(across))
+            self.across_force_n = max(self.across_force_n, size)
+            across *= max(size - self.c.deadband_n, 0.0) / size if size > 1e-9 else 0.0
+            dt = self.arm.control_period_s
+            self.offset += dt * (-across - self.c.stiffness_n_per_m * self.offset) / self.c.damping_n_s_per_m
+            size = float(np.linalg.norm(self.offset))
+            if size > self.c.max_offset_m:
+                self.offset *= self.c.max_offset_m / size
+            self.max_offset_m = max(self.max_offset_m, min(size, self.c.max_offset_m))
+        return self.pull_n
+
+    def _speed(self, active: PathProfile, clock: float) -> float:
+        """The path-speed factor this tick: 1 below `slow_from` of the force limit, 0 at `halt_at` of it, negative
+        (backing off) above, changing the tool's speed by at most `stop_acceleration_m_s2` per second."""
+        limit = self.c.force_limit_n
+        if limit is None:
+            return 1.0
+        slow_from, halt_at = self.c.slow_from * limit, self.c.halt_at * limit
+        wanted = float(np.clip((halt_at - self.pull_n) / max(halt_at - slow_from, 1e-9), -1.0, 1.0))
+        speed = abs(active.at(clock)[1])
+        dt = self.arm.control_period_s
+        down = self.c.stop_acceleration_m_s2 * dt / max(speed, 1e-9)
+        self.scale = float(np.clip(wanted, self.scale - down, self.scale + min(down, SCALE_RISE_PER_S * dt)))
+        return self.scale
+
+    def _release(self, q_cmd: np.ndarray, dq_cmd: np.ndarray) -> OnlineRetargeter:
+        """Stop the command where it is (moving at dq_cmd) as fast as the joints may: it presses no further."""
+        a = self.c.release_acceleration_rad_s2
+        limits = MotionLimits(self.kin.v_max * RELEASE_SPEED_SHARE, a, RELEASE_JERK_PER_ACCELERATION * a)
+        return OnlineRetargeter(q_cmd, limits, self.arm.control_period_s, dq_cmd)
+
+    def _force_reason(self, force_n: float, still_s: float, s: float) -> str:
+        limit = self.c.force_limit_n
+        held = f" held the path still for {still_s:.1f} s" if force_n <= (limit or 0.0) else f" > limit {limit:.0f} N"
+        return f"blocked: pull force {force_n:.1f} N{held} at s = {s:.4f}, peak {self.peak_force_n:.1f} N"

@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from drivers.arm.damiao import MODELS, PARAM_ID, MotorLimits
 from drivers.arm.kinematics import Kinematics
+from drivers.arm.motion import Compliance
 from drivers.arm.robots import RobotSpec
 from drivers.arm.safety import SafetyLimits
 from drivers.arm.trajectory import MotionLimits
@@ -104,6 +105,22 @@ class WatchdogConfig(_Strict):
     stop_damping_s: float = Field(0.3, ge=0, le=5.0)  # stop(): damp (kp = 0) this long before disabling
 
 
+class ComplianceConfig(_Strict):
+    """How the arm's pulls yield to the object they hold (`drivers.arm.motion.Compliance`): the admittance's
+    stiffness and damping, the largest offset from the commanded path, the force deadband below which nothing
+    yields, and the time constant of the wrench filter (joint torques, `drivers.arm.wrench`)."""
+
+    stiffness_n_per_m: float = Field(1000.0, ge=0, le=1e5)
+    damping_n_s_per_m: float = Field(8000.0, gt=0, le=1e6)
+    max_offset_m: float = Field(0.03, ge=0, le=0.1)
+    deadband_n: float = Field(3.0, ge=0, le=50)
+    filter_time_constant_s: float = Field(0.01, ge=0, le=1.0)
+
+    def gains(self) -> Compliance:
+        return Compliance(self.stiffness_n_per_m, self.damping_n_s_per_m, self.max_offset_m, self.deadband_n,
+                          self.filter_time_constant_s)
+
+
 class RobotConfig(_Strict):
     """A whole arm. `urdf` is a path (relative to the config file) or `pybullet_data:<relative path>`."""
 
@@ -119,6 +136,7 @@ class RobotConfig(_Strict):
     gravity_compensation: bool = False  # MIT torque feed-forward from the URDF's inertias
     can: CanConfig = CanConfig()
     watchdog: WatchdogConfig = WatchdogConfig()
+    compliance: ComplianceConfig = ComplianceConfig()
     joints: list[JointConfig] = Field(min_length=1)
     gripper: GripperConfig | None = None
     source: Path | None = None  # the file it was read from (set by load_robot_config)

@@ -1,14 +1,11 @@
 """The librealsense pipeline shared by the live D415 and .bag/.db3 playback: start, depth scale,
 post-processing, alignment of depth to colour, and framesets as `Frame`s.
 
-Recordings (playback, not real time) pair colour and depth frames by timestamp and align depth to colour
-with `DepthAligner`: no rounding holes, co-registered streams pass through unchanged, lens distortion is
-ignored (the D415 reports none worth correcting). The live camera uses librealsense's `rs.align` (C++, keeps
-up with 30 fps; it leaves some one-pixel rounding holes)."""
+Recordings (playback, not real time) align depth to colour with `DepthAligner`: no rounding holes, and
+co-registered streams pass through unchanged. The live camera, and a stream with lens distortion, use
+librealsense's `rs.align` (C++, keeps up with 30 fps; it leaves some one-pixel rounding holes)."""
 
 from __future__ import annotations
-
-from collections import deque
 
 import cv2
 import numpy as np
@@ -18,7 +15,6 @@ from drivers.camera.base import Frame, Intrinsics
 from drivers.camera.depth_align import DepthAligner
 from drivers.camera.realsense_config import HOLE_FILLING, FilterConfig
 
-PENDING = 32  # playback frames kept per stream while waiting for their partner
 _TO_RGB = {
     rs.format.rgb8: None, rs.format.bgr8: cv2.COLOR_BGR2RGB,
     rs.format.rgba8: cv2.COLOR_RGBA2RGB, rs.format.bgra8: cv2.COLOR_BGRA2RGB,
@@ -84,90 +80,62 @@ class RealSenseStream:
             self.pipeline.stop()
             raise
         self._color_profile = color
+        self._distorted = _distorted(color)
         self._align = rs.align(rs.stream.color)
         self._aligners: dict[Intrinsics, DepthAligner] = {}
         self._filters = build_filters(filters)
         self._t0_ms: float | None = None
         self._n0: int | None = None
-        self._pending: dict[str, deque[rs.frame]] = {"depth": deque(maxlen=PENDING), "color": deque(maxlen=PENDING)}
-        self._last_number: dict[str, int] = {}
+        self._last_depth_number: int | None = None
         self.timed_out = False  # whether the last poll got no frameset at all
 
     def poll(self, timeout_s: float) -> Frame | None:
-        """The next aligned frame, or None if none arrived within `timeout_s` (then `timed_out`). In playback the
-        colour and depth frames are paired by timestamp (within half a frame period) whichever framesets the
-        syncer, not in real time, groups them in; repeated frames are skipped."""
-        if self.playback is not None and (pair := self._pair()) is not None:
-            self.timed_out = False
-            return self._playback_frame(*pair)
+        """The next aligned frame, or None if none arrived within `timeout_s` (then `timed_out`). In playback, partial
+        framesets (colour and depth more than half a frame period apart, which the syncer emits when
+        not in real time) and repeated depth frames are skipped."""
         ok, frames = self.pipeline.try_wait_for_frames(max(1, int(timeout_s * 1000)))
         self.timed_out = not ok
         if not ok:
             return None
-        if self.playback is not None:
-            self._queue(frames)
-            pair = self._pair()
-            return None if pair is None else self._playback_frame(*pair)
-        if not frames.get_depth_frame() or not frames.get_color_frame():
+        depth, color = frames.get_depth_frame(), frames.get_color_frame()
+        if not depth or not color:
             return None
-        return self._live_frame(frames)
+        if self.playback is not None:
+            number = depth.get_frame_number()
+            apart_ms = abs(depth.get_timestamp() - color.get_timestamp())
+            if number == self._last_depth_number or apart_ms > 500.0 / self.fps:
+                return None
+            self._last_depth_number = number
+        return self._to_frame(frames)
 
-    def _queue(self, frames: rs.composite_frame) -> None:
-        """Keep the frameset's new depth and colour frames for pairing."""
-        for kind, frame in (("depth", frames.get_depth_frame()), ("color", frames.get_color_frame())):
-            if frame and frame.get_frame_number() != self._last_number.get(kind):
-                self._last_number[kind] = frame.get_frame_number()
-                frame.keep()
-                self._pending[kind].append(frame)
-
-    def _pair(self) -> tuple[rs.frame, rs.frame] | None:
-        """The oldest queued depth and colour frames within half a frame period of each other (older unpaired
-        frames are dropped), or None."""
-        depths, colors = self._pending["depth"], self._pending["color"]
-        while depths and colors:
-            apart_ms = depths[0].get_timestamp() - colors[0].get_timestamp()
-            if abs(apart_ms) <= 500.0 / self.fps:
-                return depths.popleft(), colors.popleft()
-            (depths if apart_ms < 0 else colors).popleft()
-        return None
-
-    def _stamp(self, depth: rs.frame) -> tuple[int, float]:
-        """The frame's index and time (s) since the first frame."""
+    def _to_frame(self, frames: rs.composite_frame) -> Frame:
+        depth = frames.get_depth_frame()
         stamp_ms, number = depth.get_timestamp(), depth.get_frame_number()
         if self._t0_ms is None:
             self._t0_ms, self._n0 = stamp_ms, number
-        return number - self._n0, (stamp_ms - self._t0_ms) / 1000.0
-
-    def _rgb(self, color: rs.frame) -> np.ndarray:
-        rgb = np.asanyarray(color.get_data())
-        conversion = _TO_RGB[self.color_format]
-        return rgb.copy() if conversion is None else cv2.cvtColor(rgb, conversion)
-
-    def _live_frame(self, frames: rs.composite_frame) -> Frame:
-        """A live frameset: filtered, depth aligned by librealsense."""
-        index, t = self._stamp(frames.get_depth_frame())
         for f in self._filters:
             frames = f.process(frames).as_frameset()
-        frames = self._align.process(frames)
-        depth_m = np.asanyarray(frames.get_depth_frame().get_data()).astype(np.float32) * np.float32(self.depth_scale)
-        return Frame(index=index, t=t, color=self._rgb(frames.get_color_frame()), depth_m=depth_m,
-                     intrinsics=self.intrinsics)
+        rgb = np.asanyarray(frames.get_color_frame().get_data())
+        conversion = _TO_RGB[self.color_format]
+        rgb = rgb.copy() if conversion is None else cv2.cvtColor(rgb, conversion)
+        return Frame(index=number - self._n0, t=(stamp_ms - self._t0_ms) / 1000.0, color=rgb,
+                     depth_m=self._aligned_depth(frames), intrinsics=self.intrinsics)
 
-    def _playback_frame(self, depth: rs.frame, color: rs.frame) -> Frame:
-        """A recorded pair: depth filtered, then re-projected onto the colour image by `DepthAligner`."""
-        index, t = self._stamp(depth)
-        for f in self._filters:
-            depth = f.process(depth)
+    def _aligned_depth(self, frames: rs.composite_frame) -> np.ndarray:
+        """The frameset's depth on the colour image's pixel grid, in metres."""
+        depth = frames.get_depth_frame()
         profile = depth.get_profile().as_video_stream_profile()
+        if self.playback is None or self._distorted or _distorted(profile):
+            aligned = self._align.process(frames).get_depth_frame()
+            return np.asanyarray(aligned.get_data()).astype(np.float32) * np.float32(self.depth_scale)
         intrinsics = intrinsics_of(profile)
         aligner = self._aligners.get(intrinsics)
         if aligner is None:
             extrinsics = profile.get_extrinsics_to(self._color_profile)
             aligner = self._aligners[intrinsics] = DepthAligner(
                 intrinsics, self.intrinsics, np.reshape(extrinsics.rotation, (3, 3)).T, extrinsics.translation)
-        depth_m = np.asanyarray(depth.get_data()).astype(np.float32) * np.float32(self.depth_scale)
-        return Frame(index=index, t=t, color=self._rgb(color), depth_m=aligner.align(depth_m),
-                     intrinsics=self.intrinsics)
+        units = np.asanyarray(depth.get_data())
+        return aligner.align(units.astype(np.float32) * np.float32(self.depth_scale))
 
     def stop(self) -> None:
         """Stop the pipeline (idempotent; errors of a vanished device are ignored). Playback is paused first:
@@ -180,3 +148,8 @@ class RealSenseStream:
         except RuntimeError:
             pass
 
+
+def _distorted(profile: rs.video_stream_profile) -> bool:
+    """Whether a stream's lens model has non-zero distortion coefficients."""
+    intrinsics = profile.get_intrinsics()
+    return intrinsics.model != rs.distortion.none and any(abs(c) > 0 for c in intrinsics.coeffs)
