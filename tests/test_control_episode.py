@@ -143,4 +143,6 @@ def test_bench_open_reports_the_issue_keys():
     assert set(out) >= {"task", "target_m", "split", "policy", "episodes", "success_rate", "mean_opened_m",
                         "axis_angle_error_deg_median", "seconds_per_episode", "failures"}
     assert out["success_rate"] == 1.0 and out["mean_opened_m"] >= 0.1 and out["failures"] == {}
+    # a frame's CPU time on its thread is positive and never more than the wall time it took
+    assert 0 < out["frame_cpu_ms_median"] <= out["frame_ms_median"] * 1.01
     json.dumps(out)

@@ -7,7 +7,7 @@ import pybullet as pb
 import pytest
 from scipy.spatial.transform import Rotation
 
-from deploy.bench.open import simulate_episode
+from deploy.bench.open import bench_open, simulate_episode
 from deploy.config import OpeningConfig
 from deploy.control.policy import choose_axis
 from deploy.geometry.types import Axis, JointType, NoAxis
@@ -103,6 +103,14 @@ def test_a_locked_drawer_ends_blocked_under_the_force_limit():
 def test_a_lower_force_limit_stops_sooner():
     result = simulate_episode("drawer", 0, "train", target=0.15, condition="locked", pull_force_limit_n=30.0)
     assert result["stop_reason"] == "blocked" and result["peak_pull_force_n"] <= 30.0
+
+
+def test_bench_open_reports_the_condition_the_peak_force_and_the_axis_cues():
+    data = bench_open("drawer", 0.15, episodes=1, split="train", condition="locked", segmenter="oracle")
+    assert data["condition"] == "locked" and data["failures"] == {"blocked": 1}
+    assert 30.0 < data["peak_pull_force_n_median"] == data["peak_pull_force_n_max"] <= 60.0
+    assert {"axis_error_episodes_compared", "acted_on_axis_angle_error_deg_median",
+            "vision_alone_axis_angle_error_deg_p90"} <= set(data)
 
 
 def test_a_stiff_door_still_opens():

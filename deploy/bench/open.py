@@ -100,6 +100,7 @@ def bench_open(
                        for r in results if not r["success"])
     frame_ms = [r["timings"]["frame_ms_median"] for r in results if "frame_ms_median" in r["timings"]]
     frame_p90 = [r["timings"]["frame_ms_p90"] for r in results if "frame_ms_p90" in r["timings"]]
+    frame_cpu = [r["timings"]["frame_cpu_ms_median"] for r in results if "frame_cpu_ms_median" in r["timings"]]
     return {
         "task": task, f"target_{unit}": target, "split": split, "policy": policy, "episodes": episodes,
         "segmenter": segmenter, "condition": condition,
@@ -111,6 +112,8 @@ def bench_open(
         **_acted_on_vs_vision_alone(results),
         "frame_ms_median": float(np.median(frame_ms)) if frame_ms else None,
         "frame_ms_p90_max": float(np.max(frame_p90)) if frame_p90 else None,
+        "frame_cpu_ms_median": float(np.median(frame_cpu)) if frame_cpu else None,
+        "frame_cpu_ms_median_max": float(np.max(frame_cpu)) if frame_cpu else None,
         "regrasps": int(sum(r["regrasped"] for r in results)),
         "peak_pull_force_n_median": float(np.median(forces)) if forces else 0.0,
         "peak_pull_force_n_max": float(np.max(forces)) if forces else 0.0,

@@ -92,7 +92,8 @@ def _result(episode: Episode, reason: StopReason, message: str) -> EpisodeResult
     frame_ms = episode.observer.frame_ms
     if frame_ms:
         state.timings.update({"frame_ms_median": float(np.median(frame_ms)),
-                              "frame_ms_p90": float(np.percentile(frame_ms, 90))})
+                              "frame_ms_p90": float(np.percentile(frame_ms, 90)),
+                              "frame_cpu_ms_median": float(np.median(episode.observer.frame_cpu_ms))})
     return EpisodeResult(
         success=state.axis is not None and state.opened >= episode.target(), opened=state.opened,
         target=episode.target(), steps=state.steps, joint_type=state.joint_type().value, axis=state.axis,

@@ -46,7 +46,8 @@ class Observer:
         self.next_frame_t = 0.0
         self.t0 = t0  # arm-clock start of the episode (viewer timeline)
         self.seconds = 0.0  # spent segmenting and estimating
-        self.frame_ms: list[float] = []  # per processed frame: self-filter, segmenter and axis pipeline
+        self.frame_ms: list[float] = []  # per processed frame: self-filter, segmenter and axis pipeline (wall)
+        self.frame_cpu_ms: list[float] = []  # the same frames' CPU time on this thread: one core's work
 
     def first(self, arm_state: Callable[[], ArmState]) -> tuple[Frame, np.ndarray]:
         """Read and segment the first frame (the arm's state read after it), fix the body box; the frame and
@@ -81,7 +82,7 @@ class Observer:
         clock = time.perf_counter()
         pending, self.pending = self.pending, []
         for raw, state in pending:
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.thread_time()
             frame, robot = self._without_robot(raw, state)
             mask = self.segmenter.track(frame) & ~robot
             self._log(raw, mask, state)
@@ -93,6 +94,7 @@ class Observer:
             self.vision = self.pipeline.update_frame(frame, mask, pose).result
             self.last_seen = frame, mask
             self.frame_ms.append((time.perf_counter() - start) * 1e3)
+            self.frame_cpu_ms.append((time.thread_time() - cpu) * 1e3)
         self.seconds += time.perf_counter() - clock
 
     def look(self, state: ArmState) -> tuple[Frame, np.ndarray]:

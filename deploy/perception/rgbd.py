@@ -200,11 +200,9 @@ class RGBDSegmenter(Segmenter):
         return self._full(frame, keep_touching(region, near.astype(bool)))
 
     def _recover(self, frame: Frame, followed: np.ndarray) -> np.ndarray:
-        """The track shrank. While anything is left in the region, the object is where it was, partly hidden (an
-        arm in front of it, a camera that moved): what is left is its mask. With nothing left, the object is
-        detected again (`max_redetections` attempts) before it counts as lost."""
-        if followed.any():
-            return followed
+        """The track shrank: detect the object again (the view may have changed, a door swung out of the region).
+        When that finds nothing as large, what is left in the region is kept (the object is where it was, partly
+        hidden); with nothing left after `max_redetections` attempts the object is lost."""
         for _ in range(self.config.max_redetections):
             self.redetections += 1
             try:
@@ -215,6 +213,8 @@ class RGBDSegmenter(Segmenter):
             if np.count_nonzero(mask) >= self.config.min_area_ratio * self._reference_area:
                 self.region, self._front = region, front
                 return mask
+        if followed.any():
+            return followed
         raise PerceptionError(
             f"rgbd segmenter lost the object at frame {frame.index}: nothing is left where it was and "
             f"{self.config.max_redetections} re-detection(s) found no object; keep it in view, or use the gdino-sam2 "

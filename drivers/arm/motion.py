@@ -288,12 +288,12 @@ class Compliance:
     because a position-controlled arm holding a handle is stiff (about 1e6 N/m): the offset is an integrator
     that must not out-run it. Force bound: past `slow_from` of `force_limit_n` the path slows down, to a
     halt at `halt_at` of it, and above that it backs off along the path (the speed changing by at most
-    `stop_acceleration_m_s2`), so the force settles at `halt_at` of the limit on an object that does not give.
+    `stop_acceleration`), so the force settles at `halt_at` of the limit on an object that does not give.
     Held there (not progressing) for `stall_s`, or above the limit, the pull ends "blocked" and the command
-    stops where it is (joint accelerations within `release_acceleration_rad_s2`), pressing no further. None:
-    no force limit. The
-    pull's force is what it adds to the force held when it began (the grasp's squeeze, about 20 N in
-    simulation, is not the object's resistance), and so is the force the admittance follows.
+    eases back to where the arm measured itself then (joint accelerations within `release_acceleration_rad_s2`),
+    pressing no further. None: no force limit. The pull's force is what it adds to the force held when it began
+    (the grasp's squeeze, about 20 N in simulation, is not the object's resistance), and so is the force the
+    admittance follows.
     """
 
     stiffness_n_per_m: float = 1000.0
@@ -304,7 +304,7 @@ class Compliance:
     force_limit_n: float | None = None
     slow_from: float = 0.5
     halt_at: float = 0.85
-    stop_acceleration_m_s2: float = 1.0
+    stop_acceleration: float = 1.0  # path units: m/s^2 along a line, rad/s^2 along an arc
     stall_s: float = 0.3
     release_acceleration_rad_s2: float = 5.0
 
@@ -367,7 +367,7 @@ class CompliantPull:
                     limit = self.c.force_limit_n
                     if limit is not None and (force > limit or still_s >= self.c.stall_s):
                         outcome, blocked_at = Outcome.BLOCKED, (force, still_s, s)
-                        release, q_hold, done = self._release(q, dq), q, False
+                        release, q_hold, done = self._release(q, dq), state.q, False
                     elif error > max_tracking_error_m or not keep_going:
                         outcome = Outcome.STOPPED if not keep_going else Outcome.BLOCKED
                         reason = outcome.value if not keep_going else tracking_reason(error, max_tracking_error_m, s)
@@ -391,8 +391,7 @@ class CompliantPull:
         self.pull_n = float(np.linalg.norm(force - self.bias))
         self.peak_force_n = max(self.peak_force_n, self.pull_n)
         if admit:
-            p0, p1 = self.track.path_fn(s - TANGENT_STEP)[:3, 3], self.track.path_fn(s + TANGENT_STEP)[:3, 3]
-            tangent = (p1 - p0) / max(float(np.linalg.norm(p1 - p0)), 1e-12)
+            tangent = self._tangent(s)
             added = force - self.bias
             across = added - (added @ tangent) * tangent
             size = float(np.linalg.norm(across))
@@ -408,7 +407,7 @@ class CompliantPull:
 
     def _speed(self, active: PathProfile, clock: float) -> float:
         """The path-speed factor this tick: 1 below `slow_from` of the force limit, 0 at `halt_at` of it, negative
-        (backing off) above, changing the tool's speed by at most `stop_acceleration_m_s2` per second."""
+        (backing off) above, the path's speed changing by at most `stop_acceleration` per second."""
         limit = self.c.force_limit_n
         if limit is None:
             return 1.0
@@ -416,12 +415,17 @@ class CompliantPull:
         wanted = float(np.clip((halt_at - self.pull_n) / max(halt_at - slow_from, 1e-9), -1.0, 1.0))
         speed = abs(active.at(clock)[1])
         dt = self.arm.control_period_s
-        down = self.c.stop_acceleration_m_s2 * dt / max(speed, 1e-9)
+        down = self.c.stop_acceleration * dt / max(speed, 1e-9)
         self.scale = float(np.clip(wanted, self.scale - down, self.scale + min(down, SCALE_RISE_PER_S * dt)))
         return self.scale
 
+    def _tangent(self, s: float) -> np.ndarray:
+        """The path's unit tangent at s."""
+        p0, p1 = self.track.path_fn(s - TANGENT_STEP)[:3, 3], self.track.path_fn(s + TANGENT_STEP)[:3, 3]
+        return (p1 - p0) / max(float(np.linalg.norm(p1 - p0)), 1e-12)
+
     def _release(self, q_cmd: np.ndarray, dq_cmd: np.ndarray) -> OnlineRetargeter:
-        """Stop the command where it is (moving at dq_cmd) as fast as the joints may: it presses no further."""
+        """Stop the command (at q_cmd, moving at dq_cmd) as fast as the joints may: it presses no further."""
         a = self.c.release_acceleration_rad_s2
         limits = MotionLimits(self.kin.v_max * RELEASE_SPEED_SHARE, a, RELEASE_JERK_PER_ACCELERATION * a)
         return OnlineRetargeter(q_cmd, limits, self.arm.control_period_s, dq_cmd)
