@@ -300,7 +300,8 @@ def _pull(episode: Episode, path: PathFn, length: float, label: str, limits: Mot
         regrasp(episode)
     elif result.outcome is Outcome.BLOCKED:
         raise EpisodeStop(StopReason.BLOCKED, f"no more motion during {label} ({result.reason}): the joint is at "
-                          "its limit or locked")
+                          "its limit or locked, or the object presses on the arm itself (a door's sweep): check "
+                          "the arm's clearance")
 
 
 def _close_and_check(episode: Episode, open_width: float, failure: StopReason, context: str = "") -> None:
