@@ -21,7 +21,6 @@ A file holds any subset of the sections below; everything has a default, so no f
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Literal
@@ -34,15 +33,12 @@ from deploy.geometry.estimators.screw_config import ScrewConfig
 from deploy.geometry.radius_filter import FILTER_PROFILES, FilterProfile
 from deploy.geometry.types import JointType
 from deploy.perception.config import PerceptionConfig
+from drivers.toml_file import read_toml
 
 Task = Literal["drawer", "door", "auto"]
 Policy = Literal["closed", "open", "paper"]
 Fusion = Literal["vision", "trajectory", "fused", "force"]
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - exercised on Python 3.10 only
-    import tomli as tomllib
 
 
 class _Section(BaseModel):
@@ -231,15 +227,7 @@ def load_config(path: Path | None = None, overrides: dict[str, Any] | None = Non
         source = str(path)
         if not path.is_file():
             raise ConfigError(f"config file {path} not found: check the path or omit --config to use defaults")
-        try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except UnicodeDecodeError as exc:
-            raise ConfigError(f"config file {path} is not UTF-8 text ({exc.reason} at byte {exc.start}): give a "
-                              "TOML file (docs/cli.md shows the sections)") from None
-        except OSError as exc:
-            raise ConfigError(f"config file {path} cannot be read ({exc.strerror}): check its permissions") from None
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"config file {path} is not valid TOML: {exc}") from exc
+        data = read_toml(path, "config file", ConfigError, "docs/cli.md shows the sections")
     for dotted, value in (overrides or {}).items():
         if value is not None:
             _set_dotted(data, dotted, value)

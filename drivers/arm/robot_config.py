@@ -7,7 +7,6 @@ and the watchdog's timeouts are bounded. The configs shipped with the package (d
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Literal
 
@@ -22,11 +21,7 @@ from drivers.arm.robots import RobotSpec
 from drivers.arm.safety import SafetyLimits
 from drivers.arm.trajectory import MotionLimits
 from drivers.errors import ArmError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from drivers.toml_file import read_toml
 
 
 class _Strict(BaseModel):
@@ -236,15 +231,7 @@ def load_robot_config(spec: str | Path) -> RobotConfig:
     """Read and validate a robot config (a path, or a shipped config's name); ArmError naming the file and the
     bad field otherwise."""
     path = robot_config_path(spec)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError as exc:
-        raise ArmError(f"robot config {path} is not UTF-8 text ({exc.reason} at byte {exc.start}): give a TOML "
-                       "file (`deploy arm status --robot damiao_6dof` uses a shipped example)") from None
-    except OSError as exc:
-        raise ArmError(f"robot config {path} cannot be read ({exc.strerror}): check its permissions") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ArmError(f"robot config {path} is not valid TOML ({exc}): fix the syntax") from exc
+    data = read_toml(path, "robot config", ArmError, "`deploy arm status --robot damiao_6dof` uses a shipped example")
     try:
         return RobotConfig.model_validate({**data, "source": path.resolve()})
     except ValidationError as exc:
