@@ -1,6 +1,10 @@
 """Arm bring-up operations behind `deploy arm ...`: scan, status, enable/disable/zero, and planned joint moves
 (home, jog, move to a pose) that are shown before they run; and the `--sim-fault` injections of the simulated CAN
 arm, which every command that takes `--arm sim-can` offers.
+
+The arm comes from the rig builder (`deploy.rig.build_arm`, no camera); commands that address the motors directly
+(scan, disable, zero) use the arm kind's bare bus (`deploy.rig.bare_bus`: the bus factory of its registry entry).
+No kind is named here: `--sim-fault` goes with the simulated kinds that have a bus (simulated motors).
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from deploy.rig import bare_bus, build_arm
 from drivers.arm.base import Arm
 from drivers.arm.can_arm import CanArm, scan_bus
 from drivers.arm.can_bus import CanBus
@@ -24,7 +29,7 @@ from drivers.arm.disable import disable_and_confirm
 from drivers.arm.disable import motor_states as disable_states
 from drivers.arm.motion import move_to_joints
 from drivers.arm.motor_channels import MotorChannel
-from drivers.arm.registry import open_arm
+from drivers.arm.registry import ARMS
 from drivers.arm.robot_config import PANDA_SIM_CONFIG, RobotConfig, load_robot_config
 from drivers.arm.trajectory import MotionLimits, joint_trajectory
 from drivers.errors import ArmError
@@ -57,8 +62,13 @@ def load(robot: Path | None) -> RobotConfig:
 
 
 def make_arm(kind: str, config: RobotConfig) -> Arm:
-    """An arm of `kind` for the CLI, from the arm registry ("sim" needs a world: not offered here)."""
-    return open_arm(kind, config)
+    """An arm of `kind` for the CLI, built as a rig builds its arm ("sim" needs a world: not offered here)."""
+    return build_arm(kind, config)
+
+
+def fault_kinds() -> list[str]:
+    """The arm kinds `--sim-fault` can break: simulated, with a bus (simulated Damiao motors answer on it)."""
+    return [e.usage for e in ARMS.entries() if e.simulated and e.bus is not None]
 
 
 def parse_sim_faults(kind: str, texts: list[str] | None) -> list[SimFault]:
@@ -68,8 +78,9 @@ def parse_sim_faults(kind: str, texts: list[str] | None) -> list[SimFault]:
     from deploy.errors import ConfigError
     from sim_fallback.sim_faults import SimFault
 
-    if kind != "sim-can":
-        raise ConfigError(f"--sim-fault breaks the simulated CAN arm: use it with --arm sim-can, not --arm {kind}")
+    if kind not in fault_kinds():
+        raise ConfigError(f"--sim-fault breaks the simulated CAN arm: use it with --arm {' or '.join(fault_kinds())}, "
+                          f"not --arm {kind}")
     try:
         return [SimFault.parse(text) for text in texts]
     except ValueError as exc:
@@ -108,25 +119,12 @@ def released(arm: Arm) -> Iterator[Arm]:
 
 @contextmanager
 def raw_bus(config: RobotConfig, kind: str, faults: list[SimFault] | None = None) -> Iterator[CanBus]:
-    """The config's CAN bus without an arm on top (sim-can: with its simulated motors answering, `faults`
-    injected); closed after."""
-    if kind == "sim-can":
-        from sim_fallback.devices import sim_can_arm
-
-        arm, motors = sim_can_arm(config)
+    """The config's bus without an arm on top, from arm `kind`'s registry entry (a simulated kind: with its
+    simulated motors answering, `faults` injected); closed after."""
+    with bare_bus(kind, config) as (bus, motors):
         for fault in faults or []:
             fault.schedule(motors)
-        bus, close = arm.bus, motors.close
-    elif kind == "can":
-        bus, close = CanBus.from_config(config.can), None
-    else:
-        raise ArmError(f"this command talks to the motors directly: it needs --arm can or sim-can, not {kind!r}")
-    try:
         yield bus
-    finally:
-        bus.close()
-        if close is not None:
-            close()
 
 
 def scan(kind: str, config: RobotConfig, ids: range, faults: list[SimFault] | None = None) -> list[dict]:
@@ -141,7 +139,7 @@ def status(arm: Arm) -> dict:
         state = arm.state()
         kin = arm.kin
         tool = kin.fk(state.q)
-        data = {"joints": dict(zip(arm.joint_names, np.round(state.q, 4).tolist(), strict=True)),
+        data = {"joint_positions_rad": dict(zip(arm.joint_names, np.round(state.q, 4).tolist(), strict=True)),
                 "tool_position_m": tool[:3, 3].round(4).tolist(),
                 "tool_rpy_deg": np.degrees(Rotation.from_matrix(tool[:3, :3]).as_euler("xyz")).round(2).tolist(),
                 "gripper_width_m": round(state.gripper_width_m, 4)}

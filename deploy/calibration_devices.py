@@ -1,9 +1,11 @@
 """The camera and arm `deploy calibrate` runs on, chosen by --camera, --arm and --robot.
 
-- `--camera sim` with `--arm sim` (SimArm) or `--arm sim-can` (the real CAN driver on simulated Damiao motors that
-  move the same PyBullet Panda): the simulated calibration scene of deploy.rig, with its ground truth;
-- `--camera d415[:SERIAL]` with `--arm can --robot CONFIG.toml`: a RealSense D415 and a Damiao arm.
-A recording (`replay:PATH`) is refused: calibration moves the arm, and a recording cannot show those motions.
+Any live kind of the registries: a simulated camera with a simulated arm (`--camera sim` with `--arm sim`, the
+world's Panda, or `--arm sim-can`, the real CAN driver on simulated Damiao motors that move the same Panda) in the
+simulated calibration scene of deploy.rig, with its ground truth; a physical camera with a physical arm
+(`--camera d415[:SERIAL]` with `--arm can --robot CONFIG.toml`). The pairing rules are the rig's
+(`deploy.rig.check_spec`). A recording (`replay:PATH`) is refused: calibration moves the arm, and a recording
+cannot show those motions; so is an arm that moves nothing a camera sees (`ideal`).
 
 Opening order: specs and the robot config are checked first, then the camera is connected (its serial names the
 calibration file), then the arm is probed (joints read, nothing enabled) so the stations can be planned and shown.
@@ -26,17 +28,18 @@ from calibration.routine import RoutineConfig, plan_around_start
 from calibration.store import HandEyeRecord
 from deploy.arm_bringup import released
 from deploy.errors import ConfigError
-from deploy.rig import BoardScene, RigSpec, open_rig
+from deploy.rig import BoardScene, RigSpec, check_spec, open_rig
 from drivers.arm.base import Arm
 from drivers.arm.can_arm import CanArm
 from drivers.arm.kinematics import Kinematics
+from drivers.arm.registry import ARMS
 from drivers.arm.robot_config import PANDA_SIM_CONFIG, RobotConfig, load_robot_config
 from drivers.arm.trajectory import MotionLimits, joint_trajectory
 from drivers.camera.base import Camera
+from drivers.camera.registry import CAMERAS
 from drivers.errors import ArmError
+from drivers.registry import Entry, Registry
 
-SIM_ARMS, REAL_ARMS = ("sim", "sim-can"), ("can",)
-CAMERAS = ("sim", "d415", "d415:SERIAL")
 SPEED_FRACTION = 0.5  # stations are visited at this share of the velocity, acceleration and jerk limits
 MAX_DRIFT_RAD = 0.02  # the arm may not move more than this between planning and enabling
 NO_PIVOT = ("--pivot-mm X Y Z is needed on a real arm: the board centre in the tool frame (eye-to-hand, e.g. 0 0 30 "
@@ -56,36 +59,46 @@ class DeviceChoice:
 
     @property
     def simulated(self) -> bool:
-        return self.camera == "sim"
+        return CAMERAS.entry(self.camera)[0].simulated
+
+    @property
+    def real_arm(self) -> bool:
+        return ARMS.entry(self.arm)[0].hardware
 
 
 def choose(camera: str, arm: str | None, robot: Path | None, pivot_mm: tuple[float, float, float] | None = None,
            pivot_from_record: bool = False) -> DeviceChoice:
-    """Check the camera and arm specs, the pivot (needed on a real arm unless a stored calibration gives it) and
-    load the robot config (default arm: sim with the sim camera, can with a D415; default robot for sim arms:
-    the shipped panda_sim). ConfigError naming the fix otherwise."""
-    kind = camera.partition(":")[0]
-    if kind == "replay":
-        raise ConfigError(f"--camera {camera}: calibration moves the arm and needs live images of each pose, which a "
-                          "recording cannot show; use --camera d415[:SERIAL] (or sim)")
-    if kind not in ("sim", "d415") or (kind == "sim" and camera != "sim"):
-        raise ConfigError(f"--camera {camera!r} is not one of {', '.join(CAMERAS)}")
-    arm = arm or ("sim" if kind == "sim" else "can")
-    if arm not in SIM_ARMS + REAL_ARMS:
-        raise ConfigError(f"--arm {arm!r} is not one of {', '.join(SIM_ARMS + REAL_ARMS)}")
-    if (kind == "sim") != (arm in SIM_ARMS):
-        raise ConfigError(f"--camera {camera} cannot see --arm {arm}: pair the simulated camera with a simulated arm "
-                          "(--camera sim --arm sim|sim-can) and a D415 with the real one (--camera d415 --arm can)")
-    if robot is None and arm in REAL_ARMS:
-        raise ConfigError(f"--arm {arm} needs --robot CONFIG.toml: your arm's config (`--robot damiao_6dof` "
-                          "is the template; docs/arm.md)")
-    if arm in REAL_ARMS and pivot_mm is None and not pivot_from_record:
+    """Check the camera and arm specs (live kinds, paired by the rig's rules), the pivot (needed on a real arm
+    unless a stored calibration gives it) and load the robot config (default arm: the first live arm as simulated
+    as the camera, `sim` with the sim camera and `can` with a D415; default robot for simulated arms: the shipped
+    panda_sim). ConfigError naming the fix otherwise."""
+    camera_entry = _live_entry(CAMERAS, camera, "--camera", "needs live images of each pose, which a recording "
+                                                             "cannot show")
+    arm = arm or next(e.name for e in live(ARMS) if e.simulated == camera_entry.simulated)
+    arm_entry = _live_entry(ARMS, arm, "--arm", "needs an arm that moves what the camera sees")
+    check_spec(RigSpec(camera=camera, arm=arm, robot=robot))
+    if arm_entry.hardware and pivot_mm is None and not pivot_from_record:
         raise ConfigError(NO_PIVOT)
     config = load_robot_config(robot or PANDA_SIM_CONFIG)
-    if arm in SIM_ARMS and config.joint_names != load_robot_config(PANDA_SIM_CONFIG).joint_names:
+    if arm_entry.simulated and config.joint_names != load_robot_config(PANDA_SIM_CONFIG).joint_names:
         raise ConfigError(f"robot config {config.name!r} is not the simulated Panda: use --robot panda_sim (or none) "
                           "with the simulation")
     return DeviceChoice(camera, arm, config, pivot_mm, robot)
+
+
+def live(registry: Registry) -> list[Entry]:
+    """The kinds calibration can use (simulated ones first, then physical ones): not recordings, not stand-ins."""
+    return sorted((e for e in registry.entries() if e.live), key=lambda e: not e.simulated)
+
+
+def _live_entry(registry: Registry, spec: str, flag: str, why: str) -> Entry:
+    """The registry entry of `spec`, its argument checked; ConfigError when it is not a live kind (`why` says
+    what calibration needs that a registered but not live kind lacks)."""
+    entry = {e.name: e for e in registry.entries()}.get(spec.partition(":")[0])
+    if entry is None or not entry.live:
+        reason = f": calibration moves the arm and {why}" if entry is not None else ""
+        raise ConfigError(f"{flag} {spec!r} is not one of {', '.join(e.usage for e in live(registry))}{reason}")
+    return registry.entry(spec)[0]
 
 
 @dataclass(frozen=True)
@@ -137,7 +150,7 @@ class Devices:
 
     @property
     def real_arm(self) -> bool:
-        return self.choice.arm in REAL_ARMS
+        return self.choice.real_arm
 
     def pivot(self, record: HandEyeRecord | None = None) -> tuple[float, float, float]:
         """The stations' pivot in the tool frame (m): --pivot-mm, else the sim rig's, else (check) the board centre

@@ -3,8 +3,10 @@
 Each command is a thin typer function (parse, load the config, call one function, print) that imports its
 heavy libraries inside, so `deploy --help` stays instant.
 
-`deploy --verbose` logs at INFO (our packages at DEBUG) on stderr; without it only warnings and the
-episode's step lines are logged. `deploy --version` prints the installed version.
+`deploy --verbose` logs at INFO (our packages at DEBUG) on stderr: the resolved run config, the devices opened,
+the calibration file and camera pose source, the first detection, the grasp and every estimate; without it only
+warnings and the episode's step lines are logged (one line each, whatever the width). `deploy --version` prints
+the installed version.
 
 `main()` ends every failure with one line on stderr naming the thing, the cause and the fix (the traceback
 only with `deploy --verbose`), and with `--json` also a JSON error object on stdout that holds the final state
@@ -60,8 +62,10 @@ def _print_version(value: bool) -> None:
 
 @app.callback()
 def _global_options(
-    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Log progress details (INFO, our packages at "
-                                          "DEBUG) on stderr; on an error, print the traceback too.")] = False,
+    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Log what a run uses and finds on stderr (the "
+                                          "resolved config, devices, calibration file, detections, grasp, every "
+                                          "estimate; INFO, our packages at DEBUG); on an error, print the traceback "
+                                          "too.")] = False,
     version: Annotated[bool, typer.Option("--version", callback=_print_version, is_eager=True,
                                           help="Print the installed version and exit.")] = False,
 ) -> None:

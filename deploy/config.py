@@ -4,6 +4,7 @@ A file holds any subset of the sections below; everything has a default, so no f
 
     [filter]            # radius outlier filter of the object cloud (profile "sim" or "sparse")
     profile = "sparse"  # default: follows the camera (simulation "sim", real cameras and recordings "sparse")
+    radius_m = 0.013    # optional: the radius in metres (a unitless `radius` is refused)
     [geometry]
     box = "front"       # body box: "front" (turned to the front plane), "yaw" (paper) or "oriented" (3D)
     [estimator]
@@ -26,9 +27,11 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic_core import PydanticCustomError
 
 from deploy.errors import ConfigError
+from deploy.geometry.estimators.registry import ESTIMATORS
 from deploy.geometry.estimators.screw_config import ScrewConfig
 from deploy.geometry.radius_filter import FILTER_PROFILES, FilterProfile
 from deploy.geometry.types import JointType
@@ -38,6 +41,7 @@ from drivers.toml_file import read_toml
 Task = Literal["drawer", "door", "auto"]
 Policy = Literal["closed", "open", "paper"]
 Fusion = Literal["vision", "trajectory", "fused", "force"]
+CALIBRATION_ERROR = (5.0, 0.5)  # simulation: a field-grade hand-eye calibration's error, translation mm, rotation deg
 
 
 
@@ -46,25 +50,40 @@ class _Section(BaseModel):
 
 
 class FilterConfig(_Section):
-    """Radius outlier filter: keep a point with at least `eps` other points within `radius` `unit`s.
+    """Radius outlier filter: keep a point with at least `eps` other points within `radius_m` metres.
 
-    `profile` fills in whichever of radius / eps / unit is not given; None follows the camera
-    (`Config.for_camera`): the paper's real-camera setting "sparse" for real cameras and their recordings, its
-    simulation setting "sim" in simulation (and where no camera is known).
+    `profile` fills in whichever of radius_m / eps is not given; None follows the camera (`Config.for_camera`):
+    the paper's real-camera setting "sparse" (r = 1.3 cm, eps = 1) for real cameras and their recordings, its
+    simulation setting "sim" (r = 0.05 m, eps = 100) in simulation (and where no camera is known). The radius is
+    in metres whatever the profile: the old unitless `radius` (and `unit`) are refused (`unitless_radius`).
     """
 
     profile: Literal["sim", "sparse"] | None = None
-    radius: float | None = Field(default=None, gt=0)
+    radius_m: float | None = Field(default=None, gt=0, le=1.0, description="metres, whatever the profile")
     eps: int | None = Field(default=None, ge=1)
-    unit: Literal["m", "cm", "mm"] | None = None
 
     def resolve(self) -> FilterProfile:
+        """The setting used: the profile's (its radius with its unit), with radius_m and eps where given."""
         base = FILTER_PROFILES[self.profile or "sim"]
-        return FilterProfile(
-            radius=base.radius if self.radius is None else self.radius,
-            eps=base.eps if self.eps is None else self.eps,
-            unit=base.unit if self.unit is None else self.unit,
-        )
+        eps = base.eps if self.eps is None else self.eps
+        if self.radius_m is None:
+            return FilterProfile(base.radius, eps, base.unit)
+        return FilterProfile(self.radius_m, eps, "m")
+
+
+def unitless_radius(data: dict[str, Any]) -> str | None:
+    """The one-line fix when the `[filter]` table of a run's settings `data` still has the old `radius` (whose
+    unit followed the profile: the same number meant m in simulation and cm on a real camera) or `unit`."""
+    section = data.get("filter")
+    if not isinstance(section, dict) or not ({"radius", "unit"} & set(section)):
+        return None
+    radius, unit = section.get("radius"), section.get("unit")
+    example = "radius_m = 0.013 for 1.3 cm"
+    if isinstance(radius, (int, float)) and not isinstance(radius, bool) and unit in ("m", "cm", "mm"):
+        metres = radius * {"m": 1.0, "cm": 0.01, "mm": 0.001}[unit]
+        example = f"radius_m = {metres:g} for {radius:g} {unit}"
+    return (f"filter.radius has no unit of its own (it followed the profile): give it in metres as "
+            f"filter.radius_m ({example}) and drop filter.radius and filter.unit")
 
 
 class GeometryConfig(_Section):
@@ -97,10 +116,19 @@ class EstimatorConfig(_Section):
     ee_pose, or the closed loop with `opening.fusion` other than "vision"); without them it is `screw`.
     """
 
-    name: Literal["paper-obb", "screw", "screw-grip", "trajectory"] = "screw-grip"
+    name: str = Field(default="screw-grip", description="an estimator of the registry (`--estimator`)")
     joint: Literal["auto", "prismatic", "revolute"] = "auto"
     window: int = Field(default=10, ge=2, le=100)
     screw: ScrewConfig = ScrewConfig()
+
+    @field_validator("name")
+    @classmethod
+    def _registered(cls, name: str) -> str:
+        try:
+            ESTIMATORS.entry(name)
+        except ConfigError as exc:  # "unknown estimator 'x': choose one of ...", the registry's words
+            raise PydanticCustomError("unknown_estimator", "{message}", {"message": str(exc)}) from None
+        return name
 
 
 class OpeningConfig(_Section):
@@ -218,7 +246,7 @@ def _numbers(data: Any, where: str = "") -> Iterator[tuple[str, float]]:
 
 
 def load_config(path: Path | None = None, overrides: dict[str, Any] | None = None) -> Config:
-    """Load `path` (TOML) if given, apply `overrides` ({"filter.radius": 1.3, "opening.task": "door", ...};
+    """Load `path` (TOML) if given, apply `overrides` ({"filter.radius_m": 0.013, "opening.task": "door", ...};
     None values are skipped) and validate. Raises ConfigError naming the file, the field and the problem."""
     data: dict[str, Any] = {}
     source = "command-line options"
@@ -227,10 +255,12 @@ def load_config(path: Path | None = None, overrides: dict[str, Any] | None = Non
         source = str(path)
         if not path.is_file():
             raise ConfigError(f"config file {path} not found: check the path or omit --config to use defaults")
-        data = read_toml(path, "config file", ConfigError, "docs/cli.md shows the sections")
+        data = read_toml(path, "config file", ConfigError, "docs/quickstart.md#configuration shows the sections")
     for dotted, value in (overrides or {}).items():
         if value is not None:
             _set_dotted(data, dotted, value)
+    if (fix := unitless_radius(data)) is not None:
+        raise ConfigError(f"invalid configuration in {source}: {fix}")
     for where, value in _numbers(data):
         if not math.isfinite(value):
             raise ConfigError(f"invalid configuration in {source}: {where} is {value}: give a finite number")

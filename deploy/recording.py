@@ -14,33 +14,41 @@ from typing import Any
 
 import numpy as np
 
+from deploy.errors import ConfigError
 from deploy.rig import Rig, RigSpec, open_rig
 from drivers.camera.base import Frame
 from drivers.camera.record import ArmReading, record
-from drivers.camera.registry import CAMERAS, simulated_source
+from drivers.camera.registry import CAMERAS, simulated_source, stream_options
 
 VIEW_FILE = "recording.rrd"  # in the recording's folder, with --view
 
 
 def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float | None = None,
                arm: str | None = None, robot: Path | None = None, camera_options: dict[str, Any] | None = None,
-               progress: Callable[[Frame], None] | None = None, view: bool = False) -> dict:
+               progress: Callable[[Frame], None] | None = None, view: bool = False,
+               calibration: Path | None = None, sim_faults: list | None = None) -> dict:
     """Record `camera` (a registry spec) to `out` for `frames` frames or `seconds` s, with `arm`'s joint states
     and tool pose per frame when given; `view` also shows the frames in rerun and saves OUT/recording.rrd.
+    `calibration`: the hand-eye file giving a real camera's pose (default: the one saved for it and the robot);
+    a camera on the arm (eye-in-hand) gets its pose per frame from the tool pose read with the frame.
+    `sim_faults` (`--sim-fault`, arm sim-can): each breaks the simulated motors SECONDS into the recording.
     Returns {"out", "frames", "seconds", "arm", "camera", "simulated"} (and "rrd" with `view`)."""
-    options = dict(camera_options or {})
-    if CAMERAS.entry(camera)[0].name not in ("d415", "sim"):
-        options = {}
+    _check_calibration(camera, arm, calibration)
+    options = stream_options(camera, camera_options or {})
     viewer = None
     if view:
         from deploy.control.viewer import RerunViewer
 
         viewer = RerunViewer(out / VIEW_FILE)
-    with open_rig(RigSpec(camera=camera, arm=arm, robot=robot, camera_options=options)) as rig:
+    with open_rig(RigSpec(camera=camera, arm=arm, robot=robot, calibration=calibration,
+                          camera_options=options)) as rig:
 
         latest: dict[str, np.ndarray] = {}  # the arm's last reading: the tool pose shown with its frame
+        faults = _sim_faults_by_frame(rig, sim_faults or [])
 
         def each(frame: Frame) -> None:
+            if faults is not None:
+                faults(frame)
             if viewer is not None:
                 viewer.frame(frame.t, frame, frame.mask, latest.get("tool"))
             if progress is not None:
@@ -50,7 +58,7 @@ def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float
         simulated = simulated_source(camera)
         try:
             summary = record(rig.camera, out, frames, seconds, progress=each, source=camera, simulated=simulated,
-                             arm=reading)
+                             arm=reading, camera_on_tool=_camera_on_tool(rig))
         finally:
             if viewer is not None:
                 viewer.close()
@@ -58,6 +66,45 @@ def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float
     if viewer is not None:
         summary["rrd"] = str(out / VIEW_FILE)
     return summary
+
+
+def _sim_faults_by_frame(rig: Rig, faults: list) -> Callable[[Frame], None] | None:
+    """--sim-fault while recording: the arm is read, never run, so its own clock stands still; a fault at 0 s
+    breaks the motors now, the others after the first frame at or past their SECONDS (camera time)."""
+    if not faults:
+        return None
+    from dataclasses import replace
+
+    from deploy.arm_bringup import inject_sim_faults
+
+    inject_sim_faults(rig.arm, [f for f in faults if f.at_s == 0])
+    pending, start = [f for f in faults if f.at_s > 0], []
+
+    def inject(frame: Frame) -> None:
+        start[:] = start or [frame.t]
+        due = [f for f in pending if f.at_s <= frame.t - start[0]]
+        pending[:] = [f for f in pending if f not in due]
+        inject_sim_faults(rig.arm, [replace(f, at_s=0.0) for f in due])
+
+    return inject
+
+
+def _check_calibration(camera: str, arm: str | None, calibration: Path | None) -> None:
+    """--calibration only where it is used: a real camera with an arm."""
+    if calibration is None:
+        return
+    if CAMERAS.entry(camera)[0].simulated:
+        raise ConfigError(f"--calibration {calibration} is for a real camera: the simulated camera's pose comes "
+                          "from the simulation; drop --calibration, or use --camera d415")
+    if arm is None:
+        raise ConfigError(f"--calibration {calibration} places the camera in the arm's base frame: add --arm KIND "
+                          "--robot CONFIG, or drop --calibration")
+
+
+def _camera_on_tool(rig: Rig) -> Callable[[np.ndarray], np.ndarray] | None:
+    """An eye-in-hand camera's pose from the tool pose (None for a fixed camera)."""
+    hand_eye = rig.hand_eye
+    return hand_eye.T_base_camera if hand_eye is not None and hand_eye.setup == "eye-in-hand" else None
 
 
 def _arm_reading(rig: Rig, latest: dict[str, np.ndarray]) -> ArmReading:

@@ -1,7 +1,11 @@
 """One place that builds a rig: camera, arm, segmenter and the camera's pose in the arm's base frame, for
 `deploy open*`, `calibrate`, `record` and arm bring-up, in simulation and on hardware alike.
 
-Kinds come from the registries (`--camera`, `--arm`, `--segmenter`). When the camera is simulated the rig
+Kinds come from the registries (`--camera`, `--arm`, `--segmenter`); `check_spec` refuses pairings that cannot
+work from the registry entries' properties (simulated, hardware), never from kind names. Arm bring-up
+(`deploy arm ...`, deploy/arm_bringup.py) needs no camera: it builds the arm alone with `build_arm`, the
+function every rig builds its arm with, and reaches the motors directly through the arm kind's bare bus
+(`bare_bus`: the bus factory its registry entry names). When the camera is simulated the rig
 builds the PyBullet scene both devices live in: an opening scenario (a cabinet, `SimScene`) or a calibration
 scene (a ChArUco board on the tool or the table, `BoardScene`). The scene's ground truth (`Rig.world`) is for
 evaluation and test set-up only: the rig hands the controller the camera, the arm, the kinematics and the
@@ -15,6 +19,7 @@ in a random direction drawn from the scene's seed, as a field calibration is.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
@@ -23,6 +28,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
+from deploy.config import CALIBRATION_ERROR
 from deploy.errors import CalibrationError, ConfigError
 from deploy.perception.base import Segmenter
 from deploy.perception.config import PerceptionConfig
@@ -35,11 +41,16 @@ from drivers.arm.trajectory import MotionLimits
 from drivers.camera.base import Camera
 from drivers.camera.posed import PosedCamera
 from drivers.camera.registry import CAMERAS
+from drivers.errors import ArmError
+from drivers.registry import Registry
 
 if TYPE_CHECKING:
     from calibration.board import BoardConfig
     from deploy.perception.self_filter import SelfFilter
+    from drivers.arm.can_bus import CanBus
     from sim_fallback.world import SimWorld
+
+log = logging.getLogger(__name__)
 
 JOINT_SPEED_SHARE = 0.3  # free-space moves at this share of the robot's joint velocity limits
 SIM_SERIAL = "sim-d415"  # the simulated camera's serial, naming its calibration files
@@ -83,7 +94,7 @@ class RigSpec:
     perception: PerceptionConfig = PerceptionConfig()
     scene: SimScene | BoardScene = SimScene()
     camera_options: dict[str, Any] = field(default_factory=dict)
-    calibration_error: tuple[float, float] = (5.0, 0.5)
+    calibration_error: tuple[float, float] = CALIBRATION_ERROR
 
 
 @dataclass
@@ -100,6 +111,7 @@ class Rig:
     serial: str | None = None
     world: SimWorld | None = None
     board: Any = None  # sim_fallback.board.CalibrationRig of a BoardScene
+    hand_eye: Any = None  # calibration.store.HandEyeRecord giving a real camera's pose (None: none loaded)
 
     @property
     def simulated(self) -> bool:
@@ -131,14 +143,43 @@ def check_spec(spec: RigSpec) -> None:
     if spec.segmenter is not None:
         SEGMENTERS.entry(spec.segmenter)
     if camera is not None and arm is not None and arm.simulated and not camera.simulated:
-        raise ConfigError(f"--arm {spec.arm} needs --camera sim (a simulated arm cannot act on what a real camera "
-                          f"sees): use --arm can with --camera {spec.camera}")
+        raise ConfigError(f"--arm {spec.arm} needs --camera {kinds(CAMERAS, simulated=True)} (a simulated arm "
+                          f"cannot act on what a real camera sees): use --arm {kinds(ARMS, simulated=False)} with "
+                          f"--camera {spec.camera}")
     if camera is not None and arm is not None and camera.simulated and not arm.simulated:
-        raise ConfigError(f"--camera {spec.camera} needs a simulated arm (--arm sim or sim-can), not {spec.arm!r}: "
-                          "the simulated camera sees only the simulated Panda")
+        raise ConfigError(f"--camera {spec.camera} needs a simulated arm (--arm {kinds(ARMS, simulated=True)}), not "
+                          f"{spec.arm!r}: it cannot see --arm {spec.arm}, only the simulated Panda")
     if arm is not None and not arm.simulated and spec.robot is None:
         raise ConfigError(f"--arm {spec.arm} needs --robot CONFIG.toml: your arm's config "
                           "(`--robot damiao_6dof` is the shipped template; docs/arm.md)")
+
+
+def kinds(registry: Registry, simulated: bool) -> str:
+    """The live kinds of `registry` that are simulated (or physical), as a user writes them: "sim or sim-can"."""
+    return " or ".join(e.usage for e in registry.entries() if e.live and e.simulated == simulated)
+
+
+def build_arm(kind: str, robot: RobotConfig, world: SimWorld | None = None) -> Arm:
+    """The arm `kind` (a registry spec) names for `robot`, built, not enabled: a rig's (simulated kinds act in
+    its `world`), or arm bring-up's on its own (no world: `sim-can` then drives unloaded simulated motors)."""
+    return ARMS.open(kind, robot) if world is None else ARMS.open(kind, robot, world=world)
+
+
+@contextmanager
+def bare_bus(kind: str, robot: RobotConfig) -> Iterator[tuple[CanBus, Any]]:
+    """The bus of arm `kind` with no arm on top, from the bus factory of its registry entry, and the simulated
+    motors answering on it (None on hardware); both closed after. ArmError when the kind has no bus."""
+    entry, _ = ARMS.entry(kind)
+    if entry.bus is None:
+        with_bus = " or ".join(e.usage for e in ARMS.entries() if e.bus is not None)
+        raise ArmError(f"this command talks to the motors directly: it needs --arm {with_bus}, not {kind!r}")
+    bus, motors = entry.load_bus()(robot)
+    try:
+        yield bus, motors
+    finally:
+        bus.close()
+        if motors is not None:
+            motors.close()
 
 
 @contextmanager
@@ -156,6 +197,8 @@ def open_rig(spec: RigSpec) -> Iterator[Rig]:
             _open_hardware(rig, stack)
         if spec.segmenter is not None:
             rig.segmenter = SEGMENTERS.open(spec.segmenter, spec.perception)
+        log.info("devices: camera %s (serial %s), arm %s, robot %r (%s), segmenter %s", spec.camera, rig.serial,
+                 spec.arm, robot.name, spec.robot or PANDA_SIM_CONFIG, spec.segmenter)
         yield rig
 
 
@@ -176,13 +219,11 @@ def _open_simulated(rig: Rig, stack: ExitStack) -> None:
         T_calibrated = simulated_calibration(sim_camera.T_base_camera, *spec.calibration_error,
                                              np.random.default_rng([scene.seed, 7]))
         camera = PosedCamera(sim_camera, lambda: T_calibrated.copy())
+        log.info("camera pose: simulated calibration, the true pose off by %g mm and %g deg", *spec.calibration_error)
     rig.camera, rig.serial = camera, SIM_SERIAL
     if spec.arm is None:
         return
-    if spec.arm == "sim" and rig.board is not None:
-        rig.arm = rig.board.arm
-    else:
-        rig.arm = ARMS.open(spec.arm, rig.robot, world=rig.world)
+    rig.arm = build_arm(spec.arm, rig.robot, rig.world)
     stack.callback(rig.arm.disconnect)
     rig.kin = getattr(rig.arm, "kin", rig.kin)
 
@@ -211,7 +252,7 @@ def _open_hardware(rig: Rig, stack: ExitStack) -> None:
         rig.serial = getattr(camera, "serial", None) or spec.camera
         rig.camera = camera
     if spec.arm is not None:
-        rig.arm = ARMS.open(spec.arm, rig.robot)
+        rig.arm = build_arm(spec.arm, rig.robot)
         stack.callback(rig.arm.disconnect)
         rig.kin = getattr(rig.arm, "kin", rig.kin)
         if camera is not None:
@@ -226,6 +267,8 @@ def _calibrated_pose(rig: Rig) -> Callable[[], np.ndarray]:
     real_serial = serial if serial != spec.camera else None
     record = (load_hand_eye(spec.calibration) if spec.calibration is not None
               else load_for(real_serial, rig.robot.name) if real_serial else None)
+    rig.hand_eye = record
+    _log_calibration(rig, record)
 
     def pose() -> np.ndarray:
         if record is None:
@@ -235,6 +278,19 @@ def _calibrated_pose(rig: Rig) -> Callable[[], np.ndarray]:
         return record.T_base_camera(rig.kin.fk(rig.arm.state().q))
 
     return pose
+
+
+def _log_calibration(rig: Rig, record: Any) -> None:
+    """Which hand-eye calibration gives the camera's pose (--verbose)."""
+    from calibration.store import hand_eye_path
+
+    if record is None:
+        log.info("camera pose: no hand-eye calibration for camera %s on robot %r (frames must carry their pose)",
+                 rig.serial, rig.robot.name)
+        return
+    where = rig.spec.calibration or hand_eye_path(record.camera_serial, record.robot_id)
+    log.info("camera pose: hand-eye calibration %s (%s, camera %s, robot %r, %.0f days old)", where, record.setup,
+             record.camera_serial, record.robot_id, record.age_days())
 
 
 TEXTURE_PX_PER_M = 3000.0  # about 2 texels per image pixel where the board is nearest the camera

@@ -27,7 +27,10 @@ _plugins_loaded = False
 class Entry:
     """One kind: `target` "module:attribute" names its factory; `argument` is how its argument is written
     (":PATH" required, "[:SERIAL]" optional, None for none); `simulated` kinds live in a simulated world;
-    `hardware` kinds drive or read a physical device."""
+    `hardware` kinds drive or read a physical device. Capabilities: `bus` "module:attribute" names a factory of
+    the kind's bare bus with no device on top (arms talking to their motors over one: `bus(robot)` returns the
+    bus and the simulated motors behind it, or None on hardware); `stream_options` are the stream settings its
+    factory takes from the command line (a camera's width, height, fps)."""
 
     name: str
     target: str
@@ -35,6 +38,8 @@ class Entry:
     argument: str | None = None
     simulated: bool = False
     hardware: bool = False
+    bus: str | None = None
+    stream_options: tuple[str, ...] = ()
 
     @property
     def usage(self) -> str:
@@ -45,9 +50,25 @@ class Entry:
     def needs_argument(self) -> bool:
         return self.argument is not None and not self.argument.startswith("[")
 
+    @property
+    def live(self) -> bool:
+        """A device acting or sensing now (simulated or physical), not a recording or a stand-in."""
+        return self.simulated or self.hardware
+
     def load(self) -> Callable[..., object]:
-        module, _, attribute = self.target.partition(":")
-        return getattr(importlib.import_module(module), attribute)
+        return _load(self.target)
+
+    def load_bus(self) -> Callable[..., object]:
+        """The factory of the kind's bare bus; ValueError when it has none (check `bus` first)."""
+        if self.bus is None:
+            raise ValueError(f"{self.name!r} has no bus of its own")
+        return _load(self.bus)
+
+
+def _load(target: str) -> Callable[..., object]:
+    """The attribute "module:attribute" names (the module imported now)."""
+    module, _, attribute = target.partition(":")
+    return getattr(importlib.import_module(module), attribute)
 
 
 class Registry(Generic[T]):
@@ -59,11 +80,14 @@ class Registry(Generic[T]):
         self._entries: dict[str, Entry] = {}
 
     def register(self, name: str, target: str, description: str, argument: str | None = None,
-                 simulated: bool = False, hardware: bool = False) -> None:
-        """Add (or replace) kind `name`, built by the factory at `target` ("module:attribute")."""
+                 simulated: bool = False, hardware: bool = False, bus: str | None = None,
+                 stream_options: tuple[str, ...] = ()) -> None:
+        """Add (or replace) kind `name`, built by the factory at `target` ("module:attribute"); the other
+        arguments are the `Entry` fields."""
         if ":" in name or not name:
             raise ValueError(f"{self.kind} name {name!r} must be non-empty and contain no ':'")
-        self._entries[name] = Entry(name, target, description, argument, simulated, hardware)
+        self._entries[name] = Entry(name, target, description, argument, simulated, hardware, bus,
+                                    tuple(stream_options))
 
     def entries(self) -> list[Entry]:
         _load_plugins()

@@ -40,6 +40,7 @@ CODEC_TESTS = ("tests/test_damiao.py", "tests/test_damiao_codec.py", "tests/test
 CHANNEL_TESTS = ("tests/test_motor_channels.py", "tests/test_damiao_codec.py", "tests/test_safety_limits.py",
                  "tests/test_can_arm.py")
 WRITER_TESTS = ("tests/test_frames_dir.py", "tests/test_durability.py")
+FORCE_TESTS = ("tests/test_force_limits.py", "tests/test_force_pulling.py")
 EPISODE_TESTS = ("tests/test_failure_paths.py",
                  "tests/test_control_episode.py::test_locked_drawer_ends_blocked_and_safe",
                  "tests/test_control_episode.py::test_slipping_grasp_regrasps_once_then_fails_clearly",
@@ -75,6 +76,10 @@ def _writer(name: str, bug: str, old: str, new: str) -> Mutant:
     return Mutant(f"writer.{name}", bug, "drivers/camera/frames_dir.py", old, new, WRITER_TESTS)
 
 
+def _force(name: str, bug: str, old: str, new: str) -> Mutant:
+    return Mutant(f"force.{name}", bug, "drivers/arm/motion.py", old, new, FORCE_TESTS)
+
+
 def _episode(module: str, name: str, bug: str, old: str, new: str) -> Mutant:
     return Mutant(f"{module}.{name}", bug, f"deploy/control/{module}.py", old, new, EPISODE_TESTS)
 
@@ -94,9 +99,15 @@ RECORD = """
             record["joint_positions"] = [float(v) for v in np.ravel(joint_positions)]
         if ee_pose is not None:
             record["ee_pose"] = _pose_list(ee_pose, "ee_pose")
+        pose = frame.T_base_camera  # a camera that moves (eye-in-hand): its pose per frame, where not meta.json's
+        if pose is not None and not (self._pose is not None and np.allclose(pose, self._pose, rtol=0, atol=1e-9)):
+            record["T_base_camera"] = _pose_list(pose, "T_base_camera")
         self._jsonl.write(json.dumps(record) + "\\n")
 """
 GRASP = "if not MIN_GRASP_WIDTH_M < width < open_width - OPEN_MARGIN_M:"
+FORCE_STOP = "if limit is not None and (force > limit or still_s >= self.c.stall_s):"
+BOUNDS = "slow_from, halt_at = self.c.slow_from * limit, self.c.halt_at * limit"
+STILL = "still_s = still_s + dt if self.scale < STALL_SCALE else 0.0"
 
 MUTANTS = [
     _safety("accel-braking-unchecked", "acceleration checked only when speeding up", ACCEL,
@@ -177,6 +188,22 @@ MUTANTS = [
     _writer("directories-not-synced", "the PNGs' directory entries not synced", DIR_SYNC, ""),
     _writer("line-before-directories", "the line synced before the PNGs' names", DIR_SYNC + RECORD + LINE_SYNC,
             RECORD.lstrip("\n") + LINE_SYNC + DIR_SYNC),
+    _force("limit-doubled", "the force limit compared with twice its value", FORCE_STOP,
+           "if limit is not None and (force > 2 * limit or still_s >= self.c.stall_s):"),
+    _force("stall-unchecked", "a pull held still never ends (only the limit stops it)", FORCE_STOP,
+           "if limit is not None and force > limit:"),
+    _force("slow-counts-as-still", "a slowed pull counted as held still", STILL,
+           "still_s = still_s + dt if self.scale < 1.0 else 0.0"),
+    _force("halt-at-limit", "the halt fraction dropped: the pull halts at the limit, not at 85 % of it", BOUNDS,
+           "slow_from, halt_at = self.c.slow_from * limit, limit"),
+    _force("no-slow-down", "no slowing past half the limit: full speed up to the halt", BOUNDS,
+           "slow_from, halt_at = self.c.halt_at * limit, self.c.halt_at * limit"),
+    _force("no-back-off", "no backing off above the halt: the pull only stops",
+           "max(halt_at - slow_from, 1e-9), -1.0, 1.0))", "max(halt_at - slow_from, 1e-9), 0.0, 1.0))"),
+    _force("bias-ignored", "the force held before the pull (the grasp's squeeze) counted as the pull's",
+           "self.bias = self.wrench.force  #", "self.bias = np.zeros(3)  #"),
+    _force("peak-is-last", "the peak force reported is the last one",
+           "self.peak_force_n = max(self.peak_force_n, self.pull_n)", "self.peak_force_n = self.pull_n"),
     _episode("stages", "grasp-lower-bound-dropped", "a gripper closed on air counts as a grasp", GRASP,
              "if not width < open_width - OPEN_MARGIN_M:"),
     _episode("stages", "grasp-upper-bound-dropped", "a gripper that did not close counts as a grasp", GRASP,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from functools import partial
 
 import numpy as np
@@ -21,8 +22,9 @@ PHYSICS_TICKS = 2400
 RENDERS = 5
 
 
-def bench_sim(episodes: int = 1) -> dict:
-    """Speed of the simulation on this machine (medians over `episodes` drawer scenarios).
+def bench_sim(episodes: int = 1, progress: Callable[[str], None] | None = None) -> dict:
+    """Speed of the simulation on this machine (medians over `episodes` drawer scenarios); progress(what) names
+    each phase as it starts.
 
     physics_steps_per_s: arm ticks (holding still, one 240 Hz physics step each) per wall second;
     render_ms_*: one frame rendered and its segmentation decoded; depth_noise_ms_640x480: the D415
@@ -30,19 +32,24 @@ def bench_sim(episodes: int = 1) -> dict:
     safety checks every tick) with a 640x480 frame every 0.1 s, D415 noise on (and off).
     """
     steps, render_vga, render_hd, noise_ms, rtf, rtf_clean = [], [], [], [], [], []
+    show = progress or (lambda _what: None)
     for seed in range(episodes):
+        where = f"episode {seed + 1}/{episodes}: " if episodes > 1 else ""
+        show(f"{where}{PHYSICS_TICKS} physics steps")
         with SimWorld(Scenario.make("drawer", seed)) as world:
             arm = SimArm(world)
             t0 = time.perf_counter()
             for _ in range(PHYSICS_TICKS):
                 arm.sync()
             steps.append(PHYSICS_TICKS / (time.perf_counter() - t0))
+            show(f"{where}rendering ({RENDERS} frames at 640x480 and 1280x720) and depth noise")
             for size, out in (((640, 480), render_vga), ((1280, 720), render_hd)):
                 out.append(_median_ms(SimCamera(world, intrinsics=d415_intrinsics(*size)).render, RENDERS))
             _, depth, _ = SimCamera(world).render()
             noisy = partial(DepthNoise.d415().apply, depth, d415_intrinsics().fx, np.random.default_rng(seed))
             noise_ms.append(_median_ms(noisy, RENDERS))
-        for noise, out in ((DepthNoise.d415(), rtf), (DepthNoise.none(), rtf_clean)):
+        for noise, out, label in ((DepthNoise.d415(), rtf, "on"), (DepthNoise.none(), rtf_clean, "off")):
+            show(f"{where}a {OPENING_S:g} s scripted opening, depth noise {label}")
             with SimWorld(Scenario.make("drawer", seed)) as world:
                 out.append(_opening_real_time_factor(world, SimArm(world), noise))
     return {

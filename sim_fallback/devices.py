@@ -2,7 +2,8 @@
 
 - camera `sim`: a D415 rendered in the PyBullet world of the rig;
 - arm `sim`: the world's Panda (`SimArm`);
-- arm `sim-can`: the real CAN driver (`CanArm`) talking to simulated Damiao motors on a virtual bus. In lockstep
+- arm `sim-can`: the real CAN driver (`CanArm`) talking to simulated Damiao motors on a virtual bus (its bare bus,
+  for bring-up commands that address the motors directly, from `open_sim_can_bus`). In lockstep
   (default) the motors step with the CanArm's cycles on the caller's clock: deterministic and unaffected by
   machine load. Without a world the motors are unloaded integrated joints; with one they are the world's Panda
   (one physics step per cycle). `lockstep=False` gives the motors their own thread and the CanArm its realtime
@@ -51,17 +52,26 @@ def open_sim_can_arm(_argument: str, robot: RobotConfig, world: SimWorld | None 
     return sim_can_arm(robot, world)[0]
 
 
+def open_sim_can_bus(robot: RobotConfig) -> tuple[CanBus, SimMotorBus]:
+    """The bus of a sim-can arm with no arm on top, and the simulated motors answering on it (unloaded joints,
+    in lockstep: they answer as the bus is read); close both after."""
+    arm, motors = sim_can_arm(robot)
+    return arm.bus, motors
+
+
 def sim_can_arm(config: RobotConfig, world: SimWorld | None = None, faults: dict[str, MotorFaults] | None = None,
                 lockstep: bool = True) -> tuple[CanArm, SimMotorBus]:
-    """A CanArm on simulated Damiao motors (on a private virtual channel), and the motors (for fault injection).
+    """A CanArm on simulated Damiao motors (on a private channel of python-can's virtual interface, whatever
+    interface the robot config names), and the motors (for fault injection).
 
     `faults` maps joint names ("gripper") to faults present from the start. `lockstep` runs the motors on the
     arm's cycle; False: in their own thread on the wall clock, with the CanArm's realtime loop (no world)."""
     if world is not None and not lockstep:
         raise ArmError("a simulated world steps on the arm's cycle: sim-can with a world needs lockstep=True")
-    if config.can.interface == "virtual":
-        channel = f"{config.can.channel}-{next(_channels)}"
-        config = config.model_copy(update={"can": config.can.model_copy(update={"channel": channel})})
+    # always python-can's in-process bus, on a channel of its own, whatever the config names (can0 on socketcan)
+    channel = f"sim-{config.can.channel}-{next(_channels)}"
+    can = config.can.model_copy(update={"interface": "virtual", "channel": channel})
+    config = config.model_copy(update={"can": can})
     if world is None:
         motors = SimMotorBus(config)
     else:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -141,13 +142,15 @@ def record_scripted(
     target: float | None = None,
     fps: float = 10.0,
     resolution: tuple[int, int] = (640, 480),
+    progress: Callable[[str, int], None] | None = None,
 ) -> RecordingSummary:
     """Record a scripted opening driven by GROUND TRUTH (a data generator, not the policy).
 
     Writes the frames-directory format at `out_dir` (colour, noisy depth, object mask including the
     handle, T_base_camera, joint positions, tool pose per frame) plus truth.json with the true
     joint type, axis (base frame; positive opens) and the joint value at every frame. `target`: opening in
-    m (drawer, default 0.2) or rad (door, default 30 deg).
+    m (drawer, default 0.2) or rad (door, default 30 deg). progress(phase, frames) follows every frame written
+    (phase: "grasp", "open" or "hold").
     """
     target = DEFAULT_TARGET[task] if target is None else float(target)
     out = Path(out_dir)
@@ -160,7 +163,7 @@ def record_scripted(
         limits = MotionLimits.for_robot(world.robot_spec, arm.kin, fraction=0.3)
         joint_values: list[float] = []
         with FramesWriter(out, camera.intrinsics, T_base_camera=camera.T_base_camera) as writer:
-            next_t = 0.0
+            next_t, phase = 0.0, "grasp"
 
             def capture(state: ArmState, _t: float = 0.0) -> None:
                 nonlocal next_t
@@ -171,10 +174,14 @@ def record_scripted(
                 writer.write(frame, mask=mask, joint_positions=state.q, ee_pose=arm.kin.fk(state.q))
                 joint_values.append(world.joint_value())
                 next_t = (frame.index + 1) / fps
+                if progress is not None:
+                    progress(phase, len(joint_values))
 
             capture(arm.state())
             grasp_handle(world, arm, limits, target, capture)
+            phase = "open"
             open_along_truth(world, arm, target, OPEN_LIMITS[task], capture)
+            phase = "hold"
             wait(arm, 0.5, capture)
         truth = world.truth()
         (out / "truth.json").write_text(json.dumps({

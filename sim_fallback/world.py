@@ -29,6 +29,8 @@ PHYSICS_HZ = 240
 VISUAL_TRIANGLE_FRACTION = 0.25  # robot visuals: decimated collision meshes (0.1 drops the IoU to 0.9)
 STIFF_FRICTION_FACTOR = 3.0  # condition "stiff": the joint's Coulomb friction times this
 LOCKED_FORCE = 1e5  # condition "locked": the joint's brake (N or N m), far above anything the arm can pull
+SWEEP_STEP = 0.02  # sweep_hits_robot_base: the joint's steps (m or rad)
+BASE_TURNS = 12  # ... and the first robot joint's turns tried
 FLOOR_SIZE_M = 4.0  # a floor box: about +15 ms a 640x480 frame (pybullet_data's plane doubles the time)
 
 
@@ -161,6 +163,35 @@ class SimWorld:
             origin = hinge + direction * float(direction @ (self.handle_pose()[:3, 3] - hinge))
             joint_type = "revolute"
         return JointTruth(joint_type, origin, direction, value, spec.joint_upper)
+
+    def sweep_hits_robot_base(self, value: float) -> bool:
+        """Whether the moving part, opened from its present value to `value` (m or rad), must pass through the
+        robot's base: its first link (the base plate), or its second (which only turns about the vertical) at
+        every turn of the first joint. No arm posture gets out of the way then (a door hinged close to the robot
+        cannot reach a wide angle). Ground truth for evaluation; the joints are put back as they were."""
+        c, j = self.client, self.cabinet_joint
+        start, velocity = pb.getJointState(self.cabinet_id, j, physicsClientId=c)[:2]
+        turn = pb.getJointState(self.robot_id, 0, physicsClientId=c)[:2]
+        values = np.append(np.arange(start, value, SWEEP_STEP if value >= start else -SWEEP_STEP), value)
+
+        def hits(link: int) -> bool:
+            for q in values:
+                pb.resetJointState(self.cabinet_id, j, float(q), physicsClientId=c)
+                if pb.getClosestPoints(self.cabinet_id, self.robot_id, 0.0, j, link, physicsClientId=c):
+                    return True
+            return False
+
+        try:
+            if hits(-1):
+                return True
+            for angle in np.linspace(*pb.getJointInfo(self.robot_id, 0, physicsClientId=c)[8:10], BASE_TURNS):
+                pb.resetJointState(self.robot_id, 0, float(angle), physicsClientId=c)
+                if not hits(0):
+                    return False
+            return True
+        finally:
+            pb.resetJointState(self.cabinet_id, j, start, velocity, physicsClientId=c)
+            pb.resetJointState(self.robot_id, 0, *turn, physicsClientId=c)
 
     def close(self) -> None:
         """Disconnect the client and remove the generated URDF (idempotent)."""

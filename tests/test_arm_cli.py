@@ -36,7 +36,8 @@ def test_scan_of_an_empty_range_fails(capsys):
 def test_status_json(capsys):
     code, out, _ = run(capsys, "arm", "status", "--json")
     data = json.loads(out)
-    assert code == 0 and len(data["joints"]) == 7 and data["tool_position_m"] == pytest.approx([0.45, 0, 0.7], abs=2e-3)
+    assert code == 0 and len(data["joint_positions_rad"]) == 7
+    assert data["tool_position_m"] == pytest.approx([0.45, 0, 0.7], abs=2e-3)
     assert [m["status"] for m in data["motors"]] == ["enabled"] * 8
 
 

@@ -10,9 +10,9 @@ from deploy.bench.axis_paths import summarise_paths
 from deploy.cli import main
 
 
-def result(kind, angle, reason=""):
+def result(kind, angle, reason="", confidence=None, sigma=None):
     return SequenceResult("screw", kind, angle, None if angle is None else 0.01, angle is not None, [1.0], [2.0],
-                          reason)
+                          reason, confidence, sigma)
 
 
 def test_summary_has_median_p90_and_max_and_counts_failures_as_90_deg():
@@ -22,6 +22,19 @@ def test_summary_has_median_p90_and_max_and_counts_failures_as_90_deg():
     assert s["drawer_angle_deg_median"] == pytest.approx(0.35)
     assert s["drawer_angle_deg_max"] == 90.0 and s["drawer_angle_deg_p90"] == pytest.approx(47.5)
     assert s["failures"] == {"drawer: too few points": 1} and s["failed_estimates"] == 1
+
+
+def test_summary_says_whether_the_estimator_knew_when_it_was_unsure():
+    """Within 2 sigma over the estimates that report a sigma; median error of the less and the more
+    confident half."""
+    rows = [result("drawer", a, confidence=c, sigma=s)
+            for a, c, s in ((0.1, 0.9, 0.2), (0.2, 0.8, 0.5), (3.0, 0.2, 1.0), (5.0, 0.1, None))]
+    rows += [result("drawer", None, "no registration", confidence=None)]
+    s = summarise(rows)["screw"]
+    assert s["drawer_sigma_reported"] == 3 and s["drawer_within_2_sigma"] == pytest.approx(2 / 3)
+    assert s["drawer_angle_deg_median_low_confidence"] == pytest.approx(4.0)
+    assert s["drawer_angle_deg_median_high_confidence"] == pytest.approx(0.15)
+    assert s["door_sigma_reported"] == 0 and s["door_within_2_sigma"] is None
 
 
 def test_varied_scenes_are_short_eased_openings():

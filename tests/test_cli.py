@@ -54,10 +54,10 @@ def test_fit_trajectory_json_on_an_arc(capsys, tmp_path):
     code, out, _ = run(capsys, "axis", "fit-trajectory", str(path), "--json")
     assert code == 0
     data = json.loads(out)
-    assert set(data) >= {"joint_type", "origin", "direction", "radius", "residual_m", "n_samples"}
+    assert set(data) >= {"joint_type", "origin", "direction", "radius_m", "residual_m", "n_samples"}
     assert data["joint_type"] == "revolute" and data["n_samples"] == 25
     assert axis_angle_error_deg([0, 0, 1], data["direction"]) < 0.1
-    assert data["radius"] == pytest.approx(0.4, abs=1e-3)
+    assert data["radius_m"] == pytest.approx(0.4, abs=1e-3)
     assert axis_position_error_m([0.5, 0.1, 0.7], [0, 0, 1], data["origin"], data["direction"]) < 1e-3
 
 
@@ -89,12 +89,13 @@ def test_estimate_recording_json(capsys, drawer_recording):
     assert axis_angle_error_deg(seq.true_axis.direction, data["direction"]) < 3.0
 
 
-def test_estimate_uses_the_gripper_path_and_views(capsys, drawer_recording):
+def test_estimate_uses_the_gripper_path_and_views(capsys, drawer_recording, tmp_path):
     path, seq = drawer_recording
-    code, out, _ = run(capsys, "axis", "estimate", str(path), "--view", "--json")
+    code, out, _ = run(capsys, "axis", "estimate", str(path), "--view", "--rrd", str(tmp_path / "a.rrd"), "--json")
     data = json.loads(out)
     assert code == 0 and data["gripper_path"] and data["filter"]["profile"] == "sim"  # truth.json: simulated
-    found = entities(path / "axis.rrd")
+    assert data["rrd"] == str(tmp_path / "a.rrd") and not (path / "axis.rrd").exists()  # not into the input
+    found = entities(tmp_path / "a.rrd")
     assert found["/world/camera/image/mask"]["rows"] == len(seq.frames)
     assert found["/world/axis/estimated"]["rows"] == sum(s["joint_type"] is not None for s in data["steps"])
 

@@ -23,15 +23,35 @@ def test_toml_file_and_overrides(tmp_path):
     assert cfg.estimator.name == "paper-obb" and cfg.estimator.window == 8 and cfg.estimator.joint == "auto"
 
 
-def test_unit_override_changes_the_radius():
-    cfg = load_config(None, {"filter.profile": "sparse", "filter.unit": "mm"})
-    assert cfg.filter.resolve().radius_m == pytest.approx(0.0013)
+def test_radius_is_in_metres_whatever_the_profile(tmp_path):
+    for profile in ("sim", "sparse"):
+        cfg = load_config(None, {"filter.profile": profile, "filter.radius_m": 0.02})
+        assert cfg.filter.resolve().radius_m == pytest.approx(0.02)  # 2 cm in simulation and on a D415 alike
+    assert load_config(None, {"filter.profile": "sparse"}).filter.resolve().radius_m == pytest.approx(0.013)
+    assert str(load_config(None, {"filter.profile": "sparse"}).filter.resolve()) == "radius 0.013 m (1.3 cm), eps 1"
+
+
+@pytest.mark.parametrize(("text", "fix"), [
+    ('[filter]\nradius = 0.02\n', "radius_m = 0.013 for 1.3 cm"),
+    ('[filter]\nprofile = "sparse"\nradius = 1.5\nunit = "cm"\n', "radius_m = 0.015 for 1.5 cm"),
+    ('[filter]\nunit = "mm"\n', "filter.radius_m"),
+])
+def test_a_radius_without_unit_is_refused_with_the_fix(tmp_path, text, fix):
+    path = tmp_path / "old.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    message = str(info.value)
+    assert "\n" not in message and str(path) in message and "has no unit" in message and fix in message
+    with pytest.raises(ConfigError, match="filter.radius_m"):
+        load_config(None, {"filter.radius": 0.02})
 
 
 @pytest.mark.parametrize(
     ("text", "expected"),
     [
-        ('[filter]\nradius = -1\n', "filter.radius"),
+        ('[filter]\nradius_m = -1\n', "filter.radius_m"),
+        ('[filter]\nradius_m = 1.3\n', "filter.radius_m"),  # 1.3 m: surely meant cm
         ('[estimator]\nname = "magic"\n', "estimator.name"),
         ('[geometry]\nmin_depth_m = 2.0\nmax_depth_m = 1.0\n', "max_depth_m"),
         ('[filter]\nradius_mm = 3\n', "filter.radius_mm"),

@@ -68,6 +68,12 @@ def _assert_ended(result, watch, run, reason: str, message: str) -> dict:
     assert {"frames", "report.png", "steps.json"} <= {p.name for p in run.iterdir()}
     assert (run / "report.png").read_bytes()[:8] == PNG_MAGIC and (run / "report.png").stat().st_size > 10_000
     steps = json.loads((run / "steps.json").read_text())
+    if watch.motors is None:
+        assert "motors" not in steps
+    else:  # the CAN arm's final motor states, as in the episode's JSON
+        assert steps["motors"] == result["motors"]
+        assert [(m["name"], m["enabled"], m["status"]) for m in steps["motors"]] == \
+            [(getattr(c, "name", "gripper"), False, "disabled") for c in watch.motors.config.motors]
     assert steps["result"]["stop_reason"] == reason and steps["result"]["message"] == result["message"]
     frames = FramesRecording(run / "frames")
     assert len(frames) >= 1 and frames.has_masks
@@ -107,17 +113,25 @@ def test_a_gripper_that_does_not_close_fails_the_grasp(tmp_path):
     assert result["steps"] == 0 and steps["motions"] == []
 
 
+def _grip_gives_way_at(arm, force_n: float) -> None:
+    """The grasp slips past `force_n` (the simulated arm's, or the one behind the simulated CAN motors)."""
+    if isinstance(arm, CanArm):
+        arm = motors_on(arm.config.can.channel).backend.arm
+    arm.grasp_force_limit_n = force_n
+
+
 def _lock_drawer(world, _arm):
     pb.setJointMotorControl2(world.cabinet_id, world.cabinet_joint, pb.VELOCITY_CONTROL, targetVelocity=0.0,
                              force=1e5, physicsClientId=world.client)
 
 
-def test_a_grasp_that_slips_twice_ends_grasp_lost_after_one_regrasp(tmp_path):
+@pytest.mark.parametrize("arm", ["sim", "sim-can"])
+def test_a_grasp_that_slips_twice_ends_grasp_lost_after_one_regrasp(tmp_path, arm):
     def weak_grasp_on_a_locked_drawer(world, arm):
         _lock_drawer(world, arm)
-        arm.grasp_force_limit_n = 20.0  # the grip gives way long before the drawer does
+        _grip_gives_way_at(arm, 20.0)  # the grip gives way long before the drawer does
 
-    result, watch, run = _episode(tmp_path, weak_grasp_on_a_locked_drawer)
+    result, watch, run = _episode(tmp_path, weak_grasp_on_a_locked_drawer, arm)
     steps = _assert_ended(result, watch, run, "grasp lost", "the handle slipped out of the gripper again during ")
     assert "after one re-grasp: the pull needs more force than the grasp holds" in result["message"]
     assert result["regrasped"] and result["true_opened_m"] < 0.005
@@ -126,12 +140,13 @@ def test_a_grasp_that_slips_twice_ends_grasp_lost_after_one_regrasp(tmp_path):
     assert all(m["reason"] == "stopped by on_tick" for m in motions)  # each slip ended its pull at once
 
 
-def test_a_locked_drawer_with_a_firm_grasp_ends_blocked(tmp_path):
+@pytest.mark.parametrize("arm", ["sim", "sim-can"])
+def test_a_locked_drawer_with_a_firm_grasp_ends_blocked(tmp_path, arm):
     def held(world, arm):
-        arm.grasp_force_limit_n = 1e5  # the grasp holds, so the arm itself feels the lock
+        _grip_gives_way_at(arm, 1e5)  # the grasp holds, so the arm itself feels the lock
 
     # the tracking-error check behind the force limit (out of reach here), on a drawer locked fast
-    result, watch, run = _episode(tmp_path, held, pull_force_limit_n=500.0, condition="locked")
+    result, watch, run = _episode(tmp_path, held, arm, pull_force_limit_n=500.0, condition="locked")
     steps = _assert_ended(result, watch, run, "blocked", "no more motion during first pull (blocked: tracking error ")
     assert "the joint is at its limit or locked" in result["message"]
     assert not result["regrasped"] and result["steps"] == 0 and result["true_opened_m"] < 0.005
@@ -166,8 +181,9 @@ def test_a_lost_view_ends_tracking_lost(tmp_path, arm):
     assert result["steps"] == 0 and [m["label"] for m in steps["motions"]] == ["first pull"]
 
 
-def test_the_time_limit_ends_the_episode_before_the_next_step(tmp_path):
-    result, watch, run = _episode(tmp_path, timeout_s=1.0)
+@pytest.mark.parametrize("arm", ["sim", "sim-can"])
+def test_the_time_limit_ends_the_episode_before_the_next_step(tmp_path, arm):
+    result, watch, run = _episode(tmp_path, arm=arm, timeout_s=1.0)
     steps = _assert_ended(result, watch, run, "timeout", "1 s of arm time used, opened 0.0")
     assert result["steps"] == 0 and 0.03 < result["true_opened_m"] < TARGET_M  # the first pull, then no step
     assert [m["label"] for m in steps["motions"]] == ["first pull"]

@@ -156,3 +156,189 @@ def test_every_command_speaks_json_and_names_units():
             assert "--auto-joint" not in param.opts or param.hidden, name
             if "--yes" in param.opts:
                 assert "-y" in param.opts, name
+
+
+# --- issue 18, remaining gaps ------------------------------------------------------------------------------
+
+
+def test_step_lines_are_one_line_each_whatever_the_width(capsys):
+    from deploy.commands.output import configure_logging
+
+    axis = Axis(JointType.PRISMATIC, np.zeros(3), np.array([1.0, 0.0, 0.0]), confidence=0.5)
+    source = "prior (" + "vision below its confidence threshold, " * 4 + "trajectory not yet moved far enough)"
+    for verbose in (False, True):
+        configure_logging(verbose)
+        EpisodeView().axis(1.0, axis, 0.1234, source)
+        lines = capsys.readouterr().err.splitlines()
+        assert len(lines) == 1 and len(lines[0]) > 150, lines  # not wrapped at 80 columns when not a terminal
+        assert lines[0].endswith(f"step 0: opened 0.123 m, axis prismatic from {source}, confidence 0.50")
+        assert lines[0] == lines[0].rstrip()  # no padding to the console's width
+    configure_logging(False)
+
+
+def test_progress_lines_when_stderr_is_not_a_terminal(capsys):
+    from deploy.commands.output import LineBar, progress_bar
+
+    bar = LineBar("tracking rec", every_s=0.0)
+    for i in range(1, 4):
+        bar.counts(i, 3)
+    bar.describe("re-detecting")
+    bar.finish()
+    assert capsys.readouterr().err.splitlines() == [
+        "tracking rec: 1/3", "tracking rec: 2/3", "tracking rec: 3/3", "tracking rec: re-detecting"]
+    clock = iter([0.0, 0.5, 1.0, 2.5, 3.0, 3.1])
+    bar = LineBar("record", every_s=2.0, clock=lambda: next(clock))
+    for _ in range(4):
+        bar.advance()
+    bar.finish()  # the last count, since a count line was printed
+    assert capsys.readouterr().err.splitlines() == ["record: 3", "record: 4"]
+    with progress_bar("quick", 10) as bar:  # a short run prints nothing
+        bar.completed(10)
+    assert capsys.readouterr().err == ""
+
+
+def test_verbose_logs_what_a_field_user_needs(capsys, tmp_path):
+    code, out, err = run(capsys, "--verbose", "open-drawer", "--dry-run", "--seed", "1", "--run-dir", tmp_path / "r",
+                         "--json")
+    assert code == 0, err
+    for text in ("run config: filter sim (radius 0.05 m, eps 100); estimator screw-grip", "devices: camera sim",
+                 "camera pose: simulated calibration", "segmenter", "found the object", "box (",
+                 "handle found: centre", "grasp plan (dry run): grasp at"):
+        assert text in err, text
+    assert all(len(line) < 400 for line in err.splitlines())  # one record per line (plain, not a terminal)
+
+
+def test_run_folder_keeps_the_resolved_config(capsys, tmp_path):
+    file = tmp_path / "run.toml"
+    file.write_text('[filter]\nradius_m = 0.02\n[opening]\nmax_steps = 2\ntimeout_s = 30\n')
+    code, out, _ = run(capsys, "open-door", "--dry-run", "--config", file, "--prompt", "cupboard", "--run-dir",
+                       tmp_path / "run", "--json")
+    assert code == 0
+    kept = json.loads((tmp_path / "run" / "config.json").read_text())
+    assert set(kept) == {"filter", "geometry", "estimator", "opening", "perception", "filter_used"}
+    assert kept["filter"] == {"profile": "sim", "radius_m": 0.02, "eps": None}  # the camera chose the profile
+    assert kept["filter_used"] == {"radius_m": 0.02, "eps": 100} == {k: json.loads(out)["filter"][k]
+                                                                    for k in ("radius_m", "eps")}
+    assert kept["opening"]["task"] == "door" and kept["opening"]["max_steps"] == 2
+    assert kept["perception"]["object_prompt"] == "cupboard"
+    assert Config.model_validate({k: v for k, v in kept.items() if k != "filter_used"}).opening.timeout_s == 30
+
+
+def test_units_in_json_keys(capsys, tmp_path):
+    axis = Axis(JointType.REVOLUTE, np.zeros(3), np.array([0.0, 0.0, 1.0]), radius_m=0.4)
+    assert axis.to_dict()["radius_m"] == 0.4 and "radius" not in axis.to_dict()
+    code, out, _ = run(capsys, "arm", "status", "--json")
+    joints = json.loads(out)["joint_positions_rad"]
+    assert code == 0 and len(joints) == 7 and all(isinstance(v, float) for v in joints.values())
+
+
+def test_sim_can_arm_is_virtual_whatever_the_robot_config_says():
+    from drivers.arm.robot_config import load_robot_config
+    from sim_fallback.devices import sim_can_arm
+
+    config = load_robot_config("damiao_6dof")
+    assert config.can.interface == "socketcan" and config.can.channel == "can0"  # a real adapter's
+    arm, motors = sim_can_arm(config)
+    try:
+        assert arm.bus.interface == "virtual" and arm.bus.channel.startswith("sim-can0-")
+    finally:
+        arm.disconnect()
+        motors.close()
+
+
+def test_help_texts_show_brackets_and_box_metavar(capsys):
+    code, out, _ = run(capsys, "open-drawer", "--help")
+    flat = " ".join(out.replace("│", " ").split())  # rich's panel borders and line breaks out
+    assert "[filter] (profile, radius_m, eps) [geometry] [estimator] [opening]" in flat
+    assert "[perception] (prompts" in flat and "(see Configuration in docs/quickstart.md)" in flat
+    _, out, _ = run(capsys, "track", "--help")
+    assert "X0 Y0 X1 Y1" in out and "<float" not in out
+
+
+def test_views_of_a_recording_never_write_into_it(capsys, tmp_path, monkeypatch):
+    from pathlib import Path
+
+    from deploy.commands.output import view_file
+
+    rec = tmp_path / "rec"
+    with FramesWriter(rec, INTR, camera="sim", simulated=True) as writer:
+        for i in range(2):
+            writer.write(frame(i), mask=np.ones((24, 32), bool))
+    before = sorted(p.name for p in rec.iterdir())
+    assert view_file(rec, None, "axis") == Path("runs") / "rec-axis.rrd"
+    assert view_file(rec, tmp_path / "mine.rrd", "track") == tmp_path / "mine.rrd"
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(capsys, "axis", "estimate", rec, "--view", "--json")
+    assert code == 1 and json.loads(out)["rrd"] == str(Path("runs") / "rec-axis.rrd"), err  # 2 frames: no axis
+    assert (tmp_path / "runs" / "rec-axis.rrd").is_file() and sorted(p.name for p in rec.iterdir()) == before
+    code, out, _ = run(capsys, "axis", "estimate", rec, "--rrd", tmp_path / "elsewhere.rrd", "--json")
+    assert json.loads(out)["rrd"] == str(tmp_path / "elsewhere.rrd") and (tmp_path / "elsewhere.rrd").is_file()
+
+
+def _eye_in_hand_file(path, T_camera):
+    from calibration.board import BoardConfig
+    from calibration.store import HandEyeRecord, save_hand_eye
+
+    return save_hand_eye(HandEyeRecord(
+        camera_serial="replay", robot_id="panda", setup="eye-in-hand", method="park", T_camera=T_camera,
+        T_board=np.eye(4), tool_frame="panda_grasptarget", intrinsics=INTR, distortion=np.zeros(5),
+        reprojection_px=0.3, spread_mm=1.0, spread_deg=0.3, samples=12, board=BoardConfig()), path=path)
+
+
+def test_record_with_a_calibration_places_an_eye_in_hand_camera(capsys, tmp_path):
+    rec = frames_recording(tmp_path / "rec", simulated=False)
+    T_camera = np.eye(4)
+    T_camera[:3, 3] = [0.05, 0.0, 0.04]
+    calibration = _eye_in_hand_file(tmp_path / "handeye.yaml", T_camera)
+    code, out, err = run(capsys, "--verbose", "record", "--camera", f"replay:{rec}", "--arm", "ideal", "--robot",
+                         "panda_sim", "--calibration", calibration, "--out", tmp_path / "out", "--frames", 1, "--json")
+    assert code == 0 and json.loads(out)["arm"], err
+    assert f"hand-eye calibration {calibration} (eye-in-hand" in err  # --verbose names the file used
+    recorded = FramesRecording(tmp_path / "out")
+    tool = np.asarray(recorded.records[0]["ee_pose"])
+    np.testing.assert_allclose(recorded.T_base_camera, tool @ T_camera, atol=1e-9)
+    code, _, err = run(capsys, "record", "--camera", "sim", "--arm", "sim", "--calibration", calibration, "--out",
+                       tmp_path / "out2", "--frames", 1)
+    assert code == 2 and "--calibration" in err and "simulated camera" in err
+
+
+def test_a_moving_camera_keeps_its_pose_per_frame(tmp_path):
+    """drivers.camera.record with an eye-in-hand camera: each frame's pose from the tool pose read with it."""
+    from drivers.camera.record import record
+
+    class Replay:
+        intrinsics = INTR
+
+        def __init__(self):
+            self.i = 0
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return None
+
+        def read(self, timeout_s=2.0):
+            self.i += 1
+            return frame(self.i - 1)
+
+    tools = iter([np.eye(4) + np.pad(np.array([[0.0, 0.0, 0.1 * i]]).T, ((0, 1), (3, 0))) for i in range(5)])
+    offset = np.eye(4)
+    offset[2, 3] = 0.03
+    summary = record(Replay(), tmp_path / "rec", frames=3, arm=lambda: (np.zeros(7), next(tools)),
+                     camera_on_tool=lambda tool: tool @ offset)
+    recording = FramesRecording(tmp_path / "rec")
+    assert summary["frames"] == 3 and recording.T_base_camera[2, 3] == pytest.approx(0.03)
+    assert "T_base_camera" not in recording.records[0] and "T_base_camera" in recording.records[1]
+    for i in range(3):
+        assert recording.frame(i).T_base_camera[2, 3] == pytest.approx(0.03 + 0.1 * i)
+        np.testing.assert_allclose(recording.frame(i).T_base_camera, np.asarray(recording.records[i]["ee_pose"])
+                                   @ offset)
+
+
+def test_sim_record_shows_its_phases_when_piped(capsys, tmp_path):
+    code, _, err = run(capsys, "sim", "record", "--task", "drawer", "--fps", "2", "--out", tmp_path / "rec")
+    assert code == 0
+    shown = [line.split(": ", 1)[1] for line in err.splitlines() if line.startswith("sim record drawer (seed 0): ")]
+    assert [s for s in shown if not s.isdigit()] == ["grasping the handle", "opening along the true axis",
+                                                      "holding"], err  # and frame counts every 2 s between them

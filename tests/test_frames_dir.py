@@ -33,9 +33,9 @@ def ee(i: int) -> np.ndarray:
     return pose
 
 
-def record(path, n=4, masks=True, seed=0) -> list[Frame]:
+def record(path, n=4, masks=True, seed=0, replace=False) -> list[Frame]:
     frames = make_frames(n, seed)
-    with FramesWriter(path, INTR, T_base_camera=T_BC) as writer:
+    with FramesWriter(path, INTR, T_base_camera=T_BC, replace=replace) as writer:
         for i, frame in enumerate(frames):
             if not masks:
                 frame.mask = None
@@ -197,10 +197,14 @@ def test_writer_refuses_foreign_directory_and_replaces_a_recording(tmp_path):
     assert (tmp_path / "stuff" / "notes.txt").read_text() == "keep me"
 
     record(tmp_path / "rec", n=4)
-    record(tmp_path / "rec", n=2, masks=False, seed=1)
+    (tmp_path / "rec" / "truth.json").write_text("{}")
+    with pytest.raises(RecordingError, match="a recording is already there"):  # never replaced unasked
+        record(tmp_path / "rec", n=2, masks=False, seed=1)
+    assert len(FramesRecording(tmp_path / "rec")) == 4
+    record(tmp_path / "rec", n=2, masks=False, seed=1, replace=True)
     rec = FramesRecording(tmp_path / "rec")
     assert len(rec) == 2 and not rec.has_masks
-    assert not (tmp_path / "rec" / "color" / "000003.png").exists()
+    assert not (tmp_path / "rec" / "color" / "000003.png").exists() and not (tmp_path / "rec" / "truth.json").exists()
 
 
 def test_writer_rejects_frames_of_the_wrong_size(tmp_path):

@@ -4,6 +4,7 @@ functions included (`if TYPE_CHECKING:` blocks excluded); typer only in the CLI;
 loads neither PyBullet nor Open3D."""
 
 import ast
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -134,16 +135,26 @@ def test_typer_only_in_the_cli():
     assert users and all(m.startswith(CLI_PACKAGES) for m in users), users
 
 
-def test_real_arm_bring_up_loads_neither_pybullet_nor_open3d():
+REAL_DEVICE_COMMANDS = {  # each fails fast without the hardware (code 2), after its whole import path has loaded
+    "arm bring-up": ["arm", "status", "--arm", "can", "--robot", "panda_sim"],  # no motor answers on the bus
+    "calibration": ["calibrate", "hand-eye", "--camera", "d415:000000000000", "--arm", "can", "--robot", "panda_sim",
+                    "--pivot-mm", "0", "0", "30", "--dry-run"],  # no camera has this serial
+}
+
+
+@pytest.mark.parametrize("args", REAL_DEVICE_COMMANDS.values(), ids=REAL_DEVICE_COMMANDS.keys())
+def test_real_device_commands_load_neither_pybullet_nor_open3d(args, tmp_path):
+    """The real CLI entry, as a user runs it: a top-level import of the simulator or of Open3D anywhere on the
+    path (cli, command modules, rig, devices, drivers) fails this; so does a bus left open by a failed connect."""
     code = (
         "import sys\n"
-        "from deploy.commands import arm\n"
-        "from deploy.arm_bringup import load, make_arm\n"
-        "from drivers.arm.robot_config import PANDA_SIM_CONFIG\n"
-        "a = make_arm('can', load(PANDA_SIM_CONFIG))\n"
-        "a.disconnect()\n"
-        "print(sorted(m for m in ('pybullet', 'open3d') if m in sys.modules))\n"
+        "from deploy.cli import main\n"
+        f"code = main({args!r})\n"
+        "print(code, sorted(m for m in ('pybullet', 'open3d') if m in sys.modules))\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    env = {**os.environ, "AXISLOOP_CALIBRATION_DIR": str(tmp_path)}
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120, env=env)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip().splitlines()[-1] == "[]"
+    assert out.stdout.strip().splitlines()[-1] == "2 []", out.stdout + out.stderr
+    assert "error:" in out.stderr and "Traceback" not in out.stderr
+    assert "not properly shut down" not in out.stderr, out.stderr

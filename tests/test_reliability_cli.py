@@ -109,15 +109,22 @@ def test_a_bug_is_one_line_naming_the_verbose_flag(capsys, monkeypatch):
     assert "deploy --verbose arm status" in err
 
 
-@pytest.mark.parametrize(("old", "new", "field"), [
-    ("workspace_min = [-0.9, -0.9, 0.02]", "workspace_min = [nan, nan, nan]", "workspace_min.0"),
-    ("feedback_timeout_s = 0.02", "feedback_timeout_s = inf", "watchdog.feedback_timeout_s"),
+@pytest.mark.parametrize(("old", "new", "words"), [
+    ("workspace_min = [-0.9, -0.9, 0.02]", "workspace_min = [nan, nan, nan]",
+     "workspace_min.0: Input should be a finite number"),
+    ("feedback_timeout_s = 0.02", "feedback_timeout_s = inf", "watchdog.feedback_timeout_s: Input should be a finite"),
+    # absurd but finite: the box no longer holds the tool above the table, the acceleration check never trips
+    ("workspace_min = [-0.9, -0.9, 0.02]", "workspace_min = [-1e9, -1e9, -1e9]",
+     "workspace_min.0: Input should be greater than or equal to -3"),
+    ("a_max = 15.0", "a_max = 1e300", "joints.0.a_max: Input should be less than or equal to 200"),
+    ("tau_max = 87.0", "tau_max = 1e300", "joints.0.tau_max: Value error, tau_max 1e+300 N m is above the "
+     "DM10010L's TMAX 200 N m"),
 ])
-def test_a_robot_config_that_switches_a_safety_check_off_is_refused(capsys, tmp_path, old, new, field):
+def test_a_robot_config_that_switches_a_safety_check_off_is_refused(capsys, tmp_path, old, new, words):
     robot = _robot(tmp_path, old, new)
     code, _, err = run(capsys, "arm", "move", "--pose", "0.4", "0", "0.0", "180", "0", "0", "--arm", "sim-can",
                        "--yes", "--robot", robot)
-    assert code == 2 and f"robot config {robot}: {field}: Input should be a finite number" in one_line(err)
+    assert code == 2 and f"robot config {robot}: {words}" in one_line(err)
 
 
 @pytest.mark.parametrize("target", ["robot", "recording", "config"])
@@ -146,7 +153,7 @@ def _files(path: Path) -> dict[str, bytes]:
     return {str(p.relative_to(path)): p.read_bytes() for p in sorted(path.rglob("*")) if p.is_file()}
 
 
-@pytest.mark.parametrize("command", ["record", "sim-record", "convert"])
+@pytest.mark.parametrize("command", ["record", "sim-record", "convert", "track"])
 def test_an_existing_recording_is_refused_then_replaced_whole_with_overwrite(capsys, tmp_path, recording, command):
     out = tmp_path / "out"
     out.mkdir()
@@ -156,7 +163,8 @@ def test_an_existing_recording_is_refused_then_replaced_whole_with_overwrite(cap
     before = _files(out)
     args = {"record": ("record", "--camera", f"replay:{recording}", "--frames", "2"),
             "sim-record": ("sim", "record", "--fps", "2"),
-            "convert": ("convert", write_db3(tmp_path / "s.db3", scene(3)))}[command]
+            "convert": ("convert", write_db3(tmp_path / "s.db3", scene(3))),
+            "track": ("track", recording, "--segmenter", "classical", "--box", "40", "30", "120", "90")}[command]
     code, _, err = run(capsys, *args, "--out", out)
     assert code == 2 and "a recording is already there: pass --overwrite" in one_line(err)
     assert _files(out) == before
@@ -165,7 +173,8 @@ def test_an_existing_recording_is_refused_then_replaced_whole_with_overwrite(cap
     if command == "sim-record":  # it writes a truth.json of its own
         assert json.loads((out / "truth.json").read_text())
     else:
-        assert not (out / "truth.json").exists() and len(FramesRecording(out)) == {"record": 2, "convert": 3}[command]
+        assert not (out / "truth.json").exists()
+        assert len(FramesRecording(out)) == {"record": 2, "convert": 3, "track": 6}[command]
 
 
 def test_a_folder_that_is_not_a_recording_is_never_removed(capsys, tmp_path):
@@ -204,6 +213,25 @@ def test_a_damaged_replay_stops_naming_the_frame_and_keeps_what_was_written(caps
     assert code == 2 and "frame 4 is damaged" in line and "depth/000004.png is not a readable PNG" in line
     assert "the 4 frames recorded so far are kept" in line and "wrote" not in out
     assert len(FramesRecording(tmp_path / "out")) == 4
+
+
+# --- faults of the simulated CAN arm on every command that takes it ------------------------------------------------
+
+
+def test_record_with_the_simulated_can_arm_takes_sim_faults(capsys, tmp_path):
+    """SECONDS counts the recording's time (the arm is only read): a bus-off 0.1 s in stops the recording with the
+    bus's line, keeping the frames before it; a fault of a motor not in the config, or without sim-can, is refused."""
+    args = ("record", "--camera", "sim", "--arm", "sim-can", "--frames", "10", "--width", "160", "--height", "120")
+    code, _, err = run(capsys, *args, "--out", tmp_path / "a", "--sim-fault", "bus-off@0.1")
+    assert code == 2 and "went bus-off (error frame)" in err.splitlines()[-1] and "Traceback" not in err
+    assert 1 <= len(FramesRecording(tmp_path / "a")) < 10
+    code, _, err = run(capsys, *args, "--out", tmp_path / "b", "--sim-fault", "silent:panda_joint3")
+    assert code == 2 and "motor panda_joint3 (CAN id 3, master 0x13) did not answer" in err.splitlines()[-1]
+    code, _, err = run(capsys, *args, "--out", tmp_path / "c", "--sim-fault", "silent:elbow")
+    assert code == 2 and "--sim-fault silent:elbow: no motor 'elbow'" in err.splitlines()[-1]
+    code, _, err = run(capsys, *args[:3], *args[5:], "--out", tmp_path / "d", "--sim-fault", "bus-off")
+    assert code == 2 and "use it with --arm sim-can, not --arm none" in one_line(err)
+    assert not (tmp_path / "d").exists()
 
 
 # --- Ctrl-C and SIGTERM ----------------------------------------------------------------------------------------

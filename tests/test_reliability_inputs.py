@@ -238,12 +238,34 @@ def test_robot_toml_with_random_numbers_loads_finite_or_is_an_arm_error(tmp_path
     ("watchdog.feedback_timeout_s", "inf"), ("watchdog.feedback_timeout_s", "5.0"),
     ("watchdog.reply_timeout_s", "nan"), ("joints.0.tau_max", "inf"), ("joints.2.q_min", "-inf"),
     ("q_ready", "[nan, 0, 0, 0, 0, 0, 0]"),
+    # finite but absurd: each would switch its check off as surely as nan
+    ("workspace_min", "[-1e9, -1e9, -1e9]"), ("workspace_max", "[0.9, 0.9, 1e9]"), ("workspace_min", "[-0.9, -3.5, 0]"),
+    ("joints.0.a_max", "1e300"), ("joints.3.j_max", "1e300"), ("joints.0.tau_max", "1e300"),
+    ("joints.4.tau_max", "28.5"), ("joints.0.v_max", "1e300"), ("joints.6.v_max", "8.5"), ("control_rate_hz", "1"),
+    ("control_rate_hz", "99"),
 ])
 def test_robot_configs_that_would_switch_a_safety_check_off_are_refused(tmp_path, field, text):
     path = tmp_path / "robot.toml"
     path.write_text(_robot_toml(field, "@@").replace('"@@"', text).replace("'@@'", text))
     with pytest.raises(ArmError, match=rf"robot config {re.escape(str(path))}: {re.escape(field)}"):
         load_robot_config(path)
+
+
+@pytest.mark.parametrize(("field", "text"), [
+    ("workspace_min", "[-3.0, -3.0, -3.0]"), ("workspace_max", "[3.0, 3.0, 3.0]"), ("joints.0.a_max", "200.0"),
+    ("joints.3.j_max", "100000.0"), ("joints.0.tau_max", "200.0"), ("joints.4.tau_max", "28.0"),
+    ("joints.0.v_max", "25.0"), ("joints.6.v_max", "8.0"), ("control_rate_hz", "100.0"),
+])
+def test_robot_config_limits_at_their_bounds_load(tmp_path, field, text):
+    """The other side of the bounds above: a limit exactly at its bound is accepted."""
+    path = tmp_path / "robot.toml"
+    path.write_text(_robot_toml(field, "@@").replace('"@@"', text).replace("'@@'", text))
+    config = load_robot_config(path)
+    *parents, last = field.split(".")
+    node = config
+    for part in parents:
+        node = node[int(part)] if part.isdigit() else getattr(node, part)
+    assert getattr(node, last) == tomllib.loads(f"x = {text}")["x"]
 
 
 @FUZZ

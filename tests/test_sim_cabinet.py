@@ -179,3 +179,16 @@ def test_drawer_body_looks_like_its_panels(split, tmp_path):
             built = _render_depth(as_built, tmp_path, opening, eye)
             assert (drawn < 1.0).mean() > 0.05  # the cabinet is in view
             assert np.mean(np.abs(drawn - built) > 1e-5) < 0.002
+
+
+def test_a_door_hinged_close_to_the_robot_cannot_sweep_past_its_base():
+    """Evaluation only: test door 32 is hinged so close to the robot that 70 deg would pass through the base;
+    45 deg clears it, and so does every drawer pull of the benchmarks. The joint is put back as it was."""
+    with SimWorld(Scenario.make("door", 32, "test")) as world:
+        assert world.sweep_hits_robot_base(np.radians(70.0))
+        assert not world.sweep_hits_robot_base(np.radians(45.0))
+        assert world.joint_value() == 0.0
+        assert pb.getJointState(world.robot_id, 0, physicsClientId=world.client)[0] == pytest.approx(
+            world.scenario.q_start[0])
+    with SimWorld(Scenario.make("drawer", 0, "test")) as world:
+        assert not world.sweep_hits_robot_base(0.45)

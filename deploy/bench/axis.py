@@ -32,7 +32,8 @@ GRIPPER_NOISE_M, GRIPPER_NOISE_DEG = 0.001, 0.3  # FK is sub-millimetre; the gra
 
 @dataclass(frozen=True)
 class SequenceResult:
-    """One estimator on one sequence: errors of the final estimate (NaN-free: None when no estimate)."""
+    """One estimator on one sequence: errors of the final estimate (NaN-free: None when no estimate), and
+    what the estimator said of it: its confidence and direction_sigma_deg (None when not given)."""
 
     estimator: str
     kind: str
@@ -42,6 +43,8 @@ class SequenceResult:
     ms_per_estimate: list[float]
     step_ms: list[float]
     reason: str = ""
+    confidence: float | None = None
+    sigma_deg: float | None = None
 
 
 def with_estimator(config: Config, name: str, joint: str) -> Config:
@@ -72,7 +75,8 @@ def run_sequence(seq: SyntheticSequence, name: str, config: Config) -> SequenceR
     if truth.joint_type == JointType.REVOLUTE:
         at = seq.gripper_poses[0][:3, 3]
         position = axis_position_error_m(truth.origin, truth.direction, result.origin, result.direction, at=at)
-    return SequenceResult(name, seq.kind, angle, position, joint_ok, estimate_ms, step_ms)
+    return SequenceResult(name, seq.kind, angle, position, joint_ok, estimate_ms, step_ms,
+                          confidence=result.confidence, sigma_deg=result.direction_sigma_deg)
 
 
 def make_sequences(n_per_kind: int, seed: int, noise: DepthNoise | None = None,
@@ -111,9 +115,28 @@ def _spread(values: list[float], name: str) -> dict[str, float | None]:
     return {f"{name}_median": _stat(values, 50), f"{name}_p90": _stat(values, 90), f"{name}_max": _stat(values, 100)}
 
 
+def _says_when_unsure(results: list[SequenceResult], kind: str) -> dict[str, float | int | None]:
+    """Whether the estimator's own uncertainty tells its good estimates from its bad ones, over the
+    estimates of `kind`: how many carry a direction_sigma_deg and the share of those whose angle error is
+    within 2 sigma; the median angle error of the less confident half and of the more confident half
+    (split at the median confidence; failures left out: they say so themselves)."""
+    answered = sorted((r for r in results if r.kind == kind and r.angle_deg is not None and r.confidence is not None),
+                      key=lambda r: r.confidence)
+    sized = [r for r in answered if r.sigma_deg is not None]
+    half = len(answered) // 2
+    return {
+        f"{kind}_sigma_reported": len(sized),
+        f"{kind}_within_2_sigma": None if not sized
+        else sum(r.angle_deg <= 2 * r.sigma_deg for r in sized) / len(sized),
+        f"{kind}_angle_deg_median_low_confidence": _stat([r.angle_deg for r in answered[:half]], 50),
+        f"{kind}_angle_deg_median_high_confidence": _stat([r.angle_deg for r in answered[len(answered) - half:]], 50),
+    }
+
+
 def summarise(results: list[SequenceResult]) -> dict:
     """Per-estimator statistics in the `deploy bench axis --json` schema: median, p90 and max of every
-    error, and why estimates failed (reason -> count)."""
+    error, why estimates failed (reason -> count), and whether the estimator says when it is unsure
+    (`_says_when_unsure`, per kind)."""
     out: dict = {}
     for name in dict.fromkeys(r.estimator for r in results):
         mine = [r for r in results if r.estimator == name]
@@ -125,6 +148,8 @@ def summarise(results: list[SequenceResult]) -> dict:
             **_spread(_errors(mine, "drawer", "angle_deg", 90.0), "drawer_angle_deg"),
             **_spread(_errors(mine, "door", "angle_deg", 90.0), "door_angle_deg"),
             **_spread(_errors(mine, "door", "position_m", 1.0), "door_position_m"),
+            **_says_when_unsure(mine, "drawer"),
+            **_says_when_unsure(mine, "door"),
             "joint_type_accuracy": float(np.mean([r.joint_type_ok for r in mine])),
             "failed_estimates": sum(r.angle_deg is None for r in mine),
             "failures": failures,

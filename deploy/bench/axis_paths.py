@@ -25,13 +25,14 @@ def _reason_class(reason: str) -> str:
     return re.sub(r"\d+(\.\d+)?", "N", reason.removeprefix("joint type undecided: "))
 
 
-def score_path(path: HandlePath) -> dict:
-    """One path: the auto answer (type, angle error, reported sigma) and the error with the type given."""
+def score_path(path: HandlePath, given: bool = True) -> dict:
+    """One path: the auto answer (type, angle error, reported sigma) and, with `given`, the error with the
+    type given."""
     truth = path.obj.axis
     clock = time.perf_counter()
     auto = fit_trajectory(path.positions, path.quaternions, times=path.times)
     ms = (time.perf_counter() - clock) * 1e3
-    given = fit_trajectory(path.positions, path.quaternions, truth.joint_type, times=path.times)
+    given = fit_trajectory(path.positions, path.quaternions, truth.joint_type, times=path.times) if given else None
     row = {"object": path.obj.name, "kind": path.kind, "samples": len(path.times),
            "orientations": path.quaternions is not None, "ms": ms, "type": None, "angle_deg": None,
            "sigma_deg": None, "reason": None, "given_angle_deg": None}
@@ -86,12 +87,12 @@ def summarise_paths(rows: list[dict]) -> dict:
     }
 
 
-def bench_axis_paths(seed: int = 0, progress: Callable[[int, int], None] | None = None) -> dict:
-    """Score every path of the set drawn with `seed`; returns the `--json` dict (summary and rows)."""
+def bench_axis_paths(seed: int = 0, progress: Callable[[int, int], None] | None = None, given: bool = True) -> dict:
+    """Score every path of the set drawn with `seed` (`score_path`); returns the `--json` dict (summary and rows)."""
     paths = handle_path_set(seed)
     rows = []
     for i, path in enumerate(paths):
-        rows.append(score_path(path))
+        rows.append(score_path(path, given))
         if progress:
             progress(i + 1, len(paths))
     return {"seed": seed, "scenes": "paths", **summarise_paths(rows), "rows": rows}

@@ -11,23 +11,24 @@ from typing import Any
 import numpy as np
 
 from deploy.bench.executors import make_executor
+from deploy.config import CALIBRATION_ERROR, OpeningConfig
 from deploy.control.session import OpenRequest, Setup, open_object
+from deploy.control.state import StopReason
 from deploy.evaluation import Evaluation
 from deploy.geometry.metrics import axis_angle_error_deg, axis_position_error_m
 from deploy.geometry.types import Axis, JointType
 from deploy.perception.registry import default_segmenter
 
-CALIBRATION_ERROR = (5.0, 0.5)  # a field-grade hand-eye calibration: translation mm, rotation deg
-
 
 def simulate_episode(task: str, seed: int, split: str = "train", target: float | None = None,
-                     policy: str = "closed", auto_joint: bool = False, arm: str = "sim",
+                     policy: str | None = None, auto_joint: bool = False, arm: str = "sim",
                      segmenter: str | None = None, calibration_error: tuple[float, float] = CALIBRATION_ERROR,
                      overrides: dict[str, Any] | None = None, run_dir: Path | None = None,
                      setup: Setup | None = None, condition: str = "normal", **options: Any) -> dict:
     """One simulated episode of `task` ("drawer" | "door") on scenario `seed`, `target` in m (drawer) or deg
     (door), with what a real robot senses: `segmenter` (default: the machine's default, `rgbd` without
-    weights) and a camera pose calibrated with `calibration_error` (mm, deg). `options` override `[opening]`
+    weights) and a camera pose calibrated with `calibration_error` (mm, deg); `policy` None: the config's.
+    `options` override `[opening]`
     settings, `overrides` any setting by dotted name; `setup(world, arm)` changes the world first (tests);
     `condition` is the object's joint ("normal", "locked", "stiff"). The episode's JSON with the truth-based
     fields."""
@@ -39,14 +40,19 @@ def simulate_episode(task: str, seed: int, split: str = "train", target: float |
                           overrides={**{f"opening.{k}": v for k, v in options.items()}, **(overrides or {})},
                           **({target_field: target} if target is not None else {}))
     truth: list[Axis] = []
+    through_base: list[bool] = []
+    target_si = OpeningConfig(**({f"target_{target_field}": target} if target is not None else {})).target_for(
+        JointType.PRISMATIC if task == "drawer" else JointType.REVOLUTE)
 
     def set_up(world: Any, arm: Any) -> None:
         truth.append(Evaluation(world).true_axis())
+        through_base.append(world.sweep_hits_robot_base(target_si))
         if setup is not None:
             setup(world, arm)
 
     data = open_object(request, setup=set_up, keep_run_dir=run_dir is not None)
-    return {**data, **_vision_alone_errors(data.get("vision_axis"), truth[0])}
+    return {**data, **_vision_alone_errors(data.get("vision_axis"), truth[0]),
+            "target_through_robot_base": through_base[0]}
 
 
 def _vision_alone_errors(vision: dict | None, true_axis: Axis) -> dict:
@@ -65,7 +71,7 @@ def bench_open(
     target: float,
     episodes: int = 10,
     split: str = "test",
-    policy: str = "closed",
+    policy: str | None = None,
     seed: int = 0,
     workers: int = 1,
     progress: Callable[[dict], None] | None = None,
@@ -81,8 +87,9 @@ def bench_open(
     segmenter and a calibrated camera pose off by `calibration_error` (mm, deg); the JSON states both.
     `condition`: every object's joint "normal", "locked" or "stiff" (3x the friction); the largest force any
     pull applied is `peak_pull_force_n_max` (N). Episodes run in `workers` local processes, or on a Ray cluster
-    at `ray_address` (deploy/bench/executors.py)."""
+    at `ray_address` (deploy/bench/executors.py). `policy` None: the config's default."""
     segmenter = segmenter or default_segmenter()
+    policy = policy or OpeningConfig().policy
     unit = "m" if task == "drawer" else "deg"
     jobs = [dict(task=task, seed=s, split=split, target=target, policy=policy, segmenter=segmenter,
                  calibration_error=tuple(calibration_error), condition=condition, **options)
@@ -96,7 +103,7 @@ def bench_open(
     angles = [r["axis_angle_error_deg"] for r in results if r["axis_angle_error_deg"] is not None]
     positions = [r["axis_position_error_m"] for r in results if r["axis_position_error_m"] is not None]
     forces = [r["peak_pull_force_n"] for r in results]
-    failures = Counter(r["stop_reason"] if r["stop_reason"] != "target reached" else "short of target (truth)"
+    failures = Counter(r["stop_reason"] if r["stop_reason"] != StopReason.TARGET_REACHED else "short of target (truth)"
                        for r in results if not r["success"])
     frame_ms = [r["timings"]["frame_ms_median"] for r in results if "frame_ms_median" in r["timings"]]
     frame_p90 = [r["timings"]["frame_ms_p90"] for r in results if "frame_ms_p90" in r["timings"]]
@@ -106,6 +113,7 @@ def bench_open(
         "segmenter": segmenter, "condition": condition,
         "calibration_error": {"translation_mm": calibration_error[0], "rotation_deg": calibration_error[1]},
         "success_rate": float(np.mean([r["success"] for r in results])) if results else 0.0,
+        **_reachable(results),
         f"mean_opened_{unit}": float(np.mean([r[f"true_opened_{unit}"] for r in results])) if results else 0.0,
         "axis_angle_error_deg_median": float(np.median(angles)) if angles else None,
         "axis_position_error_m_median": float(np.median(positions)) if positions else None,
@@ -120,6 +128,14 @@ def bench_open(
         "seconds_per_episode": float(np.mean([r["seconds"] for r in results])) if results else 0.0,
         "failures": dict(failures),
     }
+
+
+def _reachable(results: list[dict]) -> dict:
+    """How many episodes' targets no arm posture reaches (the part would sweep through the robot's base: a door
+    hinged close to the robot) and the success rate over the others."""
+    reachable = [r for r in results if not r["target_through_robot_base"]]
+    return {"episodes_target_through_robot_base": len(results) - len(reachable),
+            "success_rate_reachable": float(np.mean([r["success"] for r in reachable])) if reachable else None}
 
 
 def _acted_on_vs_vision_alone(results: list[dict]) -> dict:

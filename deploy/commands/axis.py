@@ -8,20 +8,23 @@ from typing import Annotated
 import typer
 
 from deploy.commands.options import ConfigFileOpt, EstimatorOpt, FilterChoice, JointChoice, JsonOpt, view_option
-from deploy.commands.output import err_console, fmt, print_json, print_rows, print_table, progress_bar
+from deploy.commands.output import err_console, fmt, print_json, print_rows, print_table, progress_bar, view_file
 
 app = typer.Typer(help="Estimate joint axes from recordings, gripper trajectories or synthetic scenes.",
                   no_args_is_help=True)
 
 
-ViewOpt = view_option("the frames, masks, gripper path and the axis estimated at each frame (REC/axis.rrd)")
+ViewOpt = view_option("the frames, masks, gripper path and the axis estimated at each frame (saved to --rrd)")
+RrdOpt = Annotated[Path | None, typer.Option(
+    "--rrd", metavar="PATH", help="Where --view saves the rerun file (implies --view) \\[default: "
+    "runs/REC-axis.rrd, REC being the recording folder's name; never inside the recording, which may be read-only].")]
 
 
 def _print_axis(title: str, data: dict) -> None:
     """The axis fields of `data` that are set: vectors and floats with 4 decimals."""
     rows = {}
-    for key in ("joint_type", "origin", "direction", "direction_sigma_deg", "radius", "residual_m", "n_samples",
-                "format", "estimator", "reason"):
+    for key in ("joint_type", "origin", "direction", "direction_sigma_deg", "radius_m", "residual_m", "n_samples",
+                "format", "estimator", "reason", "rrd"):
         value = data.get(key)
         if isinstance(value, list):
             value = "[" + ", ".join(f"{v:+.4f}" for v in value) + "]"
@@ -47,7 +50,7 @@ def axis_fit_trajectory(
     Example: deploy axis fit-trajectory handle_tum.txt
     """
     from deploy.errors import RecordingError
-    from deploy.geometry.estimators.trajectory import fit_trajectory, parse_trajectory
+    from deploy.geometry.estimators.trajectory import fit_trajectory_report, parse_trajectory
     from deploy.geometry.types import JointType
 
     if not file.is_file():
@@ -61,20 +64,29 @@ def axis_fit_trajectory(
         samples = parse_trajectory(text)
     except ValueError as exc:
         raise RecordingError(f"trajectory file {file}: {exc}") from exc
-    result = fit_trajectory(samples.positions, samples.quaternions,
-                            None if joint == JointChoice.auto else JointType(joint.value), times=samples.times)
-    data = {"joint_type": None, "origin": None, "direction": None, "direction_sigma_deg": None, "radius": None,
-            "residual_m": None, "n_samples": len(samples.positions), "format": samples.format}
-    if hasattr(result, "reason"):
-        data["reason"] = result.reason
-    else:
-        data.update({k: v for k, v in result.to_dict().items() if k in data})
+    data = fit_trajectory_report(samples.positions, samples.quaternions,
+                                 None if joint == JointChoice.auto else JointType(joint.value), times=samples.times)
+    data.update(n_samples=len(samples.positions), format=samples.format)  # confidence, noise_m, travel_m, arc_deg
     if json_out:
         print_json(data)
     else:
-        _print_axis(f"axis fitted to {file}", data)
+        _print_trajectory_fit(f"axis fitted to {file}", data)
     if "reason" in data:
         raise typer.Exit(1)
+
+
+def _print_trajectory_fit(title: str, data: dict) -> None:
+    """`fit-trajectory`'s answer as rows: the set fields, vectors and floats with 4 decimals, then an
+    undecided answer's details."""
+    rows = {}
+    for key, value in [*((k, v) for k, v in data.items() if k != "details"), *data.get("details", {}).items()]:
+        if isinstance(value, list):
+            value = "[" + ", ".join(f"{v:+.4f}" for v in value) + "]"
+        elif isinstance(value, float):
+            value = f"{value:.4f}"
+        if value is not None and key != "undecided":
+            rows.setdefault(key, value)
+    print_rows(title, rows, digits=None)
 
 
 @app.command("estimate")
@@ -85,11 +97,13 @@ def axis_estimate(
     filter_profile: Annotated[FilterChoice | None, typer.Option(
         "--filter", help="Filter profile: sparse (the paper's real-camera setting) or sim \\[default: the config's, "
         "else sim for a recording made in simulation, sparse otherwise].")] = None,
-    filter_radius: Annotated[float | None, typer.Option(help="Filter radius, in --filter-unit.")] = None,
+    filter_radius_m: Annotated[float | None, typer.Option(
+        "--filter-radius-m", help="Filter radius in metres (the paper's real-camera 1.3 cm: 0.013) \\[default: the "
+        "profile's].")] = None,
     filter_eps: Annotated[int | None, typer.Option(help="Minimum number of other points within the radius.")] = None,
-    filter_unit: Annotated[str | None, typer.Option(help="Unit of --filter-radius: m, cm or mm.")] = None,
     config: ConfigFileOpt = None,
     view: ViewOpt = False,
+    rrd: RrdOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Estimate the joint axis from a recording, re-estimating over a sliding window at every frame (with the
@@ -106,15 +120,17 @@ def axis_estimate(
         "estimator.name": estimator,
         "estimator.joint": joint.value if joint != JointChoice.auto else None,
         "filter.profile": filter_profile.value if filter_profile is not None else None,
-        "filter.radius": filter_radius, "filter.eps": filter_eps, "filter.unit": filter_unit,
+        "filter.radius_m": filter_radius_m, "filter.eps": filter_eps,
     }).for_camera(f"replay:{recording}")
     viewer = None
-    if view:
+    if view or rrd is not None:
         from deploy.control.viewer import RerunViewer
 
-        viewer = RerunViewer(recording / "axis.rrd")
+        viewer = RerunViewer(view_file(recording, rrd, "axis"))
     with progress_bar(f"estimating {recording.name}") as bar:
         data = estimate_recording(recording, cfg, progress=bar.counts, viewer=viewer)
+    if viewer is not None:
+        data["rrd"] = str(viewer.path)
     if json_out:
         print_json(data)
     else:

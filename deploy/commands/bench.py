@@ -21,7 +21,10 @@ from deploy.commands.options import (
     above,
 )
 from deploy.commands.output import console, err_console, fmt, print_json, print_rows, print_table, progress_bar
+from deploy.config import CALIBRATION_ERROR, OpeningConfig
 
+OPENING = OpeningConfig()  # the defaults of the opening targets and policy
+DEFAULT_POLICY = PolicyChoice(OPENING.policy)
 app = typer.Typer(help="Benchmarks: accuracy and speed, results for docs/benchmarks.md.", no_args_is_help=True)
 
 
@@ -106,13 +109,14 @@ def _bench_axis_paths(seed: int, json_out: bool) -> None:
 def bench_open_cmd(
     task: Annotated[Task, typer.Option(help="drawer or door.")] = Task.drawer,
     distance: Annotated[float, typer.Option(callback=above(0.0), help="Target opening of a drawer, in metres.")
-                        ] = 0.30,
-    angle: Annotated[float, typer.Option(callback=above(0.0), help="Target opening of a door, in degrees.")] = 45.0,
+                        ] = OPENING.target_distance_m,
+    angle: Annotated[float, typer.Option(callback=above(0.0), help="Target opening of a door, in degrees.")
+                     ] = OPENING.target_angle_deg,
     target: Annotated[float | None, typer.Option(callback=above(0.0), hidden=True,
                                                  help="Old name: the target in m (drawer) or deg (door).")] = None,
     episodes: Annotated[int, typer.Option(min=1, help="Episodes (consecutive scenario seeds).")] = 10,
     split: Annotated[Split, typer.Option(help="Object family.")] = Split.test,
-    policy: PolicyOpt = PolicyChoice.closed,
+    policy: PolicyOpt = DEFAULT_POLICY,
     seed: Annotated[int, typer.Option(min=0, help="First scenario seed.")] = 0,
     workers: Annotated[int, typer.Option(min=1, help="Local worker processes.")] = 1,
     ray: Annotated[str | None, typer.Option(
@@ -123,7 +127,7 @@ def bench_open_cmd(
         "the task's].")] = None,
     auto_joint: Annotated[bool, typer.Option("--auto-joint", hidden=True, help="Old name of --joint auto.")] = False,
     segmenter: SegmenterOpt = None,
-    calibration_error: CalibrationErrorOpt = (5.0, 0.5),
+    calibration_error: CalibrationErrorOpt = CALIBRATION_ERROR,
     condition: ConditionOpt = Condition.normal,
     json_out: JsonOpt = False,
 ) -> None:
@@ -156,8 +160,8 @@ def bench_sim_cmd(json_out: JsonOpt = False) -> None:
     """
     from sim_fallback.bench import bench_sim
 
-    with err_console.status("bench sim: physics, rendering and a scripted opening"):
-        data = bench_sim()
+    with progress_bar("bench sim") as bar:
+        data = bench_sim(progress=bar.describe)
     if json_out:
         print_json(data)
         return

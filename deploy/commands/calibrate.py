@@ -181,7 +181,6 @@ def hand_eye_cmd(
     from calibration.store import hand_eye_path, load_for, load_intrinsics_for
     from deploy.arm_bringup import parse_sim_faults
     from deploy.calibration_devices import choose, open_devices
-    from deploy.evaluation import calibration_error
 
     choice = choose(camera, arm, robot, pivot_mm)
     faults = parse_sim_faults(choice.arm, sim_fault)
@@ -209,7 +208,9 @@ def hand_eye_cmd(
                                own and own.distortion, bar.counts)
         path = _save(run, dev, board, directory)
         data = _hand_eye_summary(run, path) | {"camera_serial": serial, "robot_id": robot_id}
-        if dev.rig is not None:
+        if dev.rig is not None:  # simulation: scored against the scene's truth
+            from deploy.evaluation import calibration_error
+
             err_mm, err_deg = calibration_error(dev.rig, run.best.T_camera)
             data |= {"true_error_mm": err_mm, "true_error_deg": err_deg}
     if json_out:

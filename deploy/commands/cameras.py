@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from deploy.commands.options import JsonOpt, RobotOpt, above, kind_option, overwrite_option, view_option
+from deploy.commands.options import JsonOpt, RobotOpt, SimFaultOpt, above, kind_option, overwrite_option, view_option
 from deploy.commands.output import console, print_json, print_table, progress_bar
 from drivers.arm.registry import ARMS
 from drivers.camera.registry import CAMERAS
@@ -36,10 +36,9 @@ ViewOpt = view_option("the frames, the camera and the tool pose")
 def open_any_camera(spec: str, width: int = 640, height: int = 480, fps: int = 30) -> Iterator[Camera]:
     """The camera `spec` names, connected, from the rig builder (`sim`: the simulated drawer scene of seed 0)."""
     from deploy.rig import RigSpec, open_rig
-    from drivers.camera.registry import CAMERAS
+    from drivers.camera.registry import stream_options
 
-    entry, _ = CAMERAS.entry(spec)
-    options = {"width": width, "height": height, "fps": fps} if entry.name in ("d415", "sim") else {}
+    options = stream_options(spec, {"width": width, "height": height, "fps": fps})
     with open_rig(RigSpec(camera=spec, arm=None, camera_options=options)) as rig:
         yield rig.camera
 
@@ -95,6 +94,9 @@ def record_cmd(
     camera: CameraSpecOpt = "d415",
     arm: ArmRecordOpt = None,
     robot: RobotOpt = None,
+    calibration: Annotated[Path | None, typer.Option(
+        "--calibration", metavar="FILE", help="With --arm: hand-eye calibration giving the camera's pose per frame "
+        "\\[default: the one saved for this camera and robot].")] = None,
     seconds: Annotated[float | None, typer.Option(callback=above(0.0), help="Camera seconds to record.")] = None,
     frames: Annotated[int | None, typer.Option(min=1, help="Frames to record.")] = None,
     width: WidthOpt = 640,
@@ -102,6 +104,7 @@ def record_cmd(
     fps: FpsOpt = 30,
     view: ViewOpt = False,
     overwrite: OverwriteOpt = False,
+    sim_fault: SimFaultOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Record a camera to a frames directory, flushing every frame (Ctrl-C keeps what was recorded); with
@@ -112,17 +115,20 @@ def record_cmd(
     """
     from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
 
+    from deploy.arm_bringup import parse_sim_faults
     from deploy.errors import RecordingError
     from deploy.output_folder import prepare_output
     from deploy.recording import record_rig
 
     if seconds is None and frames is None:
         raise RecordingError("deploy record: say how long to record with --seconds S or --frames N")
+    faults = parse_sim_faults(arm or "none", sim_fault)  # SECONDS: into the recording (the arm is only read)
     prepare_output(out, overwrite, "recording")
     columns = (TextColumn("recording"), BarColumn(), TextColumn("{task.completed} frames"), TimeElapsedColumn())
     with progress_bar("record", frames, *columns) as bar:
         summary = record_rig(camera, out, frames, seconds, arm, robot, {"width": width, "height": height,
-                                                                        "fps": fps}, bar.advance, view)
+                                                                        "fps": fps}, bar.advance, view,
+                              calibration, sim_faults=faults)
     if json_out:
         print_json(summary)
     else:

@@ -31,6 +31,7 @@ from deploy.commands.options import (
     yes_option,
 )
 from deploy.commands.output import print_json, print_rows
+from deploy.config import CALIBRATION_ERROR
 
 top_level = typer.Typer()  # its commands sit directly under `deploy`
 
@@ -97,6 +98,7 @@ def _open(request_fields: dict, json_out: bool, sim_fault: list[str] | None, ove
 
     from deploy.arm_bringup import inject_sim_faults, parse_sim_faults
     from deploy.control.session import OpenRequest, open_object
+    from deploy.control.state import StopReason
     from deploy.errors import ConfigError
     from deploy.output_folder import prepare_output
     from drivers.camera.registry import CAMERAS
@@ -113,7 +115,7 @@ def _open(request_fields: dict, json_out: bool, sim_fault: list[str] | None, ove
     data = open_object(request, confirm=lambda question: typer.confirm(question, abort=True),
                        setup=(lambda _world, arm: inject_sim_faults(arm, faults)) if faults else None)
     _print_episode(data, json_out)
-    if not (data["success"] or data["stop_reason"] == "dry run"):
+    if not (data["success"] or data["stop_reason"] == StopReason.DRY_RUN):
         raise typer.Exit(1)
 
 
@@ -136,7 +138,7 @@ def open_drawer(
     dry_run: DryRunOpt = False,
     yes: YesOpt = False,
     view: ViewOpt = False,
-    calibration_error: CalibrationErrorOpt = (5.0, 0.5),
+    calibration_error: CalibrationErrorOpt = CALIBRATION_ERROR,
     condition: ConditionOpt = Condition.normal,
     sim_fault: SimFaultOpt = None,
     overwrite: OverwriteOpt = False,
@@ -174,7 +176,7 @@ def open_door(
     dry_run: DryRunOpt = False,
     yes: YesOpt = False,
     view: ViewOpt = False,
-    calibration_error: CalibrationErrorOpt = (5.0, 0.5),
+    calibration_error: CalibrationErrorOpt = CALIBRATION_ERROR,
     condition: ConditionOpt = Condition.normal,
     sim_fault: SimFaultOpt = None,
     overwrite: OverwriteOpt = False,
@@ -215,7 +217,7 @@ def open_any(
     dry_run: DryRunOpt = False,
     yes: YesOpt = False,
     view: ViewOpt = False,
-    calibration_error: CalibrationErrorOpt = (5.0, 0.5),
+    calibration_error: CalibrationErrorOpt = CALIBRATION_ERROR,
     condition: ConditionOpt = Condition.normal,
     sim_fault: SimFaultOpt = None,
     overwrite: OverwriteOpt = False,

@@ -115,9 +115,9 @@ CalibrationErrorOpt = Annotated[tuple[float, float], typer.Option(
     "--calibration-error", metavar="MM DEG", help="Simulation: the calibrated camera pose is off by MM and DEG "
     "(each in a random direction drawn from the seed), as a field hand-eye calibration is; 0 0 for the exact pose.")]
 ConfigFileOpt = Annotated[Path | None, typer.Option(
-    "--config", metavar="FILE", help="The run's TOML config: [filter] [geometry] [estimator] [opening] (targets, "
-    "steps, speeds, timeouts) [perception] (prompts, box, thresholds, models); options given here override it "
-    "(docs/cli.md#configuration).")]
+    "--config", metavar="FILE", help="The run's TOML config: \\[filter] (profile, radius_m, eps) \\[geometry] "
+    "\\[estimator] \\[opening] (targets, steps, speeds, timeouts) \\[perception] (prompts, box, thresholds, models); "
+    "options given here override it (see Configuration in docs/quickstart.md).")]
 FilterOpt = Annotated[FilterChoice | None, typer.Option(
     "--filter", help="Cloud filter: sparse (the paper's real-camera setting: radius 1.3 cm, eps 1) or sim (its "
     "simulation setting: radius 0.05 m, eps 100) \\[default: the config's, else sim for simulated cameras and "

@@ -1,12 +1,15 @@
-"""What the `deploy` commands print: JSON on stdout, rich tables, and progress bars on stderr."""
+"""What the `deploy` commands print: JSON on stdout, rich tables, and progress (bars on a terminal, lines
+elsewhere) and log lines on stderr."""
 
 from __future__ import annotations
 
 import json
 import logging
 import sys
-from collections.abc import Iterable, Iterator, Sequence
+import time
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
@@ -23,21 +26,40 @@ OUR_PACKAGES = ("deploy", "drivers", "calibration", "sim_fallback")
 STEP_LOGGER = "deploy.control.steps"  # deploy.control.viewer's per-step lines, shown without --verbose too
 
 
-def configure_logging(verbose: bool) -> None:
-    """Log records to stderr through rich: the episode's step lines always; with `verbose` every INFO record
-    and our packages' DEBUG records too. Without `verbose` nothing else changes (other records go where
-    Python's logging sends them by default)."""
-    from rich.logging import RichHandler
+class _StderrHandler(logging.StreamHandler):
+    """One plain line per record on the current sys.stderr (never wrapped, whatever the width)."""
 
+    def emit(self, record: logging.LogRecord) -> None:
+        self.stream = sys.stderr  # not setStream: it would flush the old stream, which may be closed by now
+        super().emit(record)
+
+
+def _log_handler(verbose: bool) -> logging.Handler:
+    """Without `verbose` (the step lines only): plain lines. With it: rich's columns (time, level, where) on a
+    terminal; plain lines with time, level and logger elsewhere (a file or a pipe: one line per record)."""
+    if verbose and err_console.is_terminal:
+        from rich.logging import RichHandler
+
+        handler: logging.Handler = RichHandler(console=err_console, show_path=True, markup=False,
+                                               rich_tracebacks=False)
+        handler.setFormatter(logging.Formatter("%(message)s"))
+    else:
+        handler = _StderrHandler()
+        handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)-7s %(name)s: %(message)s" if verbose
+                                               else "%(message)s"))
+    handler.axisloop = True  # type: ignore[attr-defined]
+    return handler
+
+
+def configure_logging(verbose: bool) -> None:
+    """Log records to stderr: the episode's step lines always (one line each); with `verbose` every INFO record
+    and our packages' DEBUG records too (run config, devices, calibration, detections, grasp, estimates).
+    Without `verbose` nothing else changes (other records go where Python's logging sends them by default)."""
     root, steps = logging.getLogger(), logging.getLogger(STEP_LOGGER)
     for logger in (root, steps):
         for handler in [h for h in logger.handlers if getattr(h, "axisloop", False)]:
             logger.removeHandler(handler)
-    handler = RichHandler(console=err_console, show_time=verbose, show_level=verbose, show_path=verbose,
-                          markup=False, rich_tracebacks=False)
-    handler.axisloop = True  # type: ignore[attr-defined]
-    handler.setFormatter(logging.Formatter("%(message)s"))
-    (root if verbose else steps).addHandler(handler)
+    (root if verbose else steps).addHandler(_log_handler(verbose))
     root.setLevel(logging.INFO if verbose else logging.WARNING)
     for name in OUR_PACKAGES:
         logging.getLogger(name).setLevel(logging.DEBUG if verbose else logging.NOTSET)
@@ -77,8 +99,8 @@ def fmt(value: float | None, scale: float = 1.0, digits: int = 2) -> str:
 class Bar:
     """One task of a transient progress display; its methods fit the `progress=` callbacks of the library."""
 
-    def __init__(self, progress: Progress, job: TaskID) -> None:
-        self._progress, self._job = progress, job
+    def __init__(self, progress: Progress, job: TaskID, label: str = "") -> None:
+        self._progress, self._job, self._label = progress, job, label
 
     def counts(self, done: float, total: float | None) -> None:
         """`done` of `total` steps (a total learned as the work runs)."""
@@ -93,14 +115,71 @@ class Bar:
         self._progress.advance(self._job)
 
     def describe(self, what: str) -> None:
-        """Show what is running now."""
-        self._progress.update(self._job, description=what)
+        """Show what is running now (after the bar's label)."""
+        self._progress.update(self._job, description=f"{self._label}: {what}" if self._label else what)
+
+
+class LineBar:
+    """`Bar` for a stderr that is not a terminal (a log file, a pipe, CI), where a live bar shows nothing:
+    plain lines `LABEL: 40/133` (or `LABEL: 40` without a total) at most every `every_s` seconds, a line per
+    new description (phase), and the last count at the end when a count line was printed."""
+
+    def __init__(self, label: str, total: float | None = None, every_s: float = 2.0,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.label, self.total, self.every_s, self.clock = label, total, every_s, clock
+        self.done: float = 0
+        self._printed_at = clock()
+        self._shown: float | None = None
+
+    def _line(self, text: str) -> None:
+        sys.stderr.write(f"{text}\n")
+        sys.stderr.flush()
+
+    def _count(self, force: bool = False) -> None:
+        now = self.clock()
+        if (force or now - self._printed_at >= self.every_s) and self.done != self._shown:
+            total = "" if self.total is None else f"/{self.total:g}"
+            self._line(f"{self.label}: {self.done:g}{total}")
+            self._printed_at, self._shown = now, self.done
+
+    def counts(self, done: float, total: float | None) -> None:
+        self.done, self.total = done, total
+        self._count()
+
+    def completed(self, done: float) -> None:
+        self.done = done
+        self._count()
+
+    def advance(self, _item: object = None) -> None:
+        self.done += 1
+        self._count()
+
+    def describe(self, what: str) -> None:
+        self._line(f"{self.label}: {what}")
+        self._printed_at = self.clock()
+
+    def finish(self) -> None:
+        if self._shown is not None:
+            self._count(force=True)
 
 
 @contextmanager
-def progress_bar(label: str, total: float | None = None, *columns: str | ProgressColumn) -> Iterator[Bar]:
-    """A progress bar on stderr that disappears when done; `columns` replace rich's default ones."""
-    from rich.progress import Progress
+def progress_bar(label: str, total: float | None = None, *columns: str | ProgressColumn) -> Iterator[Bar | LineBar]:
+    """Progress on stderr: on a terminal a bar with counts that disappears when done (`columns` replace the
+    default ones), elsewhere `LineBar`'s plain lines."""
+    if not err_console.is_terminal:
+        bar = LineBar(label, total)
+        yield bar
+        bar.finish()
+        return
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+    columns = columns or (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
     with Progress(*columns, console=err_console, transient=True) as progress:
-        yield Bar(progress, progress.add_task(label, total=total))
+        yield Bar(progress, progress.add_task(label, total=total), label)
+
+
+def view_file(recording: Path, rrd: Path | None, what: str) -> Path:
+    """Where `--view` on a recording saves its rerun file: `rrd` when given, else runs/NAME-WHAT.rrd (NAME: the
+    recording folder's), never inside the recording (it may be read-only, or a shared data set)."""
+    return rrd if rrd is not None else Path("runs") / f"{Path(recording).resolve().name}-{what}.rrd"

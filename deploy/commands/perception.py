@@ -7,8 +7,8 @@ from typing import Annotated
 
 import typer
 
-from deploy.commands.options import JsonOpt, kind_option, view_option
-from deploy.commands.output import print_json, print_rows, print_table, progress_bar
+from deploy.commands.options import JsonOpt, kind_option, overwrite_option, view_option
+from deploy.commands.output import print_json, print_rows, print_table, progress_bar, view_file
 from deploy.perception.registry import SEGMENTERS
 
 top_level = typer.Typer()  # its commands sit directly under `deploy`
@@ -22,7 +22,8 @@ TrackerOpt = Annotated[str | None, typer.Option(
 
 
 TrackSegmenterOpt = kind_option(SEGMENTERS, "--segmenter", " Backend.")
-ViewOpt = view_option("the frames and the masks found (in the output folder, track.rrd)")
+TrackOverwriteOpt = overwrite_option("recording at --out")
+ViewOpt = view_option("the frames and the masks found (saved to --rrd)")
 
 
 @top_level.command("track")
@@ -31,7 +32,8 @@ def track(
     prompt: Annotated[str, typer.Option(help="What to segment (Grounding DINO text prompt).")] = "cabinet",
     segmenter: TrackSegmenterOpt = "gdino-sam2",
     box: Annotated[tuple[float, float, float, float] | None, typer.Option(
-        help="First-frame box X0 Y0 X1 Y1 in pixels; skips detection (required by classical).")] = None,
+        "--box", metavar="X0 Y0 X1 Y1", help="First-frame box in pixels; skips detection (required by "
+        "classical).")] = None,
     out: Annotated[Path | None, typer.Option(
         help="Write a copy of the recording with the masks here (default: into the recording).")] = None,
     handle_prompt: Annotated[str, typer.Option(help="Handle prompt; empty to not track the handle.")] = "handle",
@@ -39,6 +41,10 @@ def track(
     tracker: TrackerOpt = None,
     device: DeviceOpt = "auto",
     view: ViewOpt = False,
+    rrd: Annotated[Path | None, typer.Option(
+        "--rrd", metavar="PATH", help="Where --view saves the rerun file (implies --view) \\[default: OUT/track.rrd "
+        "with --out, else runs/REC-track.rrd: never inside the input recording].")] = None,
+    overwrite: TrackOverwriteOpt = False,
     json_out: JsonOpt = False,
 ) -> None:
     """Segment and track the object through a recording, writing masks (mask/ folder) and an overlay PNG strip.
@@ -47,22 +53,28 @@ def track(
       deploy track runs/rec --prompt cabinet --out runs/rec-masks
       deploy track runs/rec --segmenter classical --box 112 79 468 362 --out runs/rec-classical --json
     """
+    from deploy.output_folder import prepare_output
     from deploy.perception.config import perception_config
     from deploy.perception.registry import make_segmenter
     from deploy.perception.track_recording import track_recording
     from drivers.camera.frames_dir import FramesRecording
 
     FramesRecording(recording)  # a wrong path fails here, before any model loads
+    if out is not None and out.resolve() != recording.resolve():
+        prepare_output(out, overwrite, "recording")
     config = perception_config(object_prompt=prompt, handle_prompt=handle_prompt or None, box=box,
                                detector=detector, tracker=tracker, device=device)
     backend = make_segmenter(segmenter, config)
     viewer = None
-    if view:
+    if view or rrd is not None:
         from deploy.control.viewer import RerunViewer
 
-        viewer = RerunViewer((out or recording) / "track.rrd")
+        viewer = RerunViewer(out / "track.rrd" if rrd is None and out is not None else view_file(recording, rrd,
+                                                                                                  "track"))
     with progress_bar(f"tracking {recording.name}") as bar:
         data = track_recording(recording, backend, prompt, out, progress=bar.counts, viewer=viewer)
+    if viewer is not None:
+        data["rrd"] = str(viewer.path)
     if json_out:
         print_json(data)
         return

@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 
 from deploy.commands.options import JsonOpt, Split, Task, above, overwrite_option
-from deploy.commands.output import console, err_console, print_json
+from deploy.commands.output import console, err_console, print_json, progress_bar
 
 app = typer.Typer(help="PyBullet simulation: render scenes and record scripted openings.", no_args_is_help=True)
 
@@ -17,6 +17,7 @@ TaskOpt = Annotated[Task, typer.Option(help="Cabinet with a drawer or a door.")]
 SeedOpt = Annotated[int, typer.Option(min=0, help="Scenario seed.")]
 SplitOpt = Annotated[Split, typer.Option(help="Object family.")]
 OverwriteOpt = overwrite_option("recording at --out")
+PHASES = {"grasp": "grasping the handle", "open": "opening along the true axis", "hold": "holding"}
 
 
 @app.command("show")
@@ -60,8 +61,16 @@ def sim_record(
     from sim_fallback.scripted import record_scripted
 
     prepare_output(out, overwrite, "recording")
-    with err_console.status(f"recording a scripted {task.value} opening (seed {seed}) to {out}"):
-        summary = record_scripted(task.value, seed, out, split=split.value, fps=fps)
+    with progress_bar(f"sim record {task.value} (seed {seed})") as bar:
+        shown = {"phase": ""}
+
+        def each(phase: str, frames: int) -> None:
+            if phase != shown["phase"]:
+                shown["phase"] = phase
+                bar.describe(PHASES[phase])
+            bar.counts(frames, None)
+
+        summary = record_scripted(task.value, seed, out, split=split.value, fps=fps, progress=each)
     if json_out:
         unit, scale = ("m", 1.0) if task is Task.drawer else ("deg", math.degrees(1.0))
         print_json({"out": str(out), "task": task.value, "seed": seed, "split": split.value,
@@ -69,4 +78,4 @@ def sim_record(
                     f"target_{unit}": summary.target * scale, "sim_time_s": summary.sim_time_s,
                     "wall_time_s": summary.wall_time_s})
     else:
-        console.print(f"wrote {out}: {summary}")
+        console.print(f"wrote {out}: {summary}", soft_wrap=True)

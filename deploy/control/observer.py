@@ -4,6 +4,7 @@ own pixels (depth and mask) before anything else sees a frame; the run folder ke
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 
@@ -20,6 +21,8 @@ from deploy.perception.self_filter import SelfFilter
 from drivers.arm.base import ArmState
 from drivers.arm.kinematics import Kinematics
 from drivers.camera.base import Camera, Frame
+
+log = logging.getLogger(__name__)
 
 
 class Observer:
@@ -66,6 +69,9 @@ class Observer:
         self.pipeline.update_frame(frame, mask, pose)
         self._log(raw, mask, state)
         self.first_points = frame_points(frame, mask, self.pipeline.config)
+        log.info("first frame %d: segmenter %s found the object (prompt %r): %d pixels in box %s px, %d points",
+                 frame.index, getattr(self.segmenter, "name", "?"), self.config.perception.object_prompt,
+                 self.mask_pixels, _box_text(mask), len(self.first_points))
         if self.viewer is not None:
             self.viewer.cloud(self.first_points)
         self.next_frame_t = state.t
@@ -92,6 +98,7 @@ class Observer:
                                   "or is occluded")
             pose = self.kin.fk(state.q)
             self.vision = self.pipeline.update_frame(frame, mask, pose).result
+            log.info("frame %d (t %.2f s): %s", frame.index, state.t - self.t0, _estimate_text(self.vision))
             self.last_seen = frame, mask
             self.frame_ms.append((time.perf_counter() - start) * 1e3)
             self.frame_cpu_ms.append((time.thread_time() - cpu) * 1e3)
@@ -114,3 +121,17 @@ class Observer:
             self.folder.write_frame(frame, mask, state.q, pose)
         if self.viewer is not None:
             self.viewer.frame(state.t - self.t0, frame, mask, pose)
+
+
+def _box_text(mask: np.ndarray) -> str:
+    """The mask's bounding box (x0, y0, x1, y1) in pixels, for the log."""
+    ys, xs = np.nonzero(mask)
+    return "(none)" if len(xs) == 0 else f"({xs.min()}, {ys.min()}, {xs.max() + 1}, {ys.max() + 1})"
+
+
+def _estimate_text(result: AxisResult) -> str:
+    """One estimate for the log: joint type, direction, origin (m), confidence; or why there is none."""
+    if isinstance(result, NoAxis):
+        return f"no axis yet ({result.reason})"
+    d, o = np.round(result.direction, 3).tolist(), np.round(result.origin, 3).tolist()
+    return f"{result.joint_type.value} axis, direction {d}, origin {o} m, confidence {result.confidence:.2f}"

@@ -2,7 +2,10 @@
 
     RUN/frames/      frames-directory recording (colour, depth, segmenter mask, ee_pose, joint_positions);
                      replays through `deploy axis estimate RUN/frames`
-    RUN/steps.json   result, axis estimate per step, commanded and measured gripper poses per motion
+    RUN/config.json  the resolved run config the episode used (every section, the filter profile the camera
+                     chose, and `filter_used`: the radius in metres and eps), written with the first frame
+    RUN/steps.json   result, axis estimate per step, commanded and measured gripper poses per motion, and a CAN
+                     arm's final motor states (`motors`: name, CAN id, enabled, status)
     RUN/report.png   axis estimates over the first colour frame, opening vs time, axis error per step
 """
 
@@ -21,24 +24,38 @@ from drivers.camera.base import Frame
 from drivers.camera.frames_dir import FramesWriter
 
 if TYPE_CHECKING:
+    from deploy.config import Config
     from deploy.control.episode import EpisodeResult
 
+CONFIG_FILE = "config.json"
 AXIS_HALF_LENGTH_M = 0.4  # drawn axis segments reach this far either side of the origin
 
 
 class RunFolder:
     """Writes one episode's run folder as it goes; `finish` adds steps.json and the PNG report."""
 
-    def __init__(self, path: Path, camera: str | None = None, simulated: bool = False) -> None:
+    def __init__(self, path: Path, camera: str | None = None, simulated: bool = False,
+                 config: Config | None = None) -> None:
         """`camera`: the camera spec, and whether it is `simulated`, stored with the frames (they pick the
-        recording's filter profile when it is replayed)."""
+        recording's filter profile when it is replayed); `config`: the resolved run config, kept as
+        config.json."""
         self.camera, self.simulated = camera, simulated
         self.path = Path(path)
         self.path.mkdir(parents=True, exist_ok=True)
         self._writer: FramesWriter | None = None
         self.motions: list[dict] = []
+        self._config = config  # written with the first frame (a run refused before it leaves the folder empty)
+
+    def write_config(self, config: Config) -> None:
+        """RUN/config.json: `config` as the episode used it (JSON: no value is left out, None is null)."""
+        used = config.filter.resolve()
+        data = {**config.model_dump(mode="json"), "filter_used": {"radius_m": used.radius_m, "eps": used.eps}}
+        (self.path / CONFIG_FILE).write_text(json.dumps(data, indent=1) + "\n")
+        self._config = None
 
     def write_frame(self, frame: Frame, mask: np.ndarray, q: np.ndarray, ee_pose: np.ndarray) -> None:
+        if self._config is not None:
+            self.write_config(self._config)
         if self._writer is None:
             self._writer = FramesWriter(self.path / "frames", frame.intrinsics, T_base_camera=frame.T_base_camera,
                                         camera=self.camera, simulated=self.simulated)
@@ -48,9 +65,12 @@ class RunFolder:
         self.motions.append({"label": label, "reason": result.reason, "t": result.t.tolist(),
                              "commanded": result.planned.tolist(), "measured": result.measured.tolist()})
 
-    def finish(self, result: EpisodeResult, axis_error: Callable[[Axis], tuple[float, float]] | None = None) -> None:
+    def finish(self, result: EpisodeResult, axis_error: Callable[[Axis], tuple[float, float]] | None = None,
+               motors: list[dict] | None = None) -> None:
         """Close the recording and write steps.json and report.png (axis errors only with `axis_error`, which
-        evaluation passes in simulation)."""
+        evaluation passes in simulation; `motors`: a CAN arm's final motor states, as in the episode's JSON)."""
+        if self._config is not None:
+            self.write_config(self._config)
         if self._writer is not None:
             self._writer.close()
         errors = [None if e["axis"] is None or axis_error is None else axis_error(_axis(e["axis"]))
@@ -58,8 +78,10 @@ class RunFolder:
         steps = [{**e, "axis_angle_error_deg": None if err is None else err[0],
                   "axis_position_error_m": None if err is None else err[1]}
                  for e, err in zip(result.estimates, errors, strict=True)]
-        (self.path / "steps.json").write_text(json.dumps(
-            {"result": result.to_dict(), "steps": steps, "motions": self.motions}, indent=1) + "\n")
+        data = {"result": result.to_dict(), "steps": steps, "motions": self.motions}
+        if motors is not None:
+            data["motors"] = motors
+        (self.path / "steps.json").write_text(json.dumps(data, indent=1) + "\n")
         write_report(self.path / "report.png", result, errors)
 
 

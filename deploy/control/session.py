@@ -8,6 +8,7 @@ before its first motion unless --yes or --dry-run. The JSON names units in its k
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -15,7 +16,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any, Literal
 
-from deploy.config import Config, load_config
+from deploy.config import CALIBRATION_ERROR, Config, load_config
 from deploy.control.episode import run_episode
 from deploy.control.run_folder import RunFolder
 from deploy.control.viewer import EpisodeView
@@ -23,6 +24,8 @@ from deploy.perception.registry import default_segmenter
 from deploy.rig import Rig, RigSpec, SimScene, open_rig
 from drivers.camera.registry import CAMERAS
 from drivers.interrupts import Interrupted
+
+log = logging.getLogger(__name__)
 
 Setup = Callable[[Any, Any], None]  # (world, arm) -> None: changes a simulated world before the episode (tests)
 
@@ -52,7 +55,7 @@ class OpenRequest:
     yes: bool = False
     view: bool = False
     resolution: tuple[int, int] = (640, 480)
-    calibration_error: tuple[float, float] = (5.0, 0.5)
+    calibration_error: tuple[float, float] = CALIBRATION_ERROR
     condition: Literal["normal", "locked", "stiff"] = "normal"  # the simulated object's joint (never told)
     config_file: Path | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
@@ -74,7 +77,20 @@ class OpenRequest:
                        if simulated else {})
 
     def folder(self) -> Path:
-        return self.run_dir or Path("runs") / f"{self.task}-{datetime.now():%Y%m%d-%H%M%S}"
+        """`run_dir`, or a new folder under runs/ named by the task and the time, claimed so that runs started in
+        the same second (parallel jobs) never share one."""
+        if self.run_dir is not None:
+            return self.run_dir
+        stem = Path("runs") / f"{self.task}-{datetime.now():%Y%m%d-%H%M%S}"
+        stem.parent.mkdir(parents=True, exist_ok=True)
+        path, k = stem, 1
+        while True:
+            try:
+                path.mkdir()
+                return path
+            except FileExistsError:
+                k += 1
+                path = stem.with_name(f"{stem.name}-{k}")
 
 
 def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = None,
@@ -86,8 +102,9 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
     wall = time.perf_counter()
     config = request.config()
     run_dir = request.folder() if keep_run_dir else None
+    _log_config(config)
     folder = None if run_dir is None else RunFolder(
-        run_dir, request.camera, CAMERAS.entry(request.camera)[0].simulated)
+        run_dir, request.camera, CAMERAS.entry(request.camera)[0].simulated, config)
     with open_rig(request.rig_spec(config)) as rig:
         if setup is not None:
             setup(rig.world, rig.arm)
@@ -116,8 +133,19 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
                          "calibration_error": {"translation_mm": translation_mm, "rotation_deg": rotation_deg},
                          **evaluation.score(result, config.opening), "seconds": time.perf_counter() - wall})
     if folder is not None:
-        folder.finish(result, evaluation.axis_error if evaluation is not None else None)
+        folder.finish(result, evaluation.axis_error if evaluation is not None else None, data.get("motors"))
     return data
+
+
+def _log_config(config: Config) -> None:
+    """The resolved run config, for --verbose."""
+    o, e = config.opening, config.estimator
+    target = (f"{o.target_distance_m:g} m" if o.task == "drawer" else f"{o.target_angle_deg:g} deg" if o.task == "door"
+              else f"{o.target_distance_m:g} m or {o.target_angle_deg:g} deg")
+    log.info("run config: filter %s (%s); estimator %s, joint %s, window %d; opening %s to %s, policy %s, fusion "
+             "%s, max %d steps, timeout %g s; prompt %r, box %s", config.filter.profile, config.filter.resolve(),
+             e.name, e.joint, e.window, o.task, target, o.policy, o.fusion, o.max_steps, o.timeout_s,
+             config.perception.object_prompt, config.perception.box)
 
 
 def _filter(config: Config) -> dict:

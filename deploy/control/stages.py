@@ -3,6 +3,7 @@ episode by raising `EpisodeStop` with a `StopReason`."""
 
 from __future__ import annotations
 
+import logging
 import time
 
 import cv2
@@ -36,6 +37,9 @@ from drivers.arm.motion import (
     move_to_pose,
 )
 from drivers.arm.trajectory import MotionLimits
+from drivers.arm.wrench import WrenchEstimator
+
+log = logging.getLogger(__name__)
 
 GRIPPER_FORCE_N = 40.0
 CLOSE_TIME_S = 0.5
@@ -50,6 +54,8 @@ ARM_TOUCH_PX = 100  # the arm's pixels touching the object's on the first frame:
 CLEAR_VIEW_TURNS_RAD = (0.7, -0.7, 1.2, -1.2)  # first-joint swings tried to take the arm out of the view
 MIN_DOOR_RADIUS_M = 0.1  # the first arc's radius is taken as at least this
 PLANNED_DOOR_REACH_M = 0.1  # a door's pre-grasp is planned for this much straight pull
+PRESS_N = 10.0  # the approach ended with the tool pushing the handle this hard: ease back before closing
+EASE_STEP_M, MAX_EASE_M = 0.004, 0.02  # easing back: step, and at most this far
 
 
 def run(episode: Episode, dry_run: bool = False) -> tuple[StopReason, str]:
@@ -82,7 +88,13 @@ def perceive(episode: Episode) -> Handle:
         raise EpisodeStop(StopReason.NO_HANDLE, "no handle found on the first frame (too few points protrude "
                           "from the front): check the camera view and the mask")
     episode.state.handle = handle
+    log.info("handle found: centre %s m, front normal %s, bar %s, %d points", _vec(handle.center),
+             _vec(handle.normal), _vec(handle.bar), handle.points)
     return handle
+
+
+def _vec(v: np.ndarray) -> str:
+    return str(np.round(np.asarray(v, float), 3).tolist())
 
 
 def _find_handle(episode: Episode) -> Handle | None:
@@ -135,6 +147,8 @@ def plan(episode: Episode, handle: Handle) -> tuple[StopReason, str]:
     q_pre = pregrasp_configuration(kin, episode.arm.state().q, T_grasp, _planned_reach(episode) * handle.normal,
                                    episode.config.opening.approach_m)
     state.axis = _prior(episode, handle)
+    log.info("grasp plan (dry run): grasp at %s m, pre-grasp joints %s rad, prior axis %s along %s",
+             _vec(T_grasp[:3, 3]), _vec(q_pre), state.axis.joint_type.value, _vec(state.axis.direction))
     state.commanded.extend([kin.fk(q_pre), T_grasp])
     state.estimates.append({"step": 0, "t": 0.0, "source": "plan (prior)", "axis": state.axis.to_dict(),
                             f"opened_{opening_unit(state.joint_type())}": 0.0, "vision": "dry run"})
@@ -150,11 +164,14 @@ def grasp(episode: Episode, handle: Handle) -> None:
     approach = episode.config.opening.approach_m
     T_grasp = grasp_pose(handle)
     q_pre = pregrasp_configuration(kin, arm.state().q, T_grasp, _planned_reach(episode) * handle.normal, approach)
+    log.info("grasp plan: grasp at %s m, approach %.3f m straight in, pre-grasp joints %s rad", _vec(T_grasp[:3, 3]),
+             approach, _vec(q_pre))
     arm.set_gripper(1.0)  # fully open (clipped to the gripper's width)
     move_to_joints(arm, q_pre, episode.joint_limits)
     open_width = arm.state().gripper_width_m
     T = episode.tool()
     follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), approach, episode.line_limits())
+    _ease_off_press(episode)
     _close_and_check(episode, open_width, StopReason.GRASP_FAILED)
     state.open_width_m = open_width
     state.p_grasp = episode.tool()[:3, 3]
@@ -302,6 +319,23 @@ def _pull(episode: Episode, path: PathFn, length: float, label: str, limits: Mot
         raise EpisodeStop(StopReason.BLOCKED, f"no more motion during {label} ({result.reason}): the joint is at "
                           "its limit or locked, or the object presses on the arm itself (a door's sweep): check "
                           "the arm's clearance")
+
+
+def _ease_off_press(episode: Episode) -> None:
+    """A handle nearer than seen (a short knob, the calibration's error) leaves the palm pushing on it at the
+    approach's end. The first pull would start by releasing that push, which its force bound reads as resistance
+    (a pull held still at 0 deg): back off along the approach, before closing, until the tool no longer pushes.
+    Arms that measure no joint torques skip this."""
+    arm, kin = episode.arm, episode.kin
+    wrench = WrenchEstimator(kin, time_constant_s=0.0)
+    for _ in range(round(MAX_EASE_M / EASE_STEP_M)):
+        state = arm.state()
+        w = wrench.update(state)
+        T = kin.fk(state.q)
+        if w is None or w[:3] @ T[:3, 2] < PRESS_N:
+            return
+        follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), EASE_STEP_M, episode.line_limits())
+        episode.wait(SETTLE_S)
 
 
 def _close_and_check(episode: Episode, open_width: float, failure: StopReason, context: str = "") -> None:

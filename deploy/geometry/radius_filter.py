@@ -52,7 +52,8 @@ def _check(radius: float, eps: int) -> None:
 
 @dataclass(frozen=True)
 class FilterProfile:
-    """A radius-filter setting with an explicit unit for the radius ("m", "cm" or "mm")."""
+    """A radius-filter setting: `radius` in the explicit `unit` ("m", "cm" or "mm"; `radius_m` in metres),
+    so that a setting is written as its source gives it (the paper's 1.3 cm) and never depends on context."""
 
     radius: float
     eps: int
@@ -69,15 +70,20 @@ class FilterProfile:
     def radius_m(self) -> float:
         return self.radius * _UNITS_TO_M[self.unit]
 
+    def __str__(self) -> str:
+        given = "" if self.unit == "m" else f" ({self.radius:g} {self.unit})"
+        return f"radius {self.radius_m:g} m{given}, eps {self.eps}"
+
 
 FILTER_PROFILES: dict[str, FilterProfile] = {
     "sim": FilterProfile(0.05, 100, "m"),
     "sparse": FilterProfile(1.3, 1, "cm"),
 }
-"""Named settings. "sim" is the paper's simulation setting. "sparse" is its real-camera setting "r = 1.3,
-eps = 1", given without a unit: we read centimetres (13 mm). In millimetres the radius would sit at the
-D415's point spacing at 0.8 m (about 1.3 mm at 640x480, fx ~ 600 px) plus ~1.5 mm axial noise, so eps = 1
-would strip real surface; in metres it would cover the whole object and remove nothing."""
+"""Named settings, each with its unit. "sim" is the paper's simulation setting (r = 0.05 m, eps = 100). "sparse"
+is its real-camera setting (D415) "r = 1.3, eps = 1", given there without a unit: we read centimetres (13 mm,
+`radius_m` 0.013; a run config overrides it in metres only, `[filter] radius_m`). In millimetres the radius
+would sit at the D415's point spacing at 0.8 m (about 1.3 mm at 640x480, fx ~ 600 px) plus ~1.5 mm axial
+noise, so eps = 1 would strip real surface; in metres it would cover the whole object and remove nothing."""
 
 
 def radius_outlier_mask(points: np.ndarray, radius_m: float, eps: int) -> np.ndarray:

@@ -63,7 +63,7 @@ class Axis:
             "joint_type": self.joint_type.value,
             "origin": [float(v) for v in self.origin],
             "direction": [float(v) for v in self.direction],
-            "radius": None if self.radius_m is None else float(self.radius_m),
+            "radius_m": None if self.radius_m is None else float(self.radius_m),
             "residual_m": float(self.residual_m),
             "confidence": float(self.confidence),
             "direction_sigma_deg": None if self.direction_sigma_deg is None else float(self.direction_sigma_deg),

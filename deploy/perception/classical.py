@@ -9,6 +9,8 @@ differ from its surroundings and the arm's; see docs/perception.md for its limit
 
 from __future__ import annotations
 
+import logging
+
 import cv2
 import numpy as np
 
@@ -17,6 +19,8 @@ from deploy.perception.base import Segmenter
 from deploy.perception.config import PerceptionConfig
 from deploy.perception.track_health import box_of, track_lost
 from drivers.camera.base import Frame
+
+log = logging.getLogger(__name__)
 
 _BINS = 16  # colour histogram bins per channel
 _SHIFT = 4  # 256 / _BINS = 2**_SHIFT
@@ -138,6 +142,7 @@ class ClassicalSegmenter(Segmenter):
             raise PerceptionError(f"no object found in box {box} on frame {frame.index}: the box holds no region "
                                   "distinct from its surroundings; draw a tighter box around the object")
         self._good, self.redetections = mask, 0
+        log.info("classical: object in box %s px on frame %d: %d pixels", box, frame.index, self._reference_area)
         return mask
 
     def _segment_box(self, frame: Frame, box: tuple[int, int, int, int]) -> np.ndarray:

@@ -7,6 +7,8 @@ re-prompted on the current frame; after `max_redetections` failed attempts on on
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from deploy.errors import PerceptionError
@@ -16,6 +18,8 @@ from deploy.perception.gdino import GroundingDinoDetector
 from deploy.perception.sam2_video import Box, StreamingTracker
 from deploy.perception.track_health import box_iou, box_of, track_lost
 from drivers.camera.base import Frame
+
+log = logging.getLogger(__name__)
 
 OBJECT_ID, HANDLE_ID = 1, 2
 
@@ -60,6 +64,8 @@ class GdinoSam2Segmenter(Segmenter):
                 "check the camera sees the object, change --prompt, lower the threshold, or pass --box X0 Y0 X1 Y1"
             )
         masks = self._prompt(frame, box)
+        log.info("gdino-sam2: %r at box %s px on frame %d (%s)%s", self.prompt, _fmt(box), frame.index,
+                 "given --box" if self.config.box else "detected", ", handle too" if HANDLE_ID in masks else "")
         self._reference_area = int(np.count_nonzero(masks[OBJECT_ID]))
         if self._reference_area == 0:
             raise PerceptionError(

@@ -13,6 +13,8 @@ to the previous mask. It follows the object through camera motion and partial oc
 
 from __future__ import annotations
 
+import logging
+
 import cv2
 import numpy as np
 import open3d as o3d
@@ -26,6 +28,8 @@ from deploy.perception.classical import keep_touching
 from deploy.perception.config import PerceptionConfig
 from deploy.perception.track_health import track_lost
 from drivers.camera.base import Frame
+
+log = logging.getLogger(__name__)
 
 DETECT_STEP = 4  # the detector looks at every 4th pixel in each direction
 TRACK_STEP = 2  # the tracker at every 2nd (the axis pipeline's decimation)
@@ -103,6 +107,9 @@ class RGBDSegmenter(Segmenter):
         self.region, self._front = self._detect(frame)
         mask = self._full(frame, self._in_region(frame, self.region, self._front)) & self._seed
         self._good, self._reference_area, self.redetections = mask, int(np.count_nonzero(mask)), 0
+        log.info("rgbd: object on frame %d: %.2f x %.2f x %.2f m box at %s m (base frame), %d pixels%s", frame.index,
+                 *self.region.extent, np.round(self.region.center, 3).tolist(), self._reference_area,
+                 f" within --box {self.config.box}" if self.config.box is not None else "")
         return mask
 
     def track(self, frame: Frame) -> np.ndarray:

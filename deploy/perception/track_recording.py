@@ -41,7 +41,8 @@ def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | N
                     progress: Callable[[float, float], None] | None = None, viewer: Any = None) -> dict:
     """Segment every frame of the recording at `path` in order (start on the first, track on the rest).
 
-    With `out`, a copy of the recording with the new masks is written there (truth.json copied too);
+    With `out`, a copy of the recording with the new masks is written there (truth.json copied too; a recording
+    already at `out` is refused: `deploy.output_folder.prepare_output` removes it first when the user asks);
     without, the masks go into the recording's own mask/ folder, which must not exist yet. An overlay
     PNG strip of a few evenly spaced frames is written beside. Returns a summary (timings in ms; IoU
     against the recording's own masks when it has them). progress(done, total) follows the frames;

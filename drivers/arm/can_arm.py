@@ -60,16 +60,9 @@ START_TOLERANCE_RAD = 0.05  # how far outside its limits a joint may read at con
 class CanArm(Arm):
     """The arm of `config` on `bus`. Use as a context manager (connect: read limits, enable; leave: stop)."""
 
-    def __init__(
-        self,
-        config: RobotConfig,
-        bus: CanBus,
-        kin: Kinematics | None = None,
-        guard: SafetyGuard | None = None,
-        realtime: bool = True,
-        on_cycle: Callable[[], None] | None = None,
-        on_close: Callable[[], None] | None = None,
-    ) -> None:
+    def __init__(self, config: RobotConfig, bus: CanBus, kin: Kinematics | None = None,
+                 guard: SafetyGuard | None = None, realtime: bool = True,
+                 on_cycle: Callable[[], None] | None = None, on_close: Callable[[], None] | None = None) -> None:
         self.config = config
         self.bus = bus
         self.kin = kin or config.kinematics()
@@ -230,6 +223,15 @@ class CanArm(Arm):
         """Every motor's state (name, CAN id, enabled, status); `enabled` where a disable went unanswered."""
         with self._lock:
             return motor_states(self.channels, self._unconfirmed)
+
+    def __enter__(self) -> CanArm:
+        """Connect; a failed connect leaves as `__exit__` does (`with` calls none after a failed enter)."""
+        try:
+            self.connect()
+        except BaseException as exc:
+            self.__exit__(type(exc), exc, None)
+            raise
+        return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
         self.disconnect()

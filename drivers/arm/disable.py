@@ -82,23 +82,34 @@ def motor_states(channels: Iterable[MotorChannel], unconfirmed: set[str]) -> lis
 
 def disable_summary(states: list[dict]) -> str:
     """"all N motors disabled", or the motors that may still be enabled and what to do about them."""
-    left = [s["name"] for s in states if s["enabled"]]
+    left = _still_enabled(states)
+    return f"all {len(states)} {MOTORS_DISABLED}" if not left else _not_disabled(left, len(states))
+
+
+def with_summary(message: str, states: list[dict]) -> str:
+    """`message` telling the truth about the motors, built from their states: when every motor confirmed, the
+    message as it is if it says "motors disabled", else with the count added; when some did not, the words
+    "motors disabled" (or the message's end) become which ones may still be enabled. Idempotent."""
+    left = _still_enabled(states)
     if not left:
-        return f"all {len(states)} {MOTORS_DISABLED}"
-    if len(left) == len(states):
+        return message if MOTORS_DISABLED in message else f"{message}; {disable_summary(states)}"
+    outcome = _not_disabled(left, len(states))
+    if outcome in message:  # already told (the CLI may add the states of an error the driver reported)
+        return message
+    before, said, after = message.partition(MOTORS_DISABLED)
+    return f"{before}{outcome}{after}" if said else f"{message}; {outcome}"
+
+
+def _still_enabled(states: list[dict]) -> list[str]:
+    """The motors whose disable went unconfirmed (they may still be enabled)."""
+    return [s["name"] for s in states if s["enabled"]]
+
+
+def _not_disabled(left: list[str], motors: int) -> str:
+    """What happened when the motors `left` (of `motors`) did not confirm the disable, and what to do."""
+    if len(left) == motors:
         return (f"no motor answered the disable ({', '.join(left)}): all may still be enabled: switch off their "
                 "power")
     its = "its" if len(left) == 1 else "their"
     return (f"{MOTORS_DISABLED} except {', '.join(left)}, which did not answer the disable and may still be "
             f"enabled: switch off {its} power")
-
-
-def with_summary(message: str, states: list[dict]) -> str:
-    """`message` telling the truth about the motors: its "motors disabled" replaced by what happened when a motor
-    did not confirm, and the outcome added where it says nothing about them."""
-    summary = disable_summary(states)
-    if summary in message:
-        return message
-    if MOTORS_DISABLED in message:
-        return message if summary.startswith("all ") else message.replace(MOTORS_DISABLED, summary, 1)
-    return f"{message}; {summary}"

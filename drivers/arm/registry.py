@@ -2,6 +2,8 @@
 simulated Panda and the CAN driver on simulated motors register from sim_fallback).
 
 `open_arm(spec, robot)` builds one, not yet connected: use it as a context manager (enter enables, exit stops).
+Kinds that talk to their motors over a bus also register a factory of that bare bus (`bus`), for bring-up
+commands that address the motors directly (scan, disable, set zero).
 """
 
 from __future__ import annotations
@@ -13,11 +15,12 @@ from drivers.registry import Registry
 
 if TYPE_CHECKING:
     from drivers.arm.base import Arm
+    from drivers.arm.can_bus import CanBus
     from drivers.arm.robot_config import RobotConfig
 
 ARMS: Registry[Arm] = Registry("arm", ArmError)  # factories: factory(argument, robot, **options)
 ARMS.register("can", "drivers.arm.registry:open_can", "Damiao motors over CAN (hardware)",
-              hardware=True)
+              hardware=True, bus="drivers.arm.registry:open_can_bus")
 ARMS.register("ideal", "drivers.arm.registry:open_ideal", "kinematic, no bus")
 
 
@@ -31,6 +34,13 @@ def open_can(_argument: str, robot: RobotConfig) -> Arm:
     from drivers.arm.can_bus import CanBus
 
     return CanArm(robot, CanBus.from_config(robot.can))
+
+
+def open_can_bus(robot: RobotConfig) -> tuple[CanBus, None]:
+    """The robot config's CAN bus, no arm on top; no simulated motors behind it."""
+    from drivers.arm.can_bus import CanBus
+
+    return CanBus.from_config(robot.can), None
 
 
 def open_ideal(_argument: str, robot: RobotConfig) -> Arm:

@@ -1,18 +1,21 @@
 """Robot config (TOML, validated with pydantic): URDF, frames, CAN bus, per-joint motors, limits, gains, gripper.
 
 Every number must be finite (nan or inf in a limit, the workspace or a timeout would switch a safety check off),
-and the watchdog's timeouts are bounded. The configs shipped with the package (drivers/arm/configs/*.toml,
-`--robot panda_sim`, `--robot damiao_6dof`) are complete examples; docs/arm.md describes every field.
+and every limit is bounded so that an absurd finite one cannot switch a check off either: the workspace box within
+WORKSPACE_REACH_M of the base, a joint's v_max and tau_max within its motor model's VMAX and TMAX, a_max and j_max
+within 10x the shipped configs' largest, the control rate at least MIN_CONTROL_RATE_HZ, the watchdog's timeouts.
+The configs shipped with the package (drivers/arm/configs/*.toml, `--robot panda_sim`, `--robot damiao_6dof`) are
+complete examples; docs/arm.md describes every field.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 import pybullet_data
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
 from drivers.arm.damiao import MODELS, PARAM_ID, MotorLimits
 from drivers.arm.kinematics import Kinematics
@@ -22,6 +25,14 @@ from drivers.arm.safety import SafetyLimits
 from drivers.arm.trajectory import MotionLimits
 from drivers.errors import ArmError
 from drivers.toml_file import read_toml
+
+WORKSPACE_REACH_M = 3.0  # |coordinate| of the workspace box (m, base frame); arms reach 0.5-1.8 m
+MAX_A_RAD_S2 = 200.0  # joint acceleration limit: 10x the shipped configs' largest (20)
+MAX_J_RAD_S3 = 1e5  # joint jerk limit: 10x the shipped configs' largest (10000)
+MIN_CONTROL_RATE_HZ = 100.0  # a safety check at least every 10 ms
+
+WorkspaceCorner = Annotated[list[Annotated[float, Field(ge=-WORKSPACE_REACH_M, le=WORKSPACE_REACH_M)]],
+                            Field(min_length=3, max_length=3)]
 
 
 class _Strict(BaseModel):
@@ -67,13 +78,27 @@ class JointConfig(MotorConfig):
     q_min: float | None = None
     q_max: float | None = None
     v_max: float | None = Field(None, gt=0)
-    a_max: float = Field(10.0, gt=0)
-    j_max: float = Field(5000.0, gt=0)
+    a_max: float = Field(10.0, gt=0, le=MAX_A_RAD_S2)
+    j_max: float = Field(5000.0, gt=0, le=MAX_J_RAD_S3)
     tau_max: float = Field(gt=0)
     kp: float = Field(30.0, ge=0, le=500)
     kd: float = Field(1.0, ge=0, le=5)
     kp_compliant: float = Field(5.0, ge=0, le=500)
     kd_compliant: float = Field(0.5, ge=0, le=5)
+
+    @field_validator("v_max", "tau_max")
+    @classmethod
+    def _within_the_motor(cls, value: float | None, info: ValidationInfo) -> float | None:
+        """v_max and tau_max within the motor model's VMAX and TMAX: a larger one is no limit at all."""
+        model = MODELS.get(info.data.get("motor", ""))
+        if value is None or model is None:
+            return value
+        bound, unit, register = (model.v_max, "rad/s", "VMAX") if info.field_name == "v_max" else \
+            (model.t_max, "N m", "TMAX")
+        if value > bound:
+            raise ValueError(f"{info.field_name} {value:g} {unit} is above the {info.data['motor']}'s {register} "
+                             f"{bound:g} {unit}: give at most that (or the motor model you have)")
+        return value
 
 
 class GripperConfig(MotorConfig):
@@ -125,9 +150,9 @@ class RobotConfig(_Strict):
     tool_frame: str
     locked_joints: list[str] = []
     q_ready: list[float]
-    workspace_min: list[float] = Field(min_length=3, max_length=3)
-    workspace_max: list[float] = Field(min_length=3, max_length=3)
-    control_rate_hz: float = Field(500.0, gt=0, le=2000)
+    workspace_min: WorkspaceCorner
+    workspace_max: WorkspaceCorner
+    control_rate_hz: float = Field(500.0, ge=MIN_CONTROL_RATE_HZ, le=2000)
     gravity_compensation: bool = False  # MIT torque feed-forward from the URDF's inertias
     can: CanConfig = CanConfig()
     watchdog: WatchdogConfig = WatchdogConfig()

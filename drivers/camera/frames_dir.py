@@ -22,7 +22,6 @@ from drivers.errors import CameraError, RecordingError
 FORMAT = "axisloop-frames"
 VERSION = 1
 _INTRINSICS_FIELDS = ("width", "height", "fx", "fy", "cx", "cy")
-_ENTRIES = ("meta.json", "frames.jsonl", "color", "depth", "mask")
 
 
 def _png_name(index: int) -> str:
@@ -43,9 +42,10 @@ class FramesWriter:
     entries fsynced, then its frames.jsonl line flushed and fsynced), so a reader in another process sees it at
     once and a crash or power cut afterwards cannot lose it.
 
-    `with FramesWriter(path, intrinsics) as w: w.write(frame, mask=...)`. An existing frames recording
-    at `path` is replaced; any other non-empty directory is refused. `camera` (the spec it came from) and
-    `simulated` (frames rendered by a simulator) go to meta.json: they choose the filter profile on replay.
+    `with FramesWriter(path, intrinsics) as w: w.write(frame, mask=...)`. An existing frames recording at `path`
+    is refused unless the caller says it replaces it (`replace=True`: the whole folder is removed first, so no file
+    of the old recording survives); any other non-empty directory is always refused. `camera` (the spec it came
+    from) and `simulated` (frames rendered by a simulator) go to meta.json: they choose the filter profile on replay.
     """
 
     def __init__(
@@ -56,12 +56,14 @@ class FramesWriter:
         T_base_camera: np.ndarray | None = None,
         camera: str | None = None,
         simulated: bool = False,
+        replace: bool = False,
     ) -> None:
         if not (math.isfinite(depth_scale) and depth_scale > 0):
             raise ValueError(f"depth_scale must be a positive number of metres per unit, got {depth_scale}")
         self.path = Path(path)
         self.intrinsics = intrinsics
         self.depth_scale = float(depth_scale)
+        self._pose = None if T_base_camera is None else np.asarray(T_base_camera, np.float64)
         meta = {
             "format": FORMAT,
             "version": VERSION,
@@ -71,7 +73,7 @@ class FramesWriter:
             "camera": camera,
             "simulated": bool(simulated),
         }
-        self._prepare_directory()
+        self._prepare_directory(replace)
         for sub in ("color", "depth"):
             (self.path / sub).mkdir()
         _write_durably(self.path / "meta.json", (json.dumps(meta, indent=2) + "\n").encode())
@@ -80,7 +82,7 @@ class FramesWriter:
         self._sync_directory(self.path.parent)
         self._count = 0
 
-    def _prepare_directory(self) -> None:
+    def _prepare_directory(self, replace: bool) -> None:
         if self.path.exists() and not self.path.is_dir():
             raise RecordingError(f"cannot record to {self.path}: it is a file; choose a directory path")
         if self.path.is_dir() and any(self.path.iterdir()):
@@ -89,12 +91,12 @@ class FramesWriter:
                     f"refusing to record into {self.path}: the directory is not empty and is not a frames "
                     "recording; choose a new or empty directory"
                 )
-            for name in _ENTRIES:
-                entry = self.path / name
-                if entry.is_dir():
-                    shutil.rmtree(entry)
-                elif entry.exists():
-                    entry.unlink()
+            if not replace:
+                raise RecordingError(
+                    f"refusing to record into {self.path}: a recording is already there; choose another directory, "
+                    "or replace it on purpose (deploy commands: --overwrite)"
+                )
+            shutil.rmtree(self.path)  # the whole recording: a shorter new one must not keep old frames or truth.json
         self.path.mkdir(parents=True, exist_ok=True)
 
     def write(
@@ -140,6 +142,9 @@ class FramesWriter:
             record["joint_positions"] = [float(v) for v in np.ravel(joint_positions)]
         if ee_pose is not None:
             record["ee_pose"] = _pose_list(ee_pose, "ee_pose")
+        pose = frame.T_base_camera  # a camera that moves (eye-in-hand): its pose per frame, where not meta.json's
+        if pose is not None and not (self._pose is not None and np.allclose(pose, self._pose, rtol=0, atol=1e-9)):
+            record["T_base_camera"] = _pose_list(pose, "T_base_camera")
         self._jsonl.write(json.dumps(record) + "\n")
         self._jsonl.flush()
         os.fsync(self._jsonl.fileno())
@@ -189,7 +194,7 @@ def _is_frames_recording(path: Path) -> bool:
 
 def _check_record(record: object) -> None:
     """ValueError unless `record` is a frames.jsonl object: index an integer >= 0, t finite, joint_positions
-    finite numbers and ee_pose a finite 4x4 matrix where given."""
+    finite numbers and ee_pose and T_base_camera finite 4x4 matrices where given."""
     if not isinstance(record, dict):
         raise ValueError("not a JSON object")
     index, t = record["index"], float(record["t"])
@@ -201,9 +206,10 @@ def _check_record(record: object) -> None:
     if q is not None and not (isinstance(q, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool)
                                                            and math.isfinite(v) for v in q)):
         raise ValueError("joint_positions is not a list of finite numbers")
-    pose = record.get("ee_pose")
-    if pose is not None and (np.shape(pose) != (4, 4) or not np.all(np.isfinite(np.asarray(pose, np.float64)))):
-        raise ValueError("ee_pose is not a finite 4x4 matrix")
+    for name in ("ee_pose", "T_base_camera"):
+        pose = record.get(name)
+        if pose is not None and (np.shape(pose) != (4, 4) or not np.all(np.isfinite(np.asarray(pose, np.float64)))):
+            raise ValueError(f"{name} is not a finite 4x4 matrix")
 
 
 class FramesRecording:
@@ -344,7 +350,8 @@ class FramesRecording:
             color=cv2.cvtColor(color, cv2.COLOR_BGR2RGB),
             depth_m=(depth * self.depth_scale).astype(np.float32),
             intrinsics=self.intrinsics,
-            T_base_camera=None if self.T_base_camera is None else self.T_base_camera.copy(),
+            T_base_camera=np.asarray(record["T_base_camera"], np.float64) if "T_base_camera" in record
+            else None if self.T_base_camera is None else self.T_base_camera.copy(),
             mask=mask,
         )
 

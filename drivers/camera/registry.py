@@ -13,8 +13,9 @@ if TYPE_CHECKING:
     from drivers.camera.base import Camera
 
 CAMERAS: Registry[Camera] = Registry("camera", CameraError)  # factories: factory(argument, **options)
+STREAM_OPTIONS = ("width", "height", "fps")  # what `--width --height --fps` set, on kinds that take them
 CAMERAS.register("d415", "drivers.camera.registry:open_d415", "RealSense D415 (first attached, or SERIAL)",
-                 argument="[:SERIAL]", hardware=True)
+                 argument="[:SERIAL]", hardware=True, stream_options=STREAM_OPTIONS)
 CAMERAS.register("replay", "drivers.camera.registry:open_replay",
                  "a recording (frames dir; RealSense .bag/.db3; ROS 2 bag .db3/.mcap/folder)", argument=":PATH")
 _REPLAY_OPTIONS = {"realtime", "loop"}
@@ -27,6 +28,12 @@ def open_camera(spec: str, **options: object) -> Camera:
     for a frames directory, realtime and loop; for a RealSense .bag/.db3, filters (a FilterConfig).
     """
     return CAMERAS.open(spec, **options)
+
+
+def stream_options(spec: str, options: dict[str, object]) -> dict[str, object]:
+    """Those of `options` (width, height, fps) that camera `spec`'s kind takes; a recording takes none."""
+    entry, _ = CAMERAS.entry(spec)
+    return {k: v for k, v in options.items() if k in entry.stream_options}
 
 
 def simulated_source(spec: str) -> bool:

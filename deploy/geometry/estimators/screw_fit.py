@@ -25,6 +25,7 @@ _HALF_CONFIDENCE_RMS_M = 0.002
 _HALF_CONFIDENCE_SIGMA_DEG = 3.0
 _MAX_HINGE_TILT_DEG = 30.0  # a hinge lies in its door's plane: within this, w is projected into the plate
 _FRONT_CONE_DEG, _FRONT_SLAB_M, _MIN_FRONT_NORMALS = 20.0, 0.01, 50
+_FRONT_POINTS_PER_SAMPLE = 25  # front points that count as one independent sample of the plane
 FREE_DIRECTION_EVIDENCE = 13.8
 """chi-square with 2 degrees of freedom at 99.9 %: how much better a free drawer direction must explain the
 tracks than the front's normal (in track noise variances) to be used instead."""
@@ -33,13 +34,15 @@ tracks than the front's normal (in track noise variances) to be used instead."""
 @dataclass(frozen=True)
 class JointFit:
     """A fitted joint: the line through `point` along unit `direction`, the RMS distance (m) between the
-    registered and the joint's positions of the model points, and the fit's BIC."""
+    registered and the joint's positions of the model points, the fit's BIC, the direction's standard
+    deviation (deg, None when not measured) and whether the direction is a drawer front's normal."""
 
     direction: np.ndarray
     point: np.ndarray
     rms_m: float
     bic: float
     sigma_deg: float | None = None
+    from_front: bool = False
 
 
 def fit_screw_joint(
@@ -61,7 +64,8 @@ def fit_screw_joint(
     the axis. residual_m = the fit's RMS; confidence = fitness (1 from 90 %) x motion (1 from 5 cm or
     10 deg) x 1 / (1 + (residual / 2 mm)^2), and for a drawer whose direction comes from its motion
     alone (no front face), x 1 / (1 + (sigma / 3 deg)^2) with sigma its standard error
-    (direction_sigma_deg).
+    (direction_sigma_deg). A drawer's direction_sigma_deg is set for a front's normal too
+    (`fit_prismatic`), without touching the confidence.
 
     Joint type when `joint` is None: BIC = n ln(rms^2 + sigma0^2) + k ln n with n = 6 per pose (what a
     registration measures), k = poses + 2 (prismatic) or poses + 4 (revolute), sigma0 =
@@ -102,7 +106,7 @@ def fit_screw_joint(
     motion = min(1.0, max(travel_m / _FULL_TRAVEL_M, rotation_deg / _FULL_ROTATION_DEG))
     trust = min(fitness, _FULL_FITNESS) / _FULL_FITNESS
     confidence = float(np.clip(trust * motion / (1 + (fit.rms_m / _HALF_CONFIDENCE_RMS_M) ** 2), 0.0, 1.0))
-    if fit.sigma_deg is not None:  # a direction the motion alone pins down loosely
+    if fit.sigma_deg is not None and not fit.from_front:  # a direction the motion alone pins down loosely
         confidence /= 1 + (fit.sigma_deg / _HALF_CONFIDENCE_SIGMA_DEG) ** 2
     if joint is JointType.PRISMATIC:
         return Axis(joint, centroid, fit.direction, confidence=confidence, residual_m=fit.rms_m,
@@ -134,32 +138,44 @@ def fit_prismatic(
     explains the tracks better by more than FREE_DIRECTION_EVIDENCE (`free_direction_evidence`):
     registration measures a drawer's motion along its front's normal well and barely across it (a
     plate slides along itself), so a drift across the front is read as motion only when the tracks
-    show it beyond their scatter. sigma_deg: the free direction's standard error, None when d is the
-    front's normal.
+    show it beyond their scatter. sigma_deg: the free direction's standard error, or for the front's
+    normal hypot(the plane fit's standard error, the free direction's standard error): the runners may be
+    slanted from the front's normal by as much as the motion cannot resolve.
     """
     d = principal_direction(tracks)
     if len(tracks) > 1 and line_miss(tracks[1][0], d) > grip_gate_m:
         tracks = tracks[:1]
         d = principal_direction(tracks)
-    front = front_normal(*surface, d) if surface is not None and len(tracks) == 1 else None
-    evidence, sigma_deg = free_direction_evidence(tracks, d, d if front is None else front)
-    if front is not None and evidence <= FREE_DIRECTION_EVIDENCE:
-        d, sigma_deg = front, None
+    face = front_face(*surface, d) if surface is not None and len(tracks) == 1 else None
+    evidence, sigma_deg = free_direction_evidence(tracks, d, d if face is None else face[0])
+    from_front = face is not None and evidence <= FREE_DIRECTION_EVIDENCE
+    if from_front:
+        d, sigma_deg = face[0], float(np.hypot(face[1], sigma_deg or 0.0))
     shifts = moved.mean(axis=1) - sample.mean(axis=0)
     travel = shifts @ d
     if travel[np.argmax(np.abs(travel))] < 0:
         d, travel = -d, -travel
     predicted = sample[None] + travel[:, None, None] * d
     rms = float(np.sqrt(np.mean(np.sum((moved - predicted) ** 2, axis=2))))
-    return JointFit(d, sample.mean(axis=0), rms, bic(rms, 6 * len(moved), len(moved) + 2, noise_floor_m), sigma_deg)
+    return JointFit(d, sample.mean(axis=0), rms, bic(rms, 6 * len(moved), len(moved) + 2, noise_floor_m), sigma_deg,
+                    from_front)
 
 
 def front_normal(points: np.ndarray, normals: np.ndarray, direction: np.ndarray) -> np.ndarray | None:
-    """The unit normal (signed like `direction`) of the part's largest face turned toward `direction`:
-    of the points whose surface normals lie within 20 deg of it, those in the most populated 1 cm slab
-    along their mean normal (one face, not the parallel handle or back panel), then a plane through
-    them by trimmed PCA (`_trimmed_plane`). The plane of many points, not the mean of the noisy local
-    normals, which lean toward the camera's rays. None with fewer than 50 such points."""
+    """The unit normal of the part's largest face turned toward `direction` (`front_face`), or None."""
+    face = front_face(points, normals, direction)
+    return None if face is None else face[0]
+
+
+def front_face(points: np.ndarray, normals: np.ndarray, direction: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """The unit normal (signed like `direction`) of the part's largest face turned toward `direction`
+    and its standard error (deg): of the points whose surface normals lie within 20 deg of it, those in
+    the most populated 1 cm slab along their mean normal (one face, not the parallel handle or back
+    panel), then a plane through them by trimmed PCA (`_trimmed_plane`). The plane of many points, not
+    the mean of the noisy local normals, which lean toward the camera's rays. The standard error is the
+    plane's RMS thickness over its narrower RMS extent, over the square root of the points kept per
+    _FRONT_POINTS_PER_SAMPLE (a depth camera's errors are shared by neighbouring pixels). None with
+    fewer than 50 such points."""
     normals = np.asarray(normals, float)
     signed = normals * np.where(normals @ direction < 0, -1.0, 1.0)[:, None]
     facing = signed @ direction >= np.cos(np.radians(_FRONT_CONE_DEG))
@@ -172,8 +188,10 @@ def front_normal(points: np.ndarray, normals: np.ndarray, direction: np.ndarray)
     slab = np.abs(offsets - (offsets.min() + (np.bincount(bins).argmax() + 0.5) * _FRONT_SLAB_M)) <= _FRONT_SLAB_M
     if slab.sum() < _MIN_FRONT_NORMALS:
         return None
-    normal, _, _ = _trimmed_plane(points[slab])
-    return normal if normal @ direction >= 0 else -normal
+    normal, spread, kept = _trimmed_plane(points[slab])
+    samples = max(kept / _FRONT_POINTS_PER_SAMPLE, 1.0)
+    sigma_deg = float(np.degrees(spread[2] / max(spread[1], 1e-12) / np.sqrt(samples)))
+    return (normal if normal @ direction >= 0 else -normal), sigma_deg
 
 
 def _trimmed_plane(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:

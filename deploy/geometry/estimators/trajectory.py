@@ -1,11 +1,14 @@
 """The joint axis from the path of the gripper (handle) while it pulls: a line or a circular arc.
 
 The path is first prepared (`trajectory_path.prepare_path`): its own noise level, tracking glitches
-dropped, pauses and uneven sampling evened out on a grid. Fits are robust (`trajectory_fit`). Joint
+dropped, pauses and uneven sampling evened out on a grid, orientations measured from the start all of
+them agree on. Fits are robust (`trajectory_fit`) but must explain FIT_COVERAGE of the cells. Joint
 type, when none is given, comes from `classify`: a revolute joint must be shown by an arc the line
 cannot explain beyond its extra freedom, or by a gripper turn that follows the travel, and otherwise
 the answer is prismatic, or undecided (NoAxis with the reason) when the evidence is too thin or
-contradicts itself.
+contradicts itself, or when the hinge's direction would be uncertain by more than MAX_HINGE_SIGMA_DEG.
+A direction's sigma counts what one path can show of its bias: the block jackknife, the plane's tilt
+over the arc's sagitta, the turn's scatter about other axes over the turn.
 """
 
 from __future__ import annotations
@@ -29,14 +32,17 @@ from deploy.geometry.estimators.trajectory_fit import (
 from deploy.geometry.estimators.trajectory_io import parse_trajectory, parse_trajectory_text
 from deploy.geometry.estimators.trajectory_path import (
     PreparedPath,
+    bend_coverage,
     effective_fraction,
     jackknife_sigma_deg,
+    plane_tilt_deg,
     prepare_path,
+    turn_play_deg,
 )
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 
-__all__ = ["TrajectoryEstimator", "classify", "fit_circle_3d", "fit_line", "fit_trajectory", "parse_trajectory",
-           "parse_trajectory_text"]
+__all__ = ["TrajectoryEstimator", "classify", "fit_circle_3d", "fit_line", "fit_trajectory", "fit_trajectory_report",
+           "parse_trajectory", "parse_trajectory_text"]
 
 NOISE_FLOOR_M = 5e-4
 """Residuals below this count as noise, so noise-free data does not favour a model."""
@@ -55,6 +61,11 @@ MIN_ARC_DEG = 25.0
 """From positions alone, an arc shorter than this is no proof of a hinge (a slide's play bends its path)."""
 MAX_GAP_SHARE = 0.25
 """Without orientations, a stretch without samples longer than this share of the travel leaves the type undecided."""
+MIN_BEND_COVERAGE = 0.5
+"""Such a stretch leaves the type undecided only when the samples left show a bend less than half as well as
+an unbroken path would (`bend_coverage`): a gap between two long stretches hides nothing."""
+MAX_HINGE_SIGMA_DEG = 10.0
+"""A hinge found by `classify` whose direction is uncertain by more than this is reported as undecided."""
 MIN_ROTATION_DEG = 3.0
 """A gripper turn smaller than this is not used (its axis would be noise)."""
 TYPE_EVIDENCE = 13.8
@@ -64,6 +75,11 @@ _TURN_NOISE_RATIO = 4.0
 _LINE_MISS_PER_SAGITTA = 0.298  # RMS distance of an evenly sampled shallow arc from its best line / sagitta
 _MIN_TURN_CORRELATION = 0.9
 _FULL_TRAVEL_M, _FULL_ARC_DEG = 0.05, 20.0
+MAX_SIGMA_DEG = 90.0
+"""A direction uncertain by more than this could be any direction: its sigma is reported as this."""
+FIT_COVERAGE = 0.8
+"""The share of the cells a fitted line or circle must explain: glitches are gone before the fits, so a fit
+need not give up half the path (which let it follow the half that a part's play bent one way)."""
 _JACKKNIFE_EVALUATIONS = 12  # a refit starts at the full fit's circle: a few steps reach its minimum
 
 
@@ -114,7 +130,7 @@ def _confidence(inlier_fraction: float, motion: float, rms_m: float) -> float:
 
 
 def _fit_line(cells: np.ndarray) -> LineFit:
-    (origin, direction, rms), inliers = fit_line_inliers(cells)
+    (origin, direction, rms), inliers = fit_line_inliers(cells, FIT_COVERAGE)
     return LineFit(origin, direction, rms, inliers)
 
 
@@ -122,7 +138,7 @@ def _fit_circle(cells: np.ndarray) -> CircleFit | None:
     if len(cells) < 3:
         return None
     try:
-        (center, normal, radius, rms), inliers = fit_circle_inliers(cells)
+        (center, normal, radius, rms), inliers = fit_circle_inliers(cells, FIT_COVERAGE)
     except ValueError:
         return None
     return CircleFit(center, normal, radius, rms, inliers)
@@ -188,7 +204,9 @@ def gripper_turn(path: PreparedPath, line: LineFit) -> Turn | None:
 
 
 def _rotation_axis(rotvecs: np.ndarray) -> np.ndarray:
-    """Least squares over R_k w = w (unit w, sign arbitrary)."""
+    """Least squares over R_k w = w (unit w, sign arbitrary), for rotations from the path's start
+    (`trajectory_path.from_mean_start`): each weighs by its turn, so a subset near the start, as a
+    jackknife refit may keep, still leans on the start that all cells agree on."""
     m = Rotation.from_rotvec(rotvecs).as_matrix() - np.eye(3)
     return np.linalg.eigh(np.einsum("kji,kjl->il", m, m))[1][:, 0]
 
@@ -233,12 +251,13 @@ def classify(path: PreparedPath, line: LineFit, circle: CircleFit | None, turn: 
     circle beats the line by more than TYPE_EVIDENCE (`compare`, which discounts correlated misfit such
     as play or tremor), lies within HINGE_MAX_RADIUS_M and spans MIN_ARC_DEG. Prismatic when the circle
     does not beat the line or is wider, or, with orientations that did not turn, bends less than
-    MIN_ARC_DEG. Undecided below
-    MIN_DECISION_TRAVEL_M of travel, for an arc too short to tell, for a path with a stretch of more
-    than MAX_GAP_SHARE of its travel without samples (positions only), and for contradicting evidence.
+    MIN_ARC_DEG. Undecided below MIN_DECISION_TRAVEL_M of travel, for an arc too short to tell, for a
+    line with a stretch of more than MAX_GAP_SHARE of its travel without samples whose samples left would
+    show a bend less than MIN_BEND_COVERAGE as well as an unbroken path (positions only), and for
+    contradicting evidence.
     """
     comparison = compare(path, line, circle)
-    details = {"travel_m": path.travel_m, "noise_m": comparison.sigma_m, "evidence": comparison.evidence}
+    details = {"travel_m": path.travel_m, "misfit_m": comparison.sigma_m, "evidence": comparison.evidence}
     if _turn_follows_travel(turn, path):
         radius = path.travel_m / (2 * np.sin(np.radians(turn.total_deg) / 2))
         expected = _expected_evidence(path, turn, radius, comparison)
@@ -253,10 +272,12 @@ def classify(path: PreparedPath, line: LineFit, circle: CircleFit | None, turn: 
                           f"{MIN_DECISION_TRAVEL_M * 100:.0f} cm to tell a slide from a hinge", **details)
     if circle is None or comparison.evidence <= TYPE_EVIDENCE or circle.radius_m > HINGE_MAX_RADIUS_M:
         gap = path.largest_gap_m
-        if turn is None and gap > MAX_GAP_SHARE * path.travel_m:
+        coverage = bend_coverage((path.cells - line.origin) @ line.direction)
+        if turn is None and gap > MAX_GAP_SHARE * path.travel_m and coverage < MIN_BEND_COVERAGE:
             return _undecided(
                 f"{gap * 100:.0f} cm of the {path.travel_m * 100:.0f} cm path has no samples (tracking lost?), and "
-                "without orientations a line through the rest proves nothing", gap_m=gap, **details)
+                f"the samples left show a hinge's bend {coverage:.0%} as well as an unbroken path: without "
+                "orientations a line through them proves nothing", gap_m=gap, bend_coverage=coverage, **details)
         return JointType.PRISMATIC
     details.update(arc_deg=comparison.arc_deg, radius_m=circle.radius_m)
     if turn is not None:  # a hinge turns the handle with it; this one did not
@@ -293,27 +314,52 @@ def fit_trajectory(
 
     Prismatic: a robust line through the path's cells; direction along the motion (first -> last).
     Revolute: the direction from the circle's normal and the gripper's turn, each weighted by its
-    block-jackknife variance; the centre from a circle in the plane normal to it, or with a turn from
+    variance (`_hinge_direction`); the centre from a circle in the plane normal to it, or with a turn from
     the rigid turn model (`rigid_turn_fit`) when its misfit is within twice the circle's, plus what
     the turn's own scatter explains, plus 1 mm (a slipping grasp breaks it). Opening is a positive
     rotation about the direction; origin = the axis point level with the handle; radius_m = circle
-    radius. `direction_sigma_deg` is the direction's block-jackknife standard deviation.
+    radius. `direction_sigma_deg` is the direction's standard deviation.
 
     Joint type when `joint` is None: `classify`, which may answer NoAxis ("joint type undecided: ...",
-    details["undecided"] = True). NoAxis also for fewer than 3 samples, non-finite values, less than
-    MIN_SPREAD_M of motion, or no fit.
+    details["undecided"] = True), also for a hinge whose direction is uncertain by more than
+    MAX_HINGE_SIGMA_DEG. NoAxis also for fewer than 3 samples, non-finite values, less than MIN_SPREAD_M
+    of motion, or no fit.
     """
+    return _fit(positions, quaternions, joint, times)[0]
+
+
+def fit_trajectory_report(
+    positions: np.ndarray, quaternions: np.ndarray | None = None, joint: JointType | None = None, *,
+    times: np.ndarray | None = None,
+) -> dict:
+    """`fit_trajectory` as a JSON-ready dict: the axis (`Axis.to_dict`: joint_type, origin, direction,
+    radius_m, residual_m, confidence, direction_sigma_deg) or its reason and details, with the path's
+    own noise (noise_m, per axis), its travel (travel_m) and, for a hinge, the arc it swept (arc_deg)."""
+    result, path = _fit(positions, quaternions, joint, times)
+    data = {"joint_type": None, "origin": None, "direction": None, "radius_m": None, "residual_m": None,
+            "confidence": None, "direction_sigma_deg": None, "noise_m": None, "travel_m": None, "arc_deg": None}
+    if path is not None:
+        data.update(noise_m=path.noise_m, travel_m=path.travel_m)
+    if isinstance(result, NoAxis):
+        details = {k: float(v) if isinstance(v, np.floating) else v for k, v in result.details.items()}
+        return {**data, "arc_deg": details.get("arc_deg"), "reason": result.reason, "details": details}
+    data.update(result.to_dict())
+    if result.joint_type is JointType.REVOLUTE:
+        data["arc_deg"] = _arc_deg(path.cells, result.origin, result.direction)
+    return data
+
+
+def _fit(positions, quaternions, joint, times) -> tuple[AxisResult, PreparedPath | None]:
+    """`fit_trajectory`'s answer and the prepared path (None when the samples were refused)."""
     checked = _checked(positions, quaternions, times)
     if isinstance(checked, NoAxis):
-        return checked
+        return checked, None
     positions, quaternions = checked
     centred = positions - positions.mean(axis=0)
     spread = float(np.ptp(centred @ np.linalg.svd(centred)[2][0]))
     if spread < MIN_SPREAD_M:
-        return NoAxis(
-            f"not enough motion yet: {spread * 1000:.1f} mm of {MIN_SPREAD_M * 1000:.0f} mm",
-            {"spread_m": spread},
-        )
+        return NoAxis(f"not enough motion yet: {spread * 1000:.1f} mm of {MIN_SPREAD_M * 1000:.0f} mm",
+                      {"spread_m": spread}), None
     path = prepare_path(positions, quaternions)
     line = _fit_line(path.cells)
     circle = _fit_circle(path.cells) if joint is not JointType.PRISMATIC else None
@@ -321,11 +367,29 @@ def fit_trajectory(
     if joint is None:
         decided = classify(path, line, circle, turn)
         if isinstance(decided, NoAxis):
-            return decided
+            return decided, path
+        if decided is JointType.REVOLUTE:
+            return _sure_hinge(revolute_axis(path, circle, turn), path, line, circle), path
         joint = decided
     if joint is JointType.REVOLUTE:
-        return revolute_axis(path, circle, turn)
-    return prismatic_axis(path, line)
+        return revolute_axis(path, circle, turn), path
+    return prismatic_axis(path, line), path
+
+
+def _sure_hinge(axis: AxisResult, path: PreparedPath, line: LineFit, circle: CircleFit | None) -> AxisResult:
+    """A hinge the classification found, or undecided when its direction is uncertain by more than
+    MAX_HINGE_SIGMA_DEG (a short arc bent by play, a turn about a wandering axis): such a call is more
+    often a wrong joint type than a useful axis."""
+    sigma = axis.direction_sigma_deg if isinstance(axis, Axis) else None
+    if sigma is None or sigma <= MAX_HINGE_SIGMA_DEG:
+        return axis
+    arc = _arc_deg(path.cells, axis.origin, axis.direction)
+    comparison = compare(path, line, circle)
+    return _undecided(
+        f"a hinge, but its direction is uncertain by {sigma:.0f} deg (over {MAX_HINGE_SIGMA_DEG:.0f} deg) after a "
+        f"{arc:.0f} deg arc: too short an arc or too much play to trust; pull further or record orientations",
+        travel_m=path.travel_m, misfit_m=comparison.sigma_m, evidence=comparison.evidence, arc_deg=arc,
+        direction_sigma_deg=sigma)
 
 
 def _checked(positions, quaternions, times) -> tuple[np.ndarray, np.ndarray | None] | NoAxis:
@@ -418,8 +482,10 @@ def _hinge_direction(
     path: PreparedPath, circle: CircleFit | None, turn: Turn | None
 ) -> tuple[np.ndarray, float | None]:
     """The hinge direction and its standard deviation (deg): the circle's normal and the turn's axis
-    weighted by their block-jackknife variances; when they disagree by more than 3 combined standard
-    deviations, the surer one (its sigma at least a third of the disagreement)."""
+    weighted by their variances; when they disagree by more than 3 combined standard deviations, the
+    surer one (its sigma at least a third of the disagreement). Each variance is the block jackknife's
+    plus what the path shows of a bias the jackknife misses: for the circle the plane's tilt error
+    (`plane_tilt_deg`), for the turn its scatter about other axes over the turn (`turn_play_deg`)."""
     cells, candidates = path.cells, []
     if turn is not None:
         rotvecs = path.rotvecs
@@ -427,7 +493,8 @@ def _hinge_direction(
         def refit_turn(keep: np.ndarray) -> np.ndarray | None:
             return _rotation_axis(rotvecs[keep]) if keep.sum() >= 2 else None
 
-        candidates.append((turn.axis, jackknife_sigma_deg(turn.axis, refit_turn, len(cells))))
+        candidates.append((turn.axis, float(np.hypot(jackknife_sigma_deg(turn.axis, refit_turn, len(cells)),
+                                                     turn_play_deg(turn.off_axis_deg, turn.angles)))))
     if circle is not None:
         normal = circle.normal if turn is None or circle.normal @ turn.axis >= 0 else -circle.normal
 
@@ -437,17 +504,20 @@ def _hinge_direction(
                 return None
             return refine_circle(chosen, circle.center, normal, circle.radius_m, _JACKKNIFE_EVALUATIONS)[1]
 
-        candidates.append((normal, jackknife_sigma_deg(normal, refit_circle, len(cells))))
+        candidates.append((normal, float(np.hypot(jackknife_sigma_deg(normal, refit_circle, len(cells)),
+                                                  plane_tilt_deg(cells[circle.inliers], normal)))))
     if len(candidates) == 1 or any(np.isnan(s) for _, s in candidates):
         direction, sigma = candidates[0]
-        return direction, None if np.isnan(sigma) else sigma
+        return direction, None if np.isnan(sigma) else min(sigma, MAX_SIGMA_DEG)
     (a, sa), (b, sb) = candidates
+    if not np.isfinite(min(sa, sb)):
+        return (a, MAX_SIGMA_DEG) if sa <= sb else (b, MAX_SIGMA_DEG)
     disagreement = float(np.degrees(np.arccos(np.clip(a @ b, -1.0, 1.0))))
     if disagreement > 3 * np.hypot(sa, sb):
         direction, sigma = (a, sa) if sa <= sb else (b, sb)
-        return direction, max(sigma, disagreement / 3)
+        return direction, min(max(sigma, disagreement / 3), MAX_SIGMA_DEG)
     combined = a / sa**2 + b / sb**2
-    return combined / np.linalg.norm(combined), float(1 / np.sqrt(1 / sa**2 + 1 / sb**2))
+    return combined / np.linalg.norm(combined), min(float(1 / np.sqrt(1 / sa**2 + 1 / sb**2)), MAX_SIGMA_DEG)
 
 
 class TrajectoryEstimator(AxisEstimator):

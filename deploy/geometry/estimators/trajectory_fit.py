@@ -1,5 +1,6 @@
-"""Robust line and 3D circle fits to points: least-median-of-squares sampling over minimal sets (fixed
-seed), then least squares on the inliers. Pure numpy/scipy; metres."""
+"""Robust line and 3D circle fits to points: sampling over minimal sets (fixed seed) for the model with the
+smallest `coverage` quantile of squared residuals (0.5: least median of squares), then least squares on
+the inliers. Pure numpy/scipy; metres."""
 
 from __future__ import annotations
 
@@ -56,8 +57,13 @@ def fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return line
 
 
-def fit_line_inliers(points: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray, float], np.ndarray]:
-    """The line and its inlier mask."""
+def fit_line_inliers(
+    points: np.ndarray, coverage: float = 0.5
+) -> tuple[tuple[np.ndarray, np.ndarray, float], np.ndarray]:
+    """The line and its inlier mask. The sampled line that best explains the `coverage` share of the
+    points seeds it: 0.5 breaks down only at half the points gross outliers, but may then follow a half
+    of the path that a part's play bent away from the other half; points cleared of gross outliers
+    beforehand can ask for more (e.g. 0.8)."""
     pairs = _sample_sets(len(points), 2)
     starts, chords = points[pairs[:, 0]], points[pairs[:, 1]] - points[pairs[:, 0]]
     lengths = np.linalg.norm(chords, axis=1)
@@ -67,8 +73,8 @@ def fit_line_inliers(points: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray, 
     starts, directions = starts[keep], chords[keep] / lengths[keep, None]
     d = points[None] - starts[:, None]
     along = np.einsum("mnk,mk->mn", d, directions)
-    medians = np.median(np.linalg.norm(d - along[..., None] * directions[:, None], axis=2), axis=1)
-    best = starts[np.argmin(medians)], directions[np.argmin(medians)]
+    scores = np.quantile(np.linalg.norm(d - along[..., None] * directions[:, None], axis=2), coverage, axis=1)
+    best = starts[np.argmin(scores)], directions[np.argmin(scores)]
     inliers = np.ones(len(points), bool)
     for _ in range(2):
         residuals = line_residuals(points, *best)
@@ -169,8 +175,8 @@ def fit_circle_3d(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, fl
     return circle
 
 
-def fit_circle_inliers(points: np.ndarray):
-    """The circle and its inlier mask."""
+def fit_circle_inliers(points: np.ndarray, coverage: float = 0.5):
+    """The circle and its inlier mask; `coverage` as in `fit_line_inliers`."""
     triples = _sample_sets(len(points), 3)
     centers, normals, radii = _circumcircles(*(points[triples[:, i]] for i in range(3)))
     if len(centers) == 0:
@@ -178,7 +184,7 @@ def fit_circle_inliers(points: np.ndarray):
     d = points[None] - centers[:, None]
     height = np.einsum("mnk,mk->mn", d, normals)
     in_plane = np.sqrt(np.maximum(np.einsum("mnk,mnk->mn", d, d) - height**2, 0.0))
-    m = int(np.argmin(np.median(np.hypot(in_plane - radii[:, None], height), axis=1)))
+    m = int(np.argmin(np.quantile(np.hypot(in_plane - radii[:, None], height), coverage, axis=1)))
     best = centers[m], normals[m], float(radii[m])
     residuals = circle_residuals(points, *best)
     inliers = residuals <= _inlier_threshold(residuals, 6)

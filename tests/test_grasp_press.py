@@ -1,0 +1,41 @@
+"""The approach that ends with the palm pushing on the handle eases back before closing (deploy/control/stages.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import deploy.control.stages as stages
+from deploy.bench.open import simulate_episode
+
+# Test scenario 42 is a door with a knob nearer than the calibrated camera sees it: the approach ends with the
+# palm pushing on the knob (about 30 N after settling).
+PRESSED_DOOR_SEED = 42
+
+
+def _episode(monkeypatch, ease: bool) -> tuple[dict, list[float]]:
+    pushes: list[float] = []
+    original = stages._ease_off_press
+
+    def recorded(episode) -> None:
+        if ease:
+            original(episode)
+        state = episode.arm.state()
+        w = stages.WrenchEstimator(episode.kin, time_constant_s=0.0).update(state)
+        pushes.append(float(w[:3] @ episode.kin.fk(state.q)[:3, 2]))
+
+    monkeypatch.setattr(stages, "_ease_off_press", recorded)
+    return simulate_episode("door", PRESSED_DOOR_SEED, split="test", target=20.0), pushes
+
+
+def test_a_pressed_handle_is_eased_off_before_closing_and_the_door_opens(monkeypatch):
+    result, pushes = _episode(monkeypatch, ease=True)
+    assert pushes and pushes[0] < stages.PRESS_N
+    assert result["success"], result["message"]
+    assert result["true_opened_deg"] >= 20.0
+
+
+def test_without_easing_off_the_first_pull_reads_the_released_push_as_resistance(monkeypatch):
+    result, pushes = _episode(monkeypatch, ease=False)
+    assert pushes and pushes[0] > stages.PRESS_N  # the scenario does press: the test above is not vacuous
+    assert result["stop_reason"] == "blocked"
+    assert np.isclose(result["true_opened_deg"], 0.0, atol=1.0)
