@@ -245,9 +245,11 @@ def _numbers(data: Any, where: str = "") -> Iterator[tuple[str, float]]:
             yield from _numbers(value, f"{where}[{i}]")
 
 
-def load_config(path: Path | None = None, overrides: dict[str, Any] | None = None) -> Config:
+def load_config(path: Path | None = None, overrides: dict[str, Any] | None = None,
+                options: dict[str, str] | None = None) -> Config:
     """Load `path` (TOML) if given, apply `overrides` ({"filter.radius_m": 0.013, "opening.task": "door", ...};
-    None values are skipped) and validate. Raises ConfigError naming the file, the field and the problem."""
+    None values are skipped) and validate. Raises ConfigError naming the file, the field and the problem; a field
+    set from a command-line option is named by `options` ({"opening.target_distance_m": "--distance"})."""
     data: dict[str, Any] = {}
     source = "command-line options"
     if path is not None:
@@ -267,7 +269,18 @@ def load_config(path: Path | None = None, overrides: dict[str, Any] | None = Non
     try:
         return Config.model_validate(data)
     except ValidationError as exc:
-        problems = "; ".join(
-            f"{'.'.join(str(p) for p in err['loc'])}: {err['msg']}" for err in exc.errors()
-        )
-        raise ConfigError(f"invalid configuration in {source}: {problems}") from exc
+        given = {dotted for dotted, value in (overrides or {}).items() if value is not None}
+        named = {dotted: option for dotted, option in (options or {}).items() if dotted in given}
+        problems = [_problem(err, named) for err in exc.errors()]
+        if all(dotted in named for dotted, _ in problems):
+            raise ConfigError("; ".join(text for _, text in problems)) from exc
+        raise ConfigError(f"invalid configuration in {source}: {'; '.join(text for _, text in problems)}") from exc
+
+
+def _problem(err: Any, named: dict[str, str]) -> tuple[str, str]:
+    """(dotted field, what is wrong with it): a field a command-line option set is named by the option."""
+    dotted = ".".join(str(p) for p in err["loc"])
+    if dotted in named:
+        return dotted, (f"invalid value for {named[dotted]}: {err['input']!r}: {err['msg'][0].lower()}"
+                        f"{err['msg'][1:]} ({dotted}): give a value in that range")
+    return dotted, f"{dotted}: {err['msg']}"

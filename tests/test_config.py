@@ -70,3 +70,15 @@ def test_invalid_file_names_file_and_field(tmp_path, text, expected):
 def test_missing_file(tmp_path):
     with pytest.raises(ConfigError, match="not found"):
         load_config(tmp_path / "nope.toml")
+
+
+def test_a_field_set_by_an_option_is_named_by_the_option_and_a_file_field_by_the_file(tmp_path):
+    from deploy.config import load_config
+    from deploy.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"^invalid value for --distance: -0\.3: input should be greater than 0"):
+        load_config(None, {"opening.target_distance_m": -0.3}, {"opening.target_distance_m": "--distance"})
+    path = tmp_path / "run.toml"
+    path.write_text("[opening]\ntarget_distance_m = -0.3\n")
+    with pytest.raises(ConfigError, match=r"^invalid configuration in .*run\.toml: opening\.target_distance_m"):
+        load_config(path, {"opening.target_distance_m": None}, {"opening.target_distance_m": "--distance"})

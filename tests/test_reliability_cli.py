@@ -56,9 +56,9 @@ def recording(tmp_path_factory):
 
 
 @pytest.mark.parametrize(("args", "words"), [
-    (("open-drawer", "--distance", "-0.3"), "target_distance_m"),
+    (("open-drawer", "--distance", "-0.3"), "invalid value for --distance: -0.3: input should be greater than 0"),
     (("open-drawer", "--seed", "-1"), "'--seed'"),
-    (("open-door", "--angle", "720"), "target_angle_deg"),
+    (("open-door", "--angle", "720"), "invalid value for --angle: 720.0: input should be less than or equal to 170"),
     (("arm", "jog", "--joint", "panda_joint1", "--delta", "nan", "--yes"), "'--delta': nan is not a finite number"),
     (("arm", "move", "--pose", "0.4", "0", "inf", "0", "0", "0"), "'--pose': inf is not a finite number"),
     (("arm", "scan", "--first-id", "0"), "'--first-id'"),

@@ -27,6 +27,9 @@ from drivers.interrupts import Interrupted
 
 log = logging.getLogger(__name__)
 
+OPTIONS = {"opening.target_distance_m": "--distance", "opening.target_angle_deg": "--angle",
+           "opening.policy": "--policy", "filter.profile": "--filter", "perception.object_prompt": "--prompt",
+           "perception.box": "--box"}  # the command-line options that set these fields (error messages)
 Setup = Callable[[Any, Any], None]  # (world, arm) -> None: changes a simulated world before the episode (tests)
 
 
@@ -63,7 +66,7 @@ class OpenRequest:
     def config(self) -> Config:
         return load_config(self.config_file, {
             "opening.task": self.task, "opening.policy": self.policy, "opening.target_distance_m": self.distance_m,
-            "opening.target_angle_deg": self.angle_deg, **self.overrides}).for_camera(self.camera)
+            "opening.target_angle_deg": self.angle_deg, **self.overrides}, OPTIONS).for_camera(self.camera)
 
     def rig_spec(self, config: Config) -> RigSpec:
         simulated = CAMERAS.entry(self.camera)[0].simulated
