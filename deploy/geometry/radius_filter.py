@@ -30,7 +30,6 @@ from itertools import product
 from math import isqrt
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 _UNITS_TO_M = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 _HAIR = 1e-6  # relative slack on every bound, far above float rounding of cell coordinates
@@ -195,6 +194,8 @@ def _unique(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _exact_counts(xyz: np.ndarray, which: np.ndarray, radius_m: float) -> np.ndarray:
     """Other points within radius_m of the (3, n) points xyz[:, which]."""
+    from scipy.spatial import cKDTree  # here: the CLI imports this module for its profiles (scipy costs 0.2 s)
+
     points = xyz.T
     tree = cKDTree(points, leafsize=64, balanced_tree=False, compact_nodes=False)  # quick to build
     return tree.query_ball_point(points[which], radius_m, return_length=True) - 1
