@@ -30,7 +30,7 @@ def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float
     """Record `camera` (a registry spec) to `out` for `frames` frames or `seconds` s, with `arm`'s joint states
     and tool pose per frame when given; `view` also shows the frames in rerun and saves OUT/recording.rrd.
     `calibration`: the hand-eye file giving a real camera's pose (default: the one saved for it and the robot);
-    a camera on the arm (eye-in-hand) gets its pose per frame from the tool pose read with the frame.
+    a camera on the arm (eye-in-hand) gets its pose per frame from the arm's tool pose (`deploy.rig`).
     `sim_faults` (`--sim-fault`, arm sim-can): each breaks the simulated motors SECONDS into the recording.
     Returns {"out", "frames", "seconds", "arm", "camera", "simulated"} (and "rrd" with `view`)."""
     _check_calibration(camera, arm, calibration)
@@ -58,7 +58,7 @@ def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float
         simulated = simulated_source(camera)
         try:
             summary = record(rig.camera, out, frames, seconds, progress=each, source=camera, simulated=simulated,
-                             arm=reading, camera_on_tool=_camera_on_tool(rig))
+                             arm=reading)
         finally:
             if viewer is not None:
                 viewer.close()
@@ -99,12 +99,6 @@ def _check_calibration(camera: str, arm: str | None, calibration: Path | None) -
     if arm is None:
         raise ConfigError(f"--calibration {calibration} places the camera in the arm's base frame: add --arm KIND "
                           "--robot CONFIG, or drop --calibration")
-
-
-def _camera_on_tool(rig: Rig) -> Callable[[np.ndarray], np.ndarray] | None:
-    """An eye-in-hand camera's pose from the tool pose (None for a fixed camera)."""
-    hand_eye = rig.hand_eye
-    return hand_eye.T_base_camera if hand_eye is not None and hand_eye.setup == "eye-in-hand" else None
 
 
 def _arm_reading(rig: Rig, latest: dict[str, np.ndarray]) -> ArmReading:

@@ -111,7 +111,6 @@ class Rig:
     serial: str | None = None
     world: SimWorld | None = None
     board: Any = None  # sim_fallback.board.CalibrationRig of a BoardScene
-    hand_eye: Any = None  # calibration.store.HandEyeRecord giving a real camera's pose (None: none loaded)
 
     @property
     def simulated(self) -> bool:
@@ -256,18 +255,18 @@ def _open_hardware(rig: Rig, stack: ExitStack) -> None:
         stack.callback(rig.arm.disconnect)
         rig.kin = getattr(rig.arm, "kin", rig.kin)
         if camera is not None:
-            rig.camera = PosedCamera(camera, _calibrated_pose(rig))
+            rig.camera = PosedCamera(camera, _calibrated_pose(rig), override=spec.calibration is not None)
 
 
 def _calibrated_pose(rig: Rig) -> Callable[[], np.ndarray]:
-    """T_base_camera for frames that do not carry it: --calibration, or this camera's saved calibration."""
+    """T_base_camera for frames that do not carry it (all frames with --calibration): --calibration, or this
+    camera's saved calibration; an eye-in-hand camera's at the arm's current tool pose."""
     from calibration.store import load_for, load_hand_eye
 
     spec, serial = rig.spec, rig.serial
     real_serial = serial if serial != spec.camera else None
     record = (load_hand_eye(spec.calibration) if spec.calibration is not None
               else load_for(real_serial, rig.robot.name) if real_serial else None)
-    rig.hand_eye = record
     _log_calibration(rig, record)
 
     def pose() -> np.ndarray:

@@ -303,7 +303,9 @@ def test_record_with_a_calibration_places_an_eye_in_hand_camera(capsys, tmp_path
 
 
 def test_a_moving_camera_keeps_its_pose_per_frame(tmp_path):
-    """drivers.camera.record with an eye-in-hand camera: each frame's pose from the tool pose read with it."""
+    """drivers.camera.record with an eye-in-hand camera (posed as the rig poses it, from the arm's tool pose at
+    each frame): each frame's pose is kept with it."""
+    from drivers.camera.posed import PosedCamera
     from drivers.camera.record import record
 
     class Replay:
@@ -318,15 +320,23 @@ def test_a_moving_camera_keeps_its_pose_per_frame(tmp_path):
         def __exit__(self, *exc):
             return None
 
+        def connect(self):
+            return None
+
+        def disconnect(self):
+            return None
+
         def read(self, timeout_s=2.0):
             self.i += 1
             return frame(self.i - 1)
 
-    tools = iter([np.eye(4) + np.pad(np.array([[0.0, 0.0, 0.1 * i]]).T, ((0, 1), (3, 0))) for i in range(5)])
+    tools = [np.eye(4) + np.pad(np.array([[0.0, 0.0, 0.1 * i]]).T, ((0, 1), (3, 0))) for i in range(5)]
     offset = np.eye(4)
     offset[2, 3] = 0.03
-    summary = record(Replay(), tmp_path / "rec", frames=3, arm=lambda: (np.zeros(7), next(tools)),
-                     camera_on_tool=lambda tool: tool @ offset)
+    replay = Replay()
+    tool_now = lambda: tools[replay.i - 1]  # noqa: E731  (the arm's tool pose when the frame was read)
+    camera = PosedCamera(replay, lambda: tool_now() @ offset, override=True)  # Replay's frames carry an identity
+    summary = record(camera, tmp_path / "rec", frames=3, arm=lambda: (np.zeros(7), tool_now()))
     recording = FramesRecording(tmp_path / "rec")
     assert summary["frames"] == 3 and recording.T_base_camera[2, 3] == pytest.approx(0.03)
     assert "T_base_camera" not in recording.records[0] and "T_base_camera" in recording.records[1]

@@ -10,10 +10,12 @@ from drivers.camera.base import Camera, Frame, Intrinsics
 
 
 class PosedCamera(Camera):
-    """Wraps `camera`: a frame that does not carry its `T_base_camera` (a recording may) gets it from `pose()`."""
+    """Wraps `camera`: a frame that does not carry its `T_base_camera` (a recording may) gets it from `pose()`,
+    read with the frame (an eye-in-hand camera's pose follows the arm); with `override`, every frame does (a
+    calibration the user named replaces the poses a recording carries)."""
 
-    def __init__(self, camera: Camera, pose: Callable[[], np.ndarray]) -> None:
-        self.camera, self.pose = camera, pose
+    def __init__(self, camera: Camera, pose: Callable[[], np.ndarray], override: bool = False) -> None:
+        self.camera, self.pose, self.override = camera, pose, override
 
     @property
     def intrinsics(self) -> Intrinsics:
@@ -31,6 +33,6 @@ class PosedCamera(Camera):
 
     def read(self, timeout_s: float = 2.0) -> Frame:
         frame = self.camera.read(timeout_s)
-        if frame.T_base_camera is None:
+        if self.override or frame.T_base_camera is None:
             frame.T_base_camera = self.pose()
         return frame

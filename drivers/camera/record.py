@@ -12,7 +12,6 @@ from drivers.camera.frames_dir import FramesWriter
 from drivers.errors import CameraError, RecordingError
 
 ArmReading = Callable[[], tuple[np.ndarray, np.ndarray]]  # () -> (joint positions rad/m, tool pose 4x4 base frame)
-CameraOnTool = Callable[[np.ndarray], np.ndarray]  # tool pose (4x4) -> camera pose (4x4): an eye-in-hand camera
 
 
 def record(
@@ -25,15 +24,13 @@ def record(
     source: str | None = None,
     simulated: bool = False,
     arm: ArmReading | None = None,
-    camera_on_tool: CameraOnTool | None = None,
 ) -> dict:
     """Read `camera` (connected here) into the frames directory `out` until `frames` frames or `seconds`
     of camera time (whichever comes first), or until a replay ends (the only stop if neither is set).
 
     source: the camera's spec and simulated: whether it renders a simulation (both go to meta.json); arm():
-    the arm's joint positions and tool pose, read right after each frame and stored with it; camera_on_tool:
-    with `arm`, the camera's pose from that tool pose (a camera on the arm, eye-in-hand), stored per frame
-    (meta.json keeps the first frame's).
+    the arm's joint positions and tool pose, read right after each frame and stored with it. A frame's pose
+    (a camera on the arm moves) is stored where it differs from the first frame's (FramesWriter).
     A camera failure (e.g. unplugged) stops the recording and raises CameraError saying how many frames
     were kept; they stay readable. Returns {"out", "frames", "seconds", "arm"}.
     """
@@ -41,14 +38,15 @@ def record(
         raise RecordingError(f"frames and seconds must be positive, got frames={frames} seconds={seconds}")
     count, t0, t = 0, None, 0.0
     with camera:
-        frame = camera.read()
-        q, tool = _arm_at(frame, arm, camera_on_tool)
-        with FramesWriter(out, camera.intrinsics, depth_scale, frame.T_base_camera, source, simulated) as writer:
+        first = camera.read()
+        with FramesWriter(out, camera.intrinsics, depth_scale, first.T_base_camera, source, simulated) as writer:
+            frame = first
             while True:
                 t0 = frame.t if t0 is None else t0
                 t = frame.t - t0
                 if seconds is not None and t >= seconds:
                     break
+                q, tool = arm() if arm is not None else (None, None)
                 writer.write(frame, joint_positions=q, ee_pose=tool)
                 count += 1
                 if progress is not None:
@@ -62,17 +60,4 @@ def record(
                 except CameraError as exc:
                     raise CameraError(f"{exc}; recording stopped: the {count} frames recorded so far are kept "
                                       f"in {out}") from None
-                q, tool = _arm_at(frame, arm, camera_on_tool)
     return {"out": str(out), "frames": count, "seconds": t, "arm": arm is not None}
-
-
-def _arm_at(frame: Frame, arm: ArmReading | None,
-            camera_on_tool: CameraOnTool | None) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """The arm's reading right after `frame` (None, None without an arm); an eye-in-hand camera's pose goes
-    into the frame from it."""
-    if arm is None:
-        return None, None
-    q, tool = arm()
-    if camera_on_tool is not None:
-        frame.T_base_camera = camera_on_tool(tool)
-    return q, tool
