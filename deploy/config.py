@@ -70,6 +70,11 @@ class FilterConfig(_Section):
             return FilterProfile(base.radius, eps, base.unit)
         return FilterProfile(self.radius_m, eps, "m")
 
+    def used(self) -> dict:
+        """The setting used, as the commands' JSON reports it: {"profile", "radius_m", "eps"}."""
+        profile = self.resolve()
+        return {"profile": self.profile, "radius_m": profile.radius_m, "eps": profile.eps}
+
 
 def unitless_radius(data: dict[str, Any]) -> str | None:
     """The one-line fix when the `[filter]` table of a run's settings `data` still has the old `radius` (whose

@@ -50,13 +50,12 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
     finally:
         if viewer is not None:
             viewer.close()
-    used = config.filter.resolve()
     out = {
         "estimator": config.estimator.name, "joint_type": None, "origin": None, "direction": None,
         "radius_m": None, "residual_m": None, "n_samples": len(recording),
         "frame": "base" if recording.T_base_camera is not None else "camera",
         "gripper_path": any("ee_pose" in r for r in recording.records),
-        "filter": {"profile": config.filter.profile, "radius_m": used.radius_m, "eps": used.eps}, "steps": steps,
+        "filter": config.filter.used(), "steps": steps,
     }
     if isinstance(final, Axis):
         out.update(final.to_dict())

@@ -98,7 +98,8 @@ class Observer:
                                   "or is occluded")
             pose = self.kin.fk(state.q)
             self.vision = self.pipeline.update_frame(frame, mask, pose).result
-            log.info("frame %d (t %.2f s): %s", frame.index, state.t - self.t0, _estimate_text(self.vision))
+            if log.isEnabledFor(logging.INFO):  # every frame: no text built unless --verbose shows it
+                log.info("frame %d (t %.2f s): %s", frame.index, state.t - self.t0, _estimate_text(self.vision))
             self.last_seen = frame, mask
             self.frame_ms.append((time.perf_counter() - start) * 1e3)
             self.frame_cpu_ms.append((time.thread_time() - cpu) * 1e3)

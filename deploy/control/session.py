@@ -127,7 +127,7 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
                 raise
         data = {**result.to_dict(), "task": request.task, "camera": request.camera,
                 "arm": request.arm, "policy": config.opening.policy, "segmenter": rig.spec.segmenter,
-                "filter": _filter(config)}
+                "filter": config.filter.used()}
         if hasattr(rig.arm, "motor_states"):  # a CAN arm: every motor's final state (name, enabled, status)
             data["motors"] = rig.arm.motor_states()
         if evaluation is not None:
@@ -149,12 +149,6 @@ def _log_config(config: Config) -> None:
              "%s, max %d steps, timeout %g s; prompt %r, box %s", config.filter.profile, config.filter.resolve(),
              e.name, e.joint, e.window, o.task, target, o.policy, o.fusion, o.max_steps, o.timeout_s,
              config.perception.object_prompt, config.perception.box)
-
-
-def _filter(config: Config) -> dict:
-    """The cloud filter the run used, in metres."""
-    profile = config.filter.resolve()
-    return {"profile": config.filter.profile, "radius_m": profile.radius_m, "eps": profile.eps}
 
 
 def _evaluation(rig: Rig):
