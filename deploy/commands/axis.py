@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Annotated
 
@@ -20,18 +21,20 @@ RrdOpt = Annotated[Path | None, typer.Option(
     "runs/REC-axis.rrd, REC being the recording folder's name; never inside the recording, which may be read-only].")]
 
 
-def _print_axis(title: str, data: dict) -> None:
-    """The axis fields of `data` that are set: vectors and floats with 4 decimals."""
-    rows = {}
-    for key in ("joint_type", "origin", "direction", "direction_sigma_deg", "radius_m", "residual_m", "n_samples",
-                "format", "estimator", "reason", "rrd"):
-        value = data.get(key)
+AXIS_FIELDS = ("joint_type", "origin", "direction", "direction_sigma_deg", "radius_m", "residual_m", "n_samples",
+               "format", "estimator", "reason", "rrd")
+
+
+def _print_axis(title: str, items: Iterable[tuple[str, object]]) -> None:
+    """The fields that are set, as rows: vectors and floats with 4 decimals (a key shown once)."""
+    rows: dict[str, object] = {}
+    for key, value in items:
         if isinstance(value, list):
             value = "[" + ", ".join(f"{v:+.4f}" for v in value) + "]"
         elif isinstance(value, float):
             value = f"{value:.4f}"
         if value is not None:
-            rows[key] = value
+            rows.setdefault(key, value)
     print_rows(title, rows, digits=None)
 
 
@@ -70,23 +73,11 @@ def axis_fit_trajectory(
     if json_out:
         print_json(data)
     else:
-        _print_trajectory_fit(f"axis fitted to {file}", data)
+        details = data.get("details", {}).items()  # an undecided answer's evidence
+        _print_axis(f"axis fitted to {file}", [*((k, v) for k, v in data.items() if k not in ("details", "undecided")),
+                                               *details])
     if "reason" in data:
         raise typer.Exit(1)
-
-
-def _print_trajectory_fit(title: str, data: dict) -> None:
-    """`fit-trajectory`'s answer as rows: the set fields, vectors and floats with 4 decimals, then an
-    undecided answer's details."""
-    rows = {}
-    for key, value in [*((k, v) for k, v in data.items() if k != "details"), *data.get("details", {}).items()]:
-        if isinstance(value, list):
-            value = "[" + ", ".join(f"{v:+.4f}" for v in value) + "]"
-        elif isinstance(value, float):
-            value = f"{value:.4f}"
-        if value is not None and key != "undecided":
-            rows.setdefault(key, value)
-    print_rows(title, rows, digits=None)
 
 
 @app.command("estimate")
@@ -134,7 +125,7 @@ def axis_estimate(
     if json_out:
         print_json(data)
     else:
-        _print_axis(f"axis of {recording} ({data['frame']} frame)", data)
+        _print_axis(f"axis of {recording} ({data['frame']} frame)", ((k, data.get(k)) for k in AXIS_FIELDS))
     if data["joint_type"] is None:
         raise typer.Exit(1)
 
