@@ -133,7 +133,7 @@ def fit_prismatic(
     left out. The line passes through the model points' centroid.
 
     From the part alone (no gripper track), with its `surface` (points (M,3) and their unit normals),
-    d is the normal of its faces within 20 deg of that direction (`front_normal`: a drawer's front)
+    d is the normal of its faces within 20 deg of that direction (`front_face`: a drawer's front)
     unless the free direction
     explains the tracks better by more than FREE_DIRECTION_EVIDENCE (`free_direction_evidence`):
     registration measures a drawer's motion along its front's normal well and barely across it (a
@@ -159,12 +159,6 @@ def fit_prismatic(
     rms = float(np.sqrt(np.mean(np.sum((moved - predicted) ** 2, axis=2))))
     return JointFit(d, sample.mean(axis=0), rms, bic(rms, 6 * len(moved), len(moved) + 2, noise_floor_m), sigma_deg,
                     from_front)
-
-
-def front_normal(points: np.ndarray, normals: np.ndarray, direction: np.ndarray) -> np.ndarray | None:
-    """The unit normal of the part's largest face turned toward `direction` (`front_face`), or None."""
-    face = front_face(points, normals, direction)
-    return None if face is None else face[0]
 
 
 def front_face(points: np.ndarray, normals: np.ndarray, direction: np.ndarray) -> tuple[np.ndarray, float] | None:
