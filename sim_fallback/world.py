@@ -30,7 +30,7 @@ VISUAL_TRIANGLE_FRACTION = 0.25  # robot visuals: decimated collision meshes (0.
 STIFF_FRICTION_FACTOR = 3.0  # condition "stiff": the joint's Coulomb friction times this
 LOCKED_FORCE = 1e5  # condition "locked": the joint's brake (N or N m), far above anything the arm can pull
 SWEEP_STEP = 0.02  # sweep_hits_robot_base: the joint's steps (m or rad)
-BASE_TURNS = 12  # ... and the first robot joint's turns tried
+BASE_TURNS, SHOULDER_TILTS = 12, 9  # ... and the postures of the first two robot joints tried
 FLOOR_SIZE_M = 4.0  # a floor box: about +15 ms a 640x480 frame (pybullet_data's plane doubles the time)
 
 
@@ -166,32 +166,41 @@ class SimWorld:
 
     def sweep_hits_robot_base(self, value: float) -> bool:
         """Whether the moving part, opened from its present value to `value` (m or rad), must pass through the
-        robot's base: its first link (the base plate), or its second (which only turns about the vertical) at
-        every turn of the first joint. No arm posture gets out of the way then (a door hinged close to the robot
-        cannot reach a wide angle). Ground truth for evaluation; the joints are put back as they were."""
-        c, j = self.client, self.cabinet_joint
+        robot's base: its first link (the base plate), or at every sampled posture of the first two joints its
+        second link (the column turning about the vertical) or its third (the shoulder, on that column). No arm
+        posture gets out of the way then (a door hinged close to the robot cannot reach a wide angle). Ground
+        truth for evaluation; the joints are put back as they were."""
+        c, j, robot = self.client, self.cabinet_joint, self.robot_id
         start, velocity = pb.getJointState(self.cabinet_id, j, physicsClientId=c)[:2]
-        turn = pb.getJointState(self.robot_id, 0, physicsClientId=c)[:2]
+        held = [pb.getJointState(robot, k, physicsClientId=c)[:2] for k in (0, 1)]
         values = np.append(np.arange(start, value, SWEEP_STEP if value >= start else -SWEEP_STEP), value)
 
         def hits(link: int) -> bool:
             for q in values:
                 pb.resetJointState(self.cabinet_id, j, float(q), physicsClientId=c)
-                if pb.getClosestPoints(self.cabinet_id, self.robot_id, 0.0, j, link, physicsClientId=c):
+                if pb.getClosestPoints(self.cabinet_id, robot, 0.0, j, link, physicsClientId=c):
                     return True
             return False
+
+        def postures(joint: int, count: int) -> np.ndarray:
+            return np.linspace(*pb.getJointInfo(robot, joint, physicsClientId=c)[8:10], count)
 
         try:
             if hits(-1):
                 return True
-            for angle in np.linspace(*pb.getJointInfo(self.robot_id, 0, physicsClientId=c)[8:10], BASE_TURNS):
-                pb.resetJointState(self.robot_id, 0, float(angle), physicsClientId=c)
-                if not hits(0):
-                    return False
+            for turn in postures(0, BASE_TURNS):
+                pb.resetJointState(robot, 0, float(turn), physicsClientId=c)
+                if hits(0):
+                    continue
+                for tilt in postures(1, SHOULDER_TILTS):
+                    pb.resetJointState(robot, 1, float(tilt), physicsClientId=c)
+                    if not hits(1):
+                        return False
             return True
         finally:
             pb.resetJointState(self.cabinet_id, j, start, velocity, physicsClientId=c)
-            pb.resetJointState(self.robot_id, 0, *turn, physicsClientId=c)
+            for k, (q, dq) in enumerate(held):
+                pb.resetJointState(robot, k, q, dq, physicsClientId=c)
 
     def close(self) -> None:
         """Disconnect the client and remove the generated URDF (idempotent)."""

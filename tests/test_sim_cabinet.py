@@ -182,13 +182,18 @@ def test_drawer_body_looks_like_its_panels(split, tmp_path):
 
 
 def test_a_door_hinged_close_to_the_robot_cannot_sweep_past_its_base():
-    """Evaluation only: test door 32 is hinged so close to the robot that 70 deg would pass through the base;
-    45 deg clears it, and so does every drawer pull of the benchmarks. The joint is put back as it was."""
+    """Evaluation only: test door 32 is hinged so close to the robot that 70 deg would pass through the base,
+    door 17 through the shoulder at every posture of the first two joints; 45 deg clears both, and so does every
+    drawer pull of the benchmarks. The joints are put back as they were."""
     with SimWorld(Scenario.make("door", 32, "test")) as world:
         assert world.sweep_hits_robot_base(np.radians(70.0))
         assert not world.sweep_hits_robot_base(np.radians(45.0))
         assert world.joint_value() == 0.0
-        assert pb.getJointState(world.robot_id, 0, physicsClientId=world.client)[0] == pytest.approx(
-            world.scenario.q_start[0])
+        for k in (0, 1):
+            assert pb.getJointState(world.robot_id, k, physicsClientId=world.client)[0] == pytest.approx(
+                world.scenario.q_start[k])
+    with SimWorld(Scenario.make("door", 17, "test")) as world:  # clears the plate and column, not the shoulder
+        assert world.sweep_hits_robot_base(np.radians(70.0))
+        assert not world.sweep_hits_robot_base(np.radians(45.0))
     with SimWorld(Scenario.make("drawer", 0, "test")) as world:
         assert not world.sweep_hits_robot_base(0.45)
