@@ -448,3 +448,19 @@ def test_free_direction_evidence_grows_with_a_real_slant():
         free = np.linalg.svd(track - track.mean(axis=0))[2][0]
         evidence, sigma = free_direction_evidence([(track, 3e-3)], free, np.array([1.0, 0, 0]))
         assert (evidence > FREE_DIRECTION_EVIDENCE) is expect_free and 0 < sigma < 2.0
+
+
+def test_a_rekey_undoes_a_slide_along_the_drawer_front():
+    """Frames registered onto a small keyframe (the first centimetre of a front) can slide along the
+    flat front, here 0.5 of the opening sideways, which point-to-plane ICP onto the new keyframe cannot
+    undo from there; starting from the next newer frame's new motion it can."""
+    window, direction, _ = make_window("drawer", DRAWER_10CM, seed=1, pose=POSES["upright"])
+    estimator = ScrewEstimator()
+    estimator.estimate(window[:-1])
+    keyframe = estimator._keyframe.index
+    sideways = POSES["upright"][0] @ [0.0, 1.0, 0.0]
+    for j, registration in estimator._motions.items():
+        registration.motion[:3, 3] += 0.5 * (DRAWER_10CM[j] - DRAWER_10CM[keyframe]) * sideways
+    estimator._rekey(max(estimator._motions), estimator._clouds)
+    axis = estimator.estimate(window[:-1])
+    assert angle_deg(axis.direction, direction) < 0.5

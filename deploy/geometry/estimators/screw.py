@@ -32,6 +32,8 @@ from deploy.geometry.estimators.screw_registration import (
 from deploy.geometry.types import AxisResult, JointType, NoAxis
 
 _DEFAULT_CONFIG = ScrewConfig()  # frozen: one instance serves every estimator built without a config
+_REKEY_MARGIN = 0.05  # share of a frame's points: smaller fitness differences between two motions are noise
+# (a plate matches about as well slid along itself)
 
 
 class ScrewEstimator(AxisEstimator):
@@ -157,17 +159,27 @@ class ScrewEstimator(AxisEstimator):
 
     def _rekey(self, index: int, clouds: dict[int, PartCloud]) -> None:
         """Make the frame the keyframe and register the earlier frames onto it directly (each is
-        mostly a subset of the newer, larger part), starting from their motions via the old keyframe."""
+        mostly a subset of the newer, larger part), newest first, starting from their motions via the
+        old keyframe, or from the next newer frame's new motion when that matches _REKEY_MARGIN more
+        of the frame: a motion registered onto a small old keyframe can carry a slide along a flat
+        front that point-to-plane ICP cannot undo, while the newer frame is one step away on the
+        larger part."""
         old = self._motions
         to_old = np.linalg.inv(old[index].motion)
         self._make_keyframe(index)
-        for j, registration in old.items():
+        newer = np.eye(4)
+        fine = (2 * self.config.voxel_m,)
+        for j in sorted(old, reverse=True):
             if j == index or j not in clouds:
                 continue
-            result = icp(clouds[j].source, self._keyframe, registration.motion @ to_old, (2 * self.config.voxel_m,))
+            result = icp(clouds[j].source, self._keyframe, old[j].motion @ to_old, fine)
+            stepped = icp(clouds[j].source, self._keyframe, newer, fine)
+            if stepped.fitness > result.fitness + _REKEY_MARGIN:
+                result = stepped
             self.rekey_registrations += 1
             if result.fitness >= self.config.min_fitness:
                 self._motions[j] = result
+                newer = result.motion
 
 
 class ScrewGripEstimator(ScrewEstimator):
