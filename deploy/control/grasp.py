@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,12 +13,12 @@ from deploy.geometry.types import Axis, Box, JointType
 from drivers.arm.grasping import GRASP_DEPTH_M, GRASP_PITCH_RAD, LIMIT_MARGIN_RAD, UP, pregrasp_pose
 from drivers.arm.grasping import grasp_pose as bar_grasp_pose
 from drivers.arm.kinematics import Kinematics, well_conditioned_start
+from drivers.arm.motion import PathFn
 from drivers.errors import IKError
 
 BAR_HALF_THICKNESS_M = 0.008  # the grip centre lies this far behind the bar's front surface
 BAR_ELONGATION = 2.0  # principal spread ratio above which the handle is a bar with a direction
 MIN_HANDLE_POINTS = 5
-MIN_PLANNED_PULL_M = 0.05  # the shortest pull a pre-grasp configuration is planned for
 FRONT_RADIUS_M = 0.15  # the front face is fitted to object points this close to the handle
 MIN_FRONT_POINTS = 30
 PLANE_TOLERANCE_M = 0.004  # RANSAC inlier distance of the front plane
@@ -108,30 +109,30 @@ def grasp_pose(handle: Handle, depth_m: float = GRASP_DEPTH_M, pitch_rad: float 
     return bar_grasp_pose(handle.center, handle.normal, handle.bar, depth_m, pitch_rad)
 
 
+def pull_poses(path: PathFn, length: float, step: float) -> list[np.ndarray]:
+    """Tool poses along `path` (s from 0 to `length`, m or rad) every `step` or finer, at least 6, s = 0 left out."""
+    n = max(6, int(np.ceil(length / step)))
+    return [path(length * k / n) for k in range(1, n + 1)]
+
+
 def pregrasp_configuration(
-    kin: Kinematics, q_start: np.ndarray, T_grasp: np.ndarray, pull: np.ndarray, approach_m: float
+    kin: Kinematics, q_start: np.ndarray, T_grasp: np.ndarray, pulls: Sequence[list[np.ndarray]], approach_m: float
 ) -> np.ndarray:
-    """Joints at the pre-grasp pose from which the approach and a straight pull by `pull` (3-vector, m)
-    stay farthest from singularities (largest smallest singular value of the Jacobian along them) and
-    inside the joint limits; the Panda is redundant, so a few elbow seeds facing the handle are tried.
-    When no seed carries the whole pull, the best for a shorter one (halved down to 5 cm) is taken.
-    Raises IKError when none works."""
+    """Joints at the pre-grasp pose from which the approach and a pull (tool poses after the grasp) stay farthest
+    from singularities (largest smallest singular value of the Jacobian along them) and inside the joint limits;
+    the Panda is redundant, so a few elbow seeds facing the handle are tried. `pulls` are the pulls wanted, most
+    wanted first (e.g. a door's arc, then shorter ones): the first that some seed carries decides. Raises IKError
+    when none does."""
     T_pre = pregrasp_pose(T_grasp, approach_m)
-    length = float(np.linalg.norm(pull))
-    while True:
-        pulls = [T_grasp.copy() for _ in range(max(6, int(np.ceil(length / 0.05))))]
-        for k, T in enumerate(pulls, start=1):
-            T[:3, 3] += pull * k / len(pulls)
-        best = well_conditioned_start(kin, [T_pre, T_grasp, *pulls], q_start, LIMIT_MARGIN_RAD)
+    for poses in pulls:
+        best = well_conditioned_start(kin, [T_pre, T_grasp, *poses], q_start, LIMIT_MARGIN_RAD)
         if best is not None:
             return best
-        if length <= MIN_PLANNED_PULL_M:
-            p = T_grasp[:3, 3]
-            raise IKError(
-                f"handle at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m is out of reach: no arm configuration reaches "
-                "it and pulls it clear of joint limits and singularities; move the cabinet or the robot closer"
-            )
-        pull, length = pull / 2, length / 2
+    p = T_grasp[:3, 3]
+    raise IKError(
+        f"handle at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m is out of reach: no arm configuration reaches "
+        "it and pulls it clear of joint limits and singularities; move the cabinet or the robot closer"
+    )
 
 
 def hinge_prior(handle: Handle, object_points: np.ndarray, body_box: Box) -> Axis:

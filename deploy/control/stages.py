@@ -22,6 +22,7 @@ from deploy.control.grasp import (
     pregrasp_configuration,
     pregrasp_pose,
     protruding_points,
+    pull_poses,
 )
 from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
 from deploy.control.state import EpisodeStop, StopReason, display_scale, opening_unit
@@ -53,7 +54,10 @@ RETREAT_M = 0.05  # re-grasp: back off this far along the approach and come back
 ARM_TOUCH_PX = 100  # the arm's pixels touching the object's on the first frame: it may hide the handle
 CLEAR_VIEW_TURNS_RAD = (0.7, -0.7, 1.2, -1.2)  # first-joint swings tried to take the arm out of the view
 MIN_DOOR_RADIUS_M = 0.1  # the first arc's radius is taken as at least this
-PLANNED_DOOR_REACH_M = 0.1  # a door's pre-grasp is planned for this much straight pull
+PLANNED_DOOR_ARCS_DEG = (45.0, 30.0, 15.0)  # a door's pre-grasp is planned for the longest of these arcs it carries
+PLANNED_DOOR_REACH_M = 0.1  # ... or else for this much straight pull
+MIN_PLANNED_PULL_M = 0.05  # straight pulls planned are halved down to this
+PLANNED_LINE_STEP_M, PLANNED_ARC_STEP_RAD = 0.05, float(np.radians(5.0))  # planned pulls are checked this finely
 PRESS_N = 10.0  # the approach ended with the tool pushing the handle this hard: ease back before closing
 EASE_STEP_M, MAX_EASE_M = 0.004, 0.02  # easing back: step, and at most this far
 
@@ -144,7 +148,7 @@ def plan(episode: Episode, handle: Handle) -> tuple[StopReason, str]:
     """`--dry-run`: the grasp, approach and first pull planned and checked by IK, nothing commanded."""
     state, kin = episode.state, episode.kin
     T_grasp = grasp_pose(handle)
-    q_pre = pregrasp_configuration(kin, episode.arm.state().q, T_grasp, _planned_reach(episode) * handle.normal,
+    q_pre = pregrasp_configuration(kin, episode.arm.state().q, T_grasp, _planned_pulls(episode, handle, T_grasp),
                                    episode.config.opening.approach_m)
     state.axis = _prior(episode, handle)
     log.info("grasp plan (dry run): grasp at %s m, pre-grasp joints %s rad, prior axis %s along %s",
@@ -163,7 +167,7 @@ def grasp(episode: Episode, handle: Handle) -> None:
     arm, kin, state = episode.arm, episode.kin, episode.state
     approach = episode.config.opening.approach_m
     T_grasp = grasp_pose(handle)
-    q_pre = pregrasp_configuration(kin, arm.state().q, T_grasp, _planned_reach(episode) * handle.normal, approach)
+    q_pre = pregrasp_configuration(kin, arm.state().q, T_grasp, _planned_pulls(episode, handle, T_grasp), approach)
     log.info("grasp plan: grasp at %s m, approach %.3f m straight in, pre-grasp joints %s rad", _vec(T_grasp[:3, 3]),
              approach, _vec(q_pre))
     arm.set_gripper(1.0)  # fully open (clipped to the gripper's width)
@@ -347,11 +351,24 @@ def _close_and_check(episode: Episode, open_width: float, failure: StopReason, c
                           "mm): it missed the handle; check the handle detection and the camera calibration")
 
 
-def _planned_reach(episode: Episode) -> float:
-    """How far the pre-grasp configuration must be able to pull straight (m)."""
-    if episode.state.joint is JointType.REVOLUTE:
-        return PLANNED_DOOR_REACH_M
-    return episode.config.opening.target_distance_m + OVERSHOOT[JointType.PRISMATIC]
+def _planned_pulls(episode: Episode, handle: Handle, T_grasp: np.ndarray) -> list[list[np.ndarray]]:
+    """The pulls the pre-grasp configuration is planned for, most wanted first: a door's arc about its likely
+    hinge (PLANNED_DOOR_ARCS_DEG; the wrist turns with the door from the start), then straight out along the front
+    normal, the drawer's whole pull (or PLANNED_DOOR_REACH_M for a door) and halves of it down to
+    MIN_PLANNED_PULL_M."""
+    pulls = []
+    revolute = episode.state.joint is JointType.REVOLUTE
+    if revolute and episode.config.opening.policy != "paper":
+        prior = _prior(episode, handle)
+        pulls += [pull_poses(arc_path(T_grasp, prior.origin, prior.direction), np.radians(arc), PLANNED_ARC_STEP_RAD)
+                  for arc in PLANNED_DOOR_ARCS_DEG]
+    length = PLANNED_DOOR_REACH_M if revolute else \
+        episode.config.opening.target_distance_m + OVERSHOOT[JointType.PRISMATIC]
+    while True:
+        pulls.append(pull_poses(line_path(T_grasp, handle.normal), length, PLANNED_LINE_STEP_M))
+        if length <= MIN_PLANNED_PULL_M:
+            return pulls
+        length /= 2
 
 
 def _prior(episode: Episode, handle: Handle) -> Axis:
