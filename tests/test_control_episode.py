@@ -124,6 +124,29 @@ def test_a_slip_is_recovered_by_finding_the_handle_again():
     assert result.regrasped and result.opened >= 0.15
 
 
+def test_a_drawer_that_slides_back_after_a_slip_is_found_again_along_its_path():
+    """The grip breaks 16 cm out and the drawer slides back in to 2 cm (a soft-close drawer), beyond the 12 cm the
+    re-grasp looks in around where it held: the handle is found back along the estimated axis and the opening
+    counts from there (counted from before the slip, the loop would stop 14 cm short believing the target
+    reached)."""
+    seen = {"slid": False, "value": 0.0}
+
+    def slip_then_slide_back(world, arm):
+        def hook():
+            seen["value"] = world.joint_value()
+            if not seen["slid"] and seen["value"] > 0.16 and arm._grip is not None:
+                arm._release()  # the grip breaks (the fingers close on nothing) ...
+                pb.resetJointState(world.cabinet_id, world.cabinet_joint, 0.02, physicsClientId=world.client)
+                seen["slid"] = True  # ... and the drawer is back in
+
+        world.clock.add_hook(hook)
+
+    result, still = _episode(slip_then_slide_back, target=0.30)
+    assert seen["slid"] and result.regrasped
+    assert result.stop_reason == "target reached" and still, result.message
+    assert seen["value"] >= 0.30 and abs(result.opened - seen["value"]) < 0.02
+
+
 def test_lost_tracking_stops_safely():
     result, still = _episode(lambda world, arm: None, segmenter=_LosingSegmenter())
     assert result.stop_reason == "tracking lost" and "mask shrank to 0 pixels" in result.message

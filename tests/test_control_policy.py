@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from deploy.config import OpeningConfig
-from deploy.control.grasp import Handle, find_handle, grasp_pose, hinge_prior
+from deploy.control.grasp import Handle, back_along_path, find_handle, grasp_pose, hinge_prior
 from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
 from deploy.geometry.types import Axis, Box, JointType, NoAxis
 
@@ -124,3 +124,21 @@ def test_seen_opening_is_the_drawer_fronts_distance_out_of_the_cabinet_front():
     moving = np.vstack([plate(0.123, 3000), plate(0.163, 200, 0.05), plate(0.05, 1000)])  # front, handle, a side
     assert seen_opening(moving, first, 3.0 * direction) == pytest.approx(0.123, abs=0.003)  # any length
     assert seen_opening(moving[:150], first, direction) is None
+
+
+def test_back_along_path_carries_the_held_point_back_to_where_the_part_started():
+    """A slipped handle is looked for where the released part may have gone back: along the line, or on the arc."""
+    door = Axis(JointType.REVOLUTE, np.array([0.3, -0.35, 0.9]), np.array([0.0, 0.0, 1.0]))
+    closed = np.array([0.6, -0.35, 0.75])  # 0.3 m from the hinge
+    held = door.origin + Rotation.from_rotvec([0, 0, np.radians(50)]).apply(closed - door.origin)
+    points = back_along_path(door, held, np.radians(50), 0.12)
+    assert np.allclose(points[0], held) and np.allclose(points[-1], closed)
+    assert len(points) == 4  # 0.26 m of arc every 0.12 m or less
+    assert all(np.linalg.norm((p - door.origin)[:2]) == pytest.approx(0.3) for p in points)
+    assert np.linalg.norm(np.diff(points, axis=0), axis=1).max() <= 0.12
+    assert opening(door, closed, points[1]) == pytest.approx(np.radians(50) * 2 / 3)
+
+    drawer = Axis(JointType.PRISMATIC, np.zeros(3), np.array([-2.0, 0.0, 0.0]))  # any length
+    points = back_along_path(drawer, np.array([0.3, 0.0, 0.5]), 0.25, 0.12)
+    assert np.allclose(points, [[0.3, 0, 0.5], [0.3 + 0.25 / 3, 0, 0.5], [0.3 + 0.5 / 3, 0, 0.5], [0.55, 0, 0.5]])
+    assert back_along_path(None, np.ones(3), 0.25, 0.12) == [pytest.approx(np.ones(3))]

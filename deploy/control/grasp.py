@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import open3d as o3d
+from scipy.spatial.transform import Rotation
 
 from deploy.geometry.boxes import front_direction
 from deploy.geometry.types import Axis, Box, JointType
@@ -102,6 +103,24 @@ def protruding_points(
         normal, offset = -normal, -offset
     height = local @ normal + offset
     return local[(height > HANDLE_MIN_STANDOFF_M) & (height < HANDLE_MAX_STANDOFF_M)]
+
+
+def back_along_path(axis: Axis | None, point: np.ndarray, travel: float, spacing_m: float) -> list[np.ndarray]:
+    """`point`, then `point` carried back along the joint's path (about or along `axis`) every `spacing_m` of
+    its travel, up to `travel` (m or rad): where a part released after opening by `travel` may have gone back
+    to (a door swinging shut, a drawer sliding in). Only `point` without an axis."""
+    point = np.asarray(point, float)
+    if axis is None or travel <= 0:
+        return [point]
+    d = axis.direction / np.linalg.norm(axis.direction)
+    if axis.joint_type is JointType.PRISMATIC:
+        n = int(np.ceil(travel / spacing_m))
+        return [point - d * travel * k / n for k in range(n + 1)] if n else [point]
+    r = point - axis.origin
+    radius = float(np.linalg.norm(r - (r @ d) * d))
+    n = int(np.ceil(travel * radius / spacing_m))
+    turns = [-travel * k / n for k in range(n + 1)] if n else [0.0]
+    return [axis.origin + Rotation.from_rotvec(d * t).apply(r) for t in turns]
 
 
 def grasp_pose(handle: Handle, depth_m: float = GRASP_DEPTH_M, pitch_rad: float = GRASP_PITCH_RAD) -> np.ndarray:

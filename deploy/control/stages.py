@@ -16,6 +16,7 @@ from deploy.control.context import MIN_GRASP_WIDTH_M, SETTLE_S, Episode
 from deploy.control.grasp import (
     REGRASP_RADIUS_M,
     Handle,
+    back_along_path,
     find_handle,
     grasp_pose,
     hinge_prior,
@@ -39,6 +40,7 @@ from drivers.arm.motion import (
 )
 from drivers.arm.trajectory import MotionLimits
 from drivers.arm.wrench import WrenchEstimator
+from drivers.camera.base import Frame
 
 log = logging.getLogger(__name__)
 
@@ -281,9 +283,10 @@ def step(episode: Episode, axis: Axis, source: str) -> None:
 
 
 def regrasp(episode: Episode) -> None:
-    """Open, back off along the approach, find the handle again in a fresh frame near where it was held,
-    approach it and close. The opening measured before the slipping pull is kept (the slipping pull's share
-    is not counted: the arm errs toward opening further); later travel counts from the new grip."""
+    """Open, back off along the approach, find the handle again in a fresh frame near where it was held or,
+    released, gone back along the estimated path (a door swinging shut), approach it and close. The opening is
+    the one measured before the slipping pull (its share is not counted: the arm errs toward opening further),
+    or less where the handle is found gone back; later travel counts from the new grip."""
     arm, kin, state = episode.arm, episode.kin, episode.state
     held = episode.tool()[:3, 3]
     arm.set_gripper(state.open_width_m)
@@ -291,19 +294,36 @@ def regrasp(episode: Episode) -> None:
     T = episode.tool()
     follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), RETREAT_M, episode.line_limits())
     frame, points = episode.observer.look(arm.state())
-    handle = find_handle(protruding_points(points, held, viewpoint(frame)), points,
-                         episode.observer.pipeline.body_box, viewpoint(frame),
-                         state.joint_type() is JointType.REVOLUTE)
+    handle = _slipped_handle(episode, frame, points, held)
     if handle is None:
         raise EpisodeStop(StopReason.GRASP_LOST, f"the handle slipped out of the gripper and was not found again "
-                          f"within {REGRASP_RADIUS_M * 100:.0f} cm of where it was held: check the view of the handle")
+                          f"within {REGRASP_RADIUS_M * 100:.0f} cm of where it was held or of the estimated path "
+                          "back to the start: check the view of the handle")
     T_grasp = grasp_pose(handle)
     move_to_pose(arm, kin, pregrasp_pose(T_grasp, RETREAT_M), episode.joint_limits)
     episode.wait(SETTLE_S)
     T = episode.tool()
     follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), RETREAT_M, episode.line_limits())
     _close_and_check(episode, state.open_width_m, StopReason.GRASP_LOST, "re-grasp after a slip failed: ")
-    state.opened_before, state.p_grasp = state.opened, episode.tool()[:3, 3]
+    p_new = episode.tool()[:3, 3]
+    if state.axis is not None:
+        state.opened = min(state.opened, state.opened_before + opening(state.axis, state.p_grasp, p_new))
+    state.opened_before, state.p_grasp = state.opened, p_new
+
+
+def _slipped_handle(episode: Episode, frame: Frame, points: np.ndarray, held: np.ndarray) -> Handle | None:
+    """The handle found near where it was `held`, else near where the part would be gone back by some of its
+    opening along the estimated axis (every REGRASP_RADIUS_M of the path, nearest first)."""
+    state = episode.state
+    travel = state.opened if state.axis is None else \
+        max(state.opened, state.opened_before + opening(state.axis, state.p_grasp, held))
+    for near in back_along_path(state.axis, held, travel, REGRASP_RADIUS_M):
+        handle = find_handle(protruding_points(points, near, viewpoint(frame)), points,
+                             episode.observer.pipeline.body_box, viewpoint(frame),
+                             state.joint_type() is JointType.REVOLUTE)
+        if handle is not None:
+            return handle
+    return None
 
 
 # --- helpers ---------------------------------------------------------------------------------------------
