@@ -208,7 +208,7 @@ def first_pull(episode: Episode, handle: Handle) -> None:
     policy), or a small arc about the door's likely hinge (the front's far edge)."""
     state, opening_cfg = episode.state, episode.config.opening
     if state.joint is JointType.REVOLUTE:
-        state.axis = hinge_prior(handle, episode.observer.first_points, episode.observer.pipeline.body_box)
+        state.axis = _prior(episode, handle)
     if state.joint is JointType.REVOLUTE and opening_cfg.policy != "paper":
         axis = state.axis
         radius = max(float(np.linalg.norm(np.cross(axis.direction, state.p_grasp - axis.origin))),
@@ -314,12 +314,11 @@ def regrasp(episode: Episode) -> None:
 def _slipped_handle(episode: Episode, frame: Frame, points: np.ndarray, held: np.ndarray) -> Handle | None:
     """The handle found near where it was `held`, else near where the part would be gone back by some of its
     opening along the estimated axis (every REGRASP_RADIUS_M of the path, nearest first)."""
-    state = episode.state
-    travel = state.opened if state.axis is None else \
+    state, eye = episode.state, viewpoint(frame)
+    travel = 0.0 if state.axis is None else \
         max(state.opened, state.opened_before + opening(state.axis, state.p_grasp, held))
     for near in back_along_path(state.axis, held, travel, REGRASP_RADIUS_M):
-        handle = find_handle(protruding_points(points, near, viewpoint(frame)), points,
-                             episode.observer.pipeline.body_box, viewpoint(frame),
+        handle = find_handle(protruding_points(points, near, eye), points, episode.observer.pipeline.body_box, eye,
                              state.joint_type() is JointType.REVOLUTE)
         if handle is not None:
             return handle
