@@ -5,3 +5,15 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+import pytest  # noqa: E402
+
+import sim_fallback.scenario as scenario  # noqa: E402
+
+NEAR_DOORS_M = (0.4, 0.7)  # the scenario's door distances before RGBManip's 0.5-0.85 m: scenes some tests need
+
+
+@pytest.fixture
+def near_doors(monkeypatch):
+    """Doors placed 0.4-0.7 m from the robot, where some swing into the arm's own column or are grasped pressed."""
+    monkeypatch.setitem(scenario.CABINET_DISTANCE_M, "door", NEAR_DOORS_M)

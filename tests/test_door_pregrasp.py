@@ -2,28 +2,20 @@
 
 from __future__ import annotations
 
-import pytest
-
 import deploy.control.stages as stages
-import sim_fallback.scenario as scenario
 from deploy.bench.open import simulate_episode
 
-# Test door 44 placed 0.5-0.85 m from the robot (instead of the benchmark's 0.4-0.7 m) stands far to one side:
-# a configuration chosen for a straight pull turns the wrist (joint 5) onto its speed limit 7 deg into the arc.
+# Test door 44 stands far to one side: a configuration chosen for a straight pull turns the wrist (joint 5) onto
+# its speed limit 7 deg into the arc.
 FAR_DOOR_SEED = 44
 
 
-@pytest.fixture
-def far_doors(monkeypatch):
-    monkeypatch.setitem(scenario.CABINET_DISTANCE_M, "door", (0.5, 0.85))
-
-
-def test_a_door_pregrasp_planned_for_the_arc_carries_the_wrist_through_it(far_doors):
+def test_a_door_pregrasp_planned_for_the_arc_carries_the_wrist_through_it():
     result = simulate_episode("door", FAR_DOOR_SEED, split="test", target=20.0)
     assert result["success"], result["message"]
 
 
-def test_planned_for_a_straight_pull_the_wrist_runs_out_of_speed_on_the_arc(far_doors, monkeypatch):
+def test_planned_for_a_straight_pull_the_wrist_runs_out_of_speed_on_the_arc(monkeypatch):
     monkeypatch.setattr(stages, "PLANNED_DOOR_ARCS_DEG", ())
     result = simulate_episode("door", FAR_DOOR_SEED, split="test", target=20.0)
     assert result["stop_reason"] == "ik infeasible"  # the scenario does need the arc: the test above is not vacuous

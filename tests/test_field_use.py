@@ -210,14 +210,14 @@ def test_verbose_logs_what_a_field_user_needs(capsys, tmp_path):
 
 def test_run_folder_keeps_the_resolved_config(capsys, tmp_path):
     file = tmp_path / "run.toml"
-    file.write_text('[filter]\nradius_m = 0.02\n[opening]\nmax_steps = 2\ntimeout_s = 30\n')
+    file.write_text('[filter]\nradius_m = 0.04\n[opening]\nmax_steps = 2\ntimeout_s = 30\n')
     code, out, _ = run(capsys, "open-door", "--dry-run", "--config", file, "--prompt", "cupboard", "--run-dir",
                        tmp_path / "run", "--json")
     assert code == 0
     kept = json.loads((tmp_path / "run" / "config.json").read_text())
     assert set(kept) == {"filter", "geometry", "estimator", "opening", "perception", "filter_used"}
-    assert kept["filter"] == {"profile": "sim", "radius_m": 0.02, "eps": None}  # the camera chose the profile
-    assert kept["filter_used"] == {"radius_m": 0.02, "eps": 100} == {k: json.loads(out)["filter"][k]
+    assert kept["filter"] == {"profile": "sim", "radius_m": 0.04, "eps": None}  # the camera chose the profile
+    assert kept["filter_used"] == {"radius_m": 0.04, "eps": 100} == {k: json.loads(out)["filter"][k]
                                                                     for k in ("radius_m", "eps")}
     assert kept["opening"]["task"] == "door" and kept["opening"]["max_steps"] == 2
     assert kept["perception"]["object_prompt"] == "cupboard"

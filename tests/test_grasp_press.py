@@ -7,8 +7,8 @@ import numpy as np
 import deploy.control.stages as stages
 from deploy.bench.open import simulate_episode
 
-# Test scenario 42 is a door with a knob nearer than the calibrated camera sees it: the approach ends with the
-# palm pushing on the knob (about 30 N after settling).
+# Test scenario 42, placed near (0.4-0.7 m), is a door with a knob nearer than the calibrated camera sees it:
+# the approach ends with the palm pushing on the knob (about 30 N after settling).
 PRESSED_DOOR_SEED = 42
 
 
@@ -27,14 +27,14 @@ def _episode(monkeypatch, ease: bool) -> tuple[dict, list[float]]:
     return simulate_episode("door", PRESSED_DOOR_SEED, split="test", target=20.0), pushes
 
 
-def test_a_pressed_handle_is_eased_off_before_closing_and_the_door_opens(monkeypatch):
+def test_a_pressed_handle_is_eased_off_before_closing_and_the_door_opens(near_doors, monkeypatch):
     result, pushes = _episode(monkeypatch, ease=True)
     assert pushes and pushes[0] < stages.PRESS_N
     assert result["success"], result["message"]
     assert result["true_opened_deg"] >= 20.0
 
 
-def test_without_easing_off_the_first_pull_reads_the_released_push_as_resistance(monkeypatch):
+def test_without_easing_off_the_first_pull_reads_the_released_push_as_resistance(near_doors, monkeypatch):
     result, pushes = _episode(monkeypatch, ease=False)
     assert pushes and pushes[0] > stages.PRESS_N  # the scenario does press: the test above is not vacuous
     assert result["stop_reason"] == "blocked"
