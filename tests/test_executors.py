@@ -126,6 +126,14 @@ def test_ray_error_names_the_job_with_the_original_cause(ray_executor):
     assert isinstance(info.value.__cause__.cause, ValueError)  # RayTaskError keeps the worker's exception
 
 
+def test_ray_cancels_unfinished_jobs_after_a_failure(ray_executor, tmp_path):
+    jobs = [dict(x=-1)] + [dict(x=x, delay_s=0.2, marker=str(tmp_path / f"{x}")) for x in range(1, 21)]
+    with pytest.raises(JobError, match="job 1 of 21"):
+        list(ray_executor.map(square, jobs))
+    time.sleep(3.0)  # uncancelled, 20 jobs of 0.2 s on 2 CPUs would all be done by now
+    assert len(list(tmp_path.iterdir())) < 10
+
+
 def test_ray_runs_a_simulated_episode(ray_executor):
     job = dict(task="drawer", seed=0, split="train", target=0.05)
     (result,) = ray_executor.map(simulate_episode, [job])

@@ -123,8 +123,7 @@ class RayExecutor:
                 done = index + 1
                 yield result
         finally:
-            for ref in refs[done:]:
-                ray.cancel(ref)
+            _cancel_unfinished(ray, refs[done:])
 
     def _connect(self) -> Any:
         if self._ray is not None:
@@ -158,6 +157,15 @@ class RayExecutor:
                               f"install it with {RAY_INSTALL}") from exc
         self._ray, self._owns_ray = ray, True
         return ray
+
+
+def _cancel_unfinished(ray: Any, refs: list[Any]) -> None:
+    """Cancel the Ray jobs not finished yet. Finished ones are left alone: cancelling a task while its completion
+    is in flight can crash the driver (Ray's "Tried to complete task that was not pending")."""
+    if refs:
+        _, unfinished = ray.wait(refs, num_returns=len(refs), timeout=0, fetch_local=False)
+        for ref in unfinished:
+            ray.cancel(ref)
 
 
 def make_executor(workers: int = 1, ray_address: str | None = None) -> Executor:
