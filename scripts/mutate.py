@@ -105,7 +105,7 @@ RECORD = """
         self._jsonl.write(json.dumps(record) + "\\n")
 """
 GRASP = "if not MIN_GRASP_WIDTH_M < width < open_width - OPEN_MARGIN_M:"
-FORCE_STOP = "if limit is not None and (force > limit or still_s >= self.c.stall_s):"
+FORCE_STOP = "if limit is not None and (force > limit or stuck):"
 BOUNDS = "slow_from, halt_at = self.c.slow_from * limit, self.c.halt_at * limit"
 STILL = "still_s = still_s + dt if self.scale < STALL_SCALE else 0.0"
 
@@ -189,7 +189,7 @@ MUTANTS = [
     _writer("line-before-directories", "the line synced before the PNGs' names", DIR_SYNC + RECORD + LINE_SYNC,
             RECORD.lstrip("\n") + LINE_SYNC + DIR_SYNC),
     _force("limit-doubled", "the force limit compared with twice its value", FORCE_STOP,
-           "if limit is not None and (force > 2 * limit or still_s >= self.c.stall_s):"),
+           "if limit is not None and (force > 2 * limit or stuck):"),
     _force("stall-unchecked", "a pull held still never ends (only the limit stops it)", FORCE_STOP,
            "if limit is not None and force > limit:"),
     _force("slow-counts-as-still", "a slowed pull counted as held still", STILL,

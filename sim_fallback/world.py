@@ -96,6 +96,9 @@ class SimWorld:
         c, sc = self.client, self.scenario
         pb.setGravity(0, 0, -9.81, physicsClientId=c)
         pb.setTimeStep(self.clock.dt, physicsClientId=c)
+        # contacts solved in a fixed order, not in the order of their memory addresses: an episode's outcome
+        # then does not depend on what ran before it in the same process (a benchmark worker's earlier episodes)
+        pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=c)
         self.robot_spec = panda()
         robot_urdf = _low_poly_copy(self.robot_spec.urdf, Path(self._tmp.name))
         self.robot_id = pb.loadURDF(str(robot_urdf), useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE,

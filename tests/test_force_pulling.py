@@ -100,6 +100,27 @@ def test_a_locked_drawer_ends_blocked_under_the_force_limit():
     assert not result["regrasped"]
 
 
+@pytest.mark.timeout(300)  # without the rule, the pull below never ends
+def test_a_pull_that_makes_no_headway_ends_blocked_even_when_never_held_still_long():
+    """A force that swings about the halt moves the path back and forth without ever holding it still for
+    `stall_s`: with that rule switched off, a locked drawer's pull must still end after `no_progress_s`."""
+    with SimWorld(Scenario.make("drawer", 0, "train", condition="locked")) as world:
+        arm = SimArm(world)
+        grasp_handle(world, arm, MotionLimits.for_robot(world.robot_spec, arm.kin, 0.3), 0.15)
+        compliance = Compliance(force_limit_n=60.0, stall_s=float("inf"), no_progress_s=2.0)
+        result = follow_cartesian_path(arm, arm.kin, line_path(arm.kin.fk(arm.state().q), world.truth().direction),
+                                       0.12, MotionLimits(0.08, 0.32, 3.2), compliance=compliance)
+    assert result.outcome.value == "blocked" and "held the path still for 2.0 s" in result.reason
+    assert result.t[-1] < 4.0 and result.peak_force_n <= 60.0
+
+
+def test_the_episode_time_budget_stops_a_pull_midway():
+    result = simulate_episode("drawer", 0, "test", target=0.10, timeout_s=5.0)  # runs out as the first pull starts
+    assert result["stop_reason"] == "timeout"
+    assert result["true_opened_m"] < 0.01  # the 5 cm first pull was cut short, not finished
+    assert result["timings"]["sim_time_s"] < 5.0 + 2.0
+
+
 def test_a_lower_force_limit_stops_sooner():
     result = simulate_episode("drawer", 0, "train", target=0.15, condition="locked", pull_force_limit_n=30.0)
     assert result["stop_reason"] == "blocked" and result["peak_pull_force_n"] <= 30.0

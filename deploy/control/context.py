@@ -71,12 +71,13 @@ class Episode:
              step: bool = False) -> PathResult:
         """One compliant motion along `path` with frames grabbed on the way (an axis-guided `step` is counted
         once it has moved), then the frames processed. The path yields to the object and the force is bounded
-        by `[opening] pull_force_limit_n` (`Compliance`); the caller decides what a slip or a block means."""
+        by `[opening] pull_force_limit_n` (`Compliance`); the caller decides what a slip or a block means. The
+        motion stops early when the gripper loses the handle or the episode's arm time (`timeout_s`) runs out."""
         clock = time.perf_counter()
 
         def on_tick(state: ArmState, _t: float) -> bool:
             self.observer.capture(state)
-            return state.gripper_width_m > MIN_GRASP_WIDTH_M
+            return state.gripper_width_m > MIN_GRASP_WIDTH_M and self.now() <= self.config.opening.timeout_s
 
         self.arm.set_compliance(True)
         try:

@@ -32,6 +32,7 @@ TANGENT_STEP = 1e-4  # compliant pulls: the path's tangent from poses this far (
 STALL_SCALE = 0.02  # compliant pulls: a path slowed below this share of its speed is held still (braking
 # goes on at least this fast, so that it ends)
 RELEASE_SPEED_SHARE, RELEASE_JERK_PER_ACCELERATION = 0.2, 100.0  # easing back after a force stop ...
+PROGRESS_SHARE = 0.01  # compliant pulls: progress counts in steps of this share of the path
 SCALE_RISE_PER_S = 2.0  # compliant pulls: the force bound gives the path its speed back this slowly
 
 
@@ -289,7 +290,9 @@ class Compliance:
     that must not out-run it. Force bound: past `slow_from` of `force_limit_n` the path slows down, to a
     halt at `halt_at` of it, and above that it backs off along the path (the speed changing by at most
     `stop_acceleration`), so the force settles at `halt_at` of the limit on an object that does not give.
-    Held there (not progressing) for `stall_s`, or above the limit, the pull ends "blocked" and the command
+    Held there (not progressing) for `stall_s`, or going back and forth without gaining PROGRESS_SHARE of the
+    path in `no_progress_s` (a force that swings about the halt), or above the limit, the pull ends "blocked" and
+    the command
     eases back to where the arm measured itself then (joint accelerations within `release_acceleration_rad_s2`),
     pressing no further. None: no force limit. The pull's force is what it adds to the force held when it began
     (the grasp's squeeze, about 20 N in simulation, is not the object's resistance), and so is the force the
@@ -306,6 +309,7 @@ class Compliance:
     halt_at: float = 0.85
     stop_acceleration: float = 1.0  # path units: m/s^2 along a line, rad/s^2 along an arc
     stall_s: float = 0.3
+    no_progress_s: float = 3.0
     release_acceleration_rad_s2: float = 5.0
 
     def with_force_limit(self, force_limit_n: float | None) -> Compliance:
@@ -337,6 +341,7 @@ class CompliantPull:
         samples: list[tuple[float, float, np.ndarray, np.ndarray]] = []
         outcome, reason, max_error, stopping, k, done = Outcome.COMPLETED, "completed", 0.0, False, 0, False
         blocked_at: tuple[float, float, float] | None = None  # force N, time held still s, s
+        gained_s, gained_t = 0.0, 0.0  # how far the path has come (by PROGRESS_SHARE of it at a time), and when
         try:
             while not done:
                 k += 1
@@ -362,11 +367,15 @@ class CompliantPull:
                 error = float(np.linalg.norm(T[:3, 3] - T_measured[:3, 3]))
                 max_error = max(max_error, error)
                 still_s = still_s + dt if self.scale < STALL_SCALE else 0.0
+                if s >= gained_s + PROGRESS_SHARE * self.profile.length:
+                    gained_s, gained_t = s, t
+                held_s = still_s if still_s >= self.c.stall_s else t - gained_t
+                stuck = still_s >= self.c.stall_s or held_s >= self.c.no_progress_s
                 keep_going = on_tick is None or on_tick(state, t) is not False
                 if not stopping:
                     limit = self.c.force_limit_n
-                    if limit is not None and (force > limit or still_s >= self.c.stall_s):
-                        outcome, blocked_at = Outcome.BLOCKED, (force, still_s, s)
+                    if limit is not None and (force > limit or stuck):
+                        outcome, blocked_at = Outcome.BLOCKED, (force, held_s, s)
                         release, q_hold, done = self._release(q, dq), state.q, False
                     elif error > max_tracking_error_m or not keep_going:
                         outcome = Outcome.STOPPED if not keep_going else Outcome.BLOCKED
