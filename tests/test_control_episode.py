@@ -169,3 +169,4 @@ def test_bench_open_reports_the_issue_keys():
     # a frame's CPU time on its thread is positive and never more than the wall time it took
     assert 0 < out["frame_cpu_ms_median"] <= out["frame_ms_median"] * 1.01
     json.dumps(out)
+
