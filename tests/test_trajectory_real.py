@@ -6,9 +6,11 @@ from scipy.spatial.transform import Rotation
 
 from deploy.bench.axis_paths import bench_axis_paths
 from deploy.geometry.estimators.trajectory import (
+    LEVEL_SIGMA_DEG,
     MAX_HINGE_SIGMA_DEG,
     fit_trajectory,
     fit_trajectory_report,
+    level_hinge,
     parse_trajectory,
 )
 from deploy.geometry.metrics import axis_angle_error_deg
@@ -144,6 +146,56 @@ def test_a_tilted_hinge_keeps_its_tilt():
             positions, quaternions = jitter(*door(axis=tilt, arc_deg=50, seed=seed), seed)
             for q in (quaternions, None):
                 check(fit_trajectory(positions, q), JointType.REVOLUTE, tilt, 1.5)
+
+
+def swaying_hinge(axis, seed, sway_m=1.5e-3):
+    """A positions-only 50 deg swing of 0.22 m about `axis` whose handle sways up to `sway_m` along the hinge
+    midway (the part's play): from positions, a plane tilted about the chord, a hinge leaning a few degrees."""
+    positions, _ = door(axis=axis, arc_deg=50, radius_m=0.22, seed=seed)
+    drift = np.sin(np.pi * progress(len(positions), seed=seed))[:, None] * sway_m * unit(axis)
+    return jitter(positions + drift, door()[1], seed)[0]
+
+
+def lean_deg(direction, vertical: bool) -> float:
+    """How far a hinge direction leans from vertical, or from horizontal."""
+    height = abs(unit(direction)[2])
+    return float(np.degrees(np.arccos(height) if vertical else np.arcsin(height)))
+
+
+@pytest.mark.parametrize("axis", [[0.0, 0.0, 1.0], [1.0, 0.3, 0.0]], ids=["door", "flap"])
+def test_play_along_a_level_hinge_is_levelled_with_the_world_up(axis):
+    vertical = axis[2] == 1.0
+    for seed in range(3):
+        positions = swaying_hinge(axis, seed)
+        leaning = fit_trajectory(positions, joint=JointType.REVOLUTE)
+        assert lean_deg(leaning.direction, vertical) > 2.0  # the play leans the swing's plane
+        levelled = fit_trajectory(positions, joint=JointType.REVOLUTE, up=np.array([0.0, 0.0, 1.0]))
+        assert lean_deg(levelled.direction, vertical) < 0.8 * lean_deg(leaning.direction, vertical)
+        assert axis_angle_error_deg(axis, levelled.direction) < axis_angle_error_deg(axis, leaning.direction)
+        assert levelled.direction_sigma_deg < leaning.direction_sigma_deg
+
+
+def test_level_hinge_pulls_the_lean_by_the_prior_and_keeps_what_is_built_slanted():
+    up = np.array([0.0, 0.0, 1.0])
+    leaning = Rotation.from_euler("x", 3, degrees=True).apply(up)
+    direction, sigma = level_hinge(leaning, LEVEL_SIGMA_DEG, up)  # equal weights: half the lean, sigma / sqrt 2
+    assert axis_angle_error_deg(up, direction) == pytest.approx(1.5, abs=1e-6)
+    assert sigma == pytest.approx(LEVEL_SIGMA_DEG / np.sqrt(2))
+    flap = unit([1.0, 0.5, 0.05])  # 2.6 deg from horizontal: levelled, its heading kept
+    direction, sigma = level_hinge(flap, LEVEL_SIGMA_DEG, up)
+    assert np.degrees(np.arcsin(direction @ up)) == pytest.approx(np.degrees(np.arcsin(flap @ up)) / 2, abs=1e-6)
+    np.testing.assert_allclose(unit(direction[:2]), unit(flap[:2]), atol=1e-9)
+    assert LEVEL_SIGMA_DEG / np.sqrt(2) < sigma < LEVEL_SIGMA_DEG
+    slanted = Rotation.from_euler("y", 10, degrees=True).apply(up)  # a slanted lid, 10 deg > 3 combined sigmas
+    np.testing.assert_array_equal(level_hinge(slanted, 1.0, up)[0], slanted)
+    assert level_hinge(-up, 1.0, up)[0] @ -up == pytest.approx(1.0)  # the opening sense is kept
+
+
+def test_a_hinge_built_at_a_slant_keeps_it_with_the_world_up():
+    tilt = unit([0.0, 0.2, 1.0])  # 11 deg off vertical
+    for seed in range(3):
+        positions, quaternions = jitter(*door(axis=tilt, arc_deg=50, seed=seed), seed)
+        check(fit_trajectory(positions, quaternions, up=np.array([0.0, 0.0, 1.0])), JointType.REVOLUTE, tilt, 1.5)
 
 
 def test_uneven_sampling_and_shuffled_samples_with_times():

@@ -3,7 +3,8 @@
 The set is `deploy.synthetic.handle_paths.handle_path_set`: 12 objects (4 drawers, 4 doors, 2 flaps on a
 horizontal hinge, 2 sliding parts) opened 5 times each by a hand-like pull with pauses, tremor, play,
 uneven sampling, dropped samples and tracking glitches. Each path is fitted with the joint type left to
-the fit (`--joint auto`) and with it given; an undecided answer counts as not right, never as wrong.
+the fit (`--joint auto`) and with it given, in the set's frame (z up, as `fit-trajectory --up z`); an
+undecided answer counts as not right, never as wrong.
 """
 
 from __future__ import annotations
@@ -19,6 +20,9 @@ from deploy.geometry.metrics import axis_angle_error_deg
 from deploy.geometry.types import Axis
 from deploy.synthetic.handle_paths import PATH_KINDS, HandlePath, handle_path_set
 
+UP = np.array([0.0, 0.0, 1.0])
+"""The set's up direction (base frame, z up)."""
+
 
 def _reason_class(reason: str) -> str:
     """The failure family of an undecided answer: its reason with every figure replaced by N."""
@@ -30,9 +34,10 @@ def score_path(path: HandlePath, given: bool = True) -> dict:
     type given."""
     truth = path.obj.axis
     clock = time.perf_counter()
-    auto = fit_trajectory(path.positions, path.quaternions, times=path.times)
+    auto = fit_trajectory(path.positions, path.quaternions, times=path.times, up=UP)
     ms = (time.perf_counter() - clock) * 1e3
-    given = fit_trajectory(path.positions, path.quaternions, truth.joint_type, times=path.times) if given else None
+    given = fit_trajectory(path.positions, path.quaternions, truth.joint_type, times=path.times, up=UP) \
+        if given else None
     row = {"object": path.obj.name, "kind": path.kind, "samples": len(path.times),
            "orientations": path.quaternions is not None, "ms": ms, "type": None, "angle_deg": None,
            "sigma_deg": None, "reason": None, "given_angle_deg": None}

@@ -8,7 +8,15 @@ from typing import Annotated
 
 import typer
 
-from deploy.commands.options import ConfigFileOpt, EstimatorOpt, FilterChoice, JointChoice, JsonOpt, view_option
+from deploy.commands.options import (
+    ConfigFileOpt,
+    EstimatorOpt,
+    FilterChoice,
+    JointChoice,
+    JsonOpt,
+    UpChoice,
+    view_option,
+)
 from deploy.commands.output import err_console, fmt, print_json, print_rows, print_table, progress_bar, view_file
 
 app = typer.Typer(help="Estimate joint axes from recordings, gripper trajectories or synthetic scenes.",
@@ -45,13 +53,19 @@ def axis_fit_trajectory(
                                               "qx,qy,qz,qw and timestamp.")],
     joint: Annotated[JointChoice, typer.Option(
         help="Joint type, or auto: decided from the path, or undecided (exit 1, with the reason).")] = JointChoice.auto,
+    up: Annotated[UpChoice, typer.Option(
+        help="The world's up axis in the file's frame: a hinge found near vertical or horizontal is levelled toward "
+             "it by a 1.5 deg prior (furniture is built level); none for an unknown frame or a hinge built at a "
+             "slant.")] = UpChoice.z,
     json_out: JsonOpt = False,
 ) -> None:
     """Fit a prismatic line or a revolute axis to a gripper (handle) trajectory, with the uncertainty of its direction.
 
     Example: deploy axis fit-trajectory handle.txt --joint auto --json
-    Example: deploy axis fit-trajectory handle_tum.txt
+    Example: deploy axis fit-trajectory handle_tum.txt --up y
     """
+    import numpy as np
+
     from deploy.errors import RecordingError
     from deploy.geometry.estimators.trajectory import fit_trajectory_report, parse_trajectory
     from deploy.geometry.types import JointType
@@ -67,9 +81,11 @@ def axis_fit_trajectory(
         samples = parse_trajectory(text)
     except ValueError as exc:
         raise RecordingError(f"trajectory file {file}: {exc}") from exc
+    world_up = None if up is UpChoice.none else np.eye(3)["xyz".index(up.value)]
     data = fit_trajectory_report(samples.positions, samples.quaternions,
-                                 None if joint == JointChoice.auto else JointType(joint.value), times=samples.times)
-    data.update(n_samples=len(samples.positions), format=samples.format)  # confidence, noise_m, travel_m, arc_deg
+                                 None if joint == JointChoice.auto else JointType(joint.value), times=samples.times,
+                                 up=world_up)
+    data.update(n_samples=len(samples.positions), format=samples.format, up=up.value)  # and confidence, noise_m, ...
     if json_out:
         print_json(data)
     else:

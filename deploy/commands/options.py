@@ -26,6 +26,15 @@ class JointChoice(str, Enum):
     revolute = "revolute"
 
 
+class UpChoice(str, Enum):
+    """The world's up axis in a trajectory file's frame, or none."""
+
+    x = "x"
+    y = "y"
+    z = "z"
+    none = "none"
+
+
 class Task(str, Enum):
     drawer = "drawer"
     door = "door"

@@ -81,6 +81,12 @@ FIT_COVERAGE = 0.8
 """The share of the cells a fitted line or circle must explain: glitches are gone before the fits, so a fit
 need not give up half the path (which let it follow the half that a part's play bent one way)."""
 _JACKKNIFE_EVALUATIONS = 12  # a refit starts at the full fit's circle: a few steps reach its minimum
+LEVEL_SIGMA_DEG = 1.5
+"""How far furniture's hinges lean from vertical (doors) or horizontal (flaps, lids): building tolerance. With the
+world's up direction given, a hinge's direction is pulled toward level by this prior (`level_hinge`)."""
+LEVEL_GATE = 3.0
+"""A hinge leaning more than this many combined standard deviations (its own and the prior's) is taken as built
+that way, and its fit is kept."""
 
 
 @dataclass(frozen=True)
@@ -307,7 +313,7 @@ def _expected_evidence(path: PreparedPath, turn: Turn, radius_m: float, comparis
 
 def fit_trajectory(
     positions: np.ndarray, quaternions: np.ndarray | None = None, joint: JointType | None = None, *,
-    times: np.ndarray | None = None,
+    times: np.ndarray | None = None, up: np.ndarray | None = None,
 ) -> AxisResult:
     """The joint axis from gripper positions (N,3) and optional orientations (N,4, xyzw), oldest first
     (or in any order with `times` (N,) s, which sorts them).
@@ -318,24 +324,25 @@ def fit_trajectory(
     the rigid turn model (`rigid_turn_fit`) when its misfit is within twice the circle's, plus what
     the turn's own scatter explains, plus 1 mm (a slipping grasp breaks it). Opening is a positive
     rotation about the direction; origin = the axis point level with the handle; radius_m = circle
-    radius. `direction_sigma_deg` is the direction's standard deviation.
+    radius. `direction_sigma_deg` is the direction's standard deviation. With the world's `up` (3,) in the
+    samples' frame, a hinge is levelled toward vertical or horizontal by `level_hinge` (furniture is built level).
 
     Joint type when `joint` is None: `classify`, which may answer NoAxis ("joint type undecided: ...",
     details["undecided"] = True), also for a hinge whose direction is uncertain by more than
     MAX_HINGE_SIGMA_DEG. NoAxis also for fewer than 3 samples, non-finite values, less than MIN_SPREAD_M
     of motion, or no fit.
     """
-    return _fit(positions, quaternions, joint, times)[0]
+    return _fit(positions, quaternions, joint, times, up)[0]
 
 
 def fit_trajectory_report(
     positions: np.ndarray, quaternions: np.ndarray | None = None, joint: JointType | None = None, *,
-    times: np.ndarray | None = None,
+    times: np.ndarray | None = None, up: np.ndarray | None = None,
 ) -> dict:
     """`fit_trajectory` as a JSON-ready dict: the axis (`Axis.to_dict`: joint_type, origin, direction,
     radius_m, residual_m, confidence, direction_sigma_deg) or its reason and details, with the path's
     own noise (noise_m, per axis), its travel (travel_m) and, for a hinge, the arc it swept (arc_deg)."""
-    result, path = _fit(positions, quaternions, joint, times)
+    result, path = _fit(positions, quaternions, joint, times, up)
     data = {"joint_type": None, "origin": None, "direction": None, "radius_m": None, "residual_m": None,
             "confidence": None, "direction_sigma_deg": None, "noise_m": None, "travel_m": None, "arc_deg": None}
     if path is not None:
@@ -349,7 +356,7 @@ def fit_trajectory_report(
     return data
 
 
-def _fit(positions, quaternions, joint, times) -> tuple[AxisResult, PreparedPath | None]:
+def _fit(positions, quaternions, joint, times, up) -> tuple[AxisResult, PreparedPath | None]:
     """`fit_trajectory`'s answer and the prepared path (None when the samples were refused)."""
     checked = _checked(positions, quaternions, times)
     if isinstance(checked, NoAxis):
@@ -369,10 +376,10 @@ def _fit(positions, quaternions, joint, times) -> tuple[AxisResult, PreparedPath
         if isinstance(decided, NoAxis):
             return decided, path
         if decided is JointType.REVOLUTE:
-            return _sure_hinge(revolute_axis(path, circle, turn), path, line, circle), path
+            return _sure_hinge(revolute_axis(path, circle, turn, up), path, line, circle), path
         joint = decided
     if joint is JointType.REVOLUTE:
-        return revolute_axis(path, circle, turn), path
+        return revolute_axis(path, circle, turn, up), path
     return prismatic_axis(path, line), path
 
 
@@ -441,12 +448,16 @@ def _trend(values: np.ndarray, mask: np.ndarray) -> float:
     return float(np.sum((order - order.mean()) * values[mask]))
 
 
-def revolute_axis(path: PreparedPath, circle: CircleFit | None, turn: Turn | None) -> AxisResult:
-    """The hinge (`fit_trajectory`), or NoAxis when no circle fits or it is wider than MAX_RADIUS_M."""
+def revolute_axis(path: PreparedPath, circle: CircleFit | None, turn: Turn | None,
+                  up: np.ndarray | None = None) -> AxisResult:
+    """The hinge (`fit_trajectory`), or NoAxis when no circle fits or it is wider than MAX_RADIUS_M. With the
+    world's `up`, a direction known to MAX_HINGE_SIGMA_DEG is levelled (`level_hinge`) before the centre is fitted."""
     use_turn = turn is not None and turn.total_deg >= MIN_ROTATION_DEG
     if circle is None and not use_turn:
         return NoAxis("no hinge circle fits the gripper path: the points are collinear")
     direction, sigma = _hinge_direction(path, circle, turn if use_turn else None)
+    if up is not None and sigma is not None and sigma <= MAX_HINGE_SIGMA_DEG:
+        direction, sigma = level_hinge(direction, sigma, up)
     cells = path.cells
     flat = cells - np.outer(cells @ direction - np.median(cells @ direction), direction)
     planar = _fit_circle(flat)
@@ -518,6 +529,26 @@ def _hinge_direction(
         return direction, min(max(sigma, disagreement / 3), MAX_SIGMA_DEG)
     combined = a / sa**2 + b / sb**2
     return combined / np.linalg.norm(combined), min(float(1 / np.sqrt(1 / sa**2 + 1 / sb**2)), MAX_SIGMA_DEG)
+
+
+def level_hinge(direction: np.ndarray, sigma_deg: float, up: np.ndarray) -> tuple[np.ndarray, float]:
+    """A hinge direction and its sigma (deg) with the prior that furniture is built level: the hinge leans from
+    vertical (within 45 deg of `up`) or from horizontal by a Gaussian of LEVEL_SIGMA_DEG. The lean shrinks by
+    prior^2 / (prior^2 + sigma^2) (the posterior's mode) and so does its sigma's share; the direction within the
+    horizontal plane keeps the fit's. A lean beyond LEVEL_GATE combined sigmas is kept as measured."""
+    up = up / np.linalg.norm(up)
+    height = float(direction @ up)
+    vertical = abs(height) >= np.sqrt(0.5)
+    target = np.sign(height) * up if vertical else (direction - height * up) / np.linalg.norm(direction - height * up)
+    lean = float(np.arccos(np.clip(direction @ target, -1.0, 1.0)))
+    combined = float(np.hypot(sigma_deg, LEVEL_SIGMA_DEG))
+    if lean < 1e-9 or np.degrees(lean) > LEVEL_GATE * combined:
+        return direction, sigma_deg
+    turn_axis = np.cross(target, direction)
+    kept = LEVEL_SIGMA_DEG**2 / combined**2
+    levelled = Rotation.from_rotvec(turn_axis / np.linalg.norm(turn_axis) * lean * kept).apply(target)
+    lean_sigma = sigma_deg * LEVEL_SIGMA_DEG / combined
+    return levelled, lean_sigma if vertical else float(np.sqrt((sigma_deg**2 + lean_sigma**2) / 2))
 
 
 class TrajectoryEstimator(AxisEstimator):
