@@ -534,8 +534,9 @@ def _hinge_direction(
 def level_hinge(direction: np.ndarray, sigma_deg: float, up: np.ndarray) -> tuple[np.ndarray, float]:
     """A hinge direction and its sigma (deg) with the prior that furniture is built level: the hinge leans from
     vertical (within 45 deg of `up`) or from horizontal by a Gaussian of LEVEL_SIGMA_DEG. The lean shrinks by
-    prior^2 / (prior^2 + sigma^2) (the posterior's mode) and so does its sigma's share; the direction within the
-    horizontal plane keeps the fit's. A lean beyond LEVEL_GATE combined sigmas is kept as measured."""
+    prior^2 / (prior^2 + sigma^2) (the posterior's mode) and its sigma to the posterior's; a horizontal hinge's
+    heading keeps the fit's and its sigma, so the sigma reported is the RMS of the two. A lean beyond LEVEL_GATE
+    combined sigmas is kept as measured."""
     up = up / np.linalg.norm(up)
     height = float(direction @ up)
     vertical = abs(height) >= np.sqrt(0.5)
