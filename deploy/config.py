@@ -140,7 +140,8 @@ class OpeningConfig(_Section):
     """How to open: task, target (m for a drawer, deg for a door), policy and motion sizes.
 
     policy: "closed" re-estimates after every step, "open" estimates once after the first pull and keeps that
-    axis, "paper" runs the paper's straight steps with its estimator (`paper-obb`). fusion: "vision" acts on
+    axis, "paper" runs the paper's straight steps with its estimator (`paper-obb`) alone (`acting_fusion`
+    "vision": the gripper's path and the force cue are ours, not the paper's). fusion: "vision" acts on
     the camera's estimate only; "trajectory" on a fit to the gripper's own path (FK) once it fits, vision
     before; "fused" on the trajectory fit once the gripper has moved `trajectory_min_travel` (m or deg) and the
     fit is confident, on vision otherwise and for the joint type; "force" on vision, except after a pull whose
@@ -180,6 +181,11 @@ class OpeningConfig(_Section):
     pull_force_limit_n: float | None = Field(default=60.0, gt=0, le=500, description="a pull ends \"blocked\" "
                                              "when the force the tool applies (from the joint torques) exceeds "
                                              "this; a Panda-class arm's. None: no limit")
+
+    @property
+    def acting_fusion(self) -> Fusion:
+        """The fusion the policy acts with: `fusion`, but "vision" for the paper's policy."""
+        return "vision" if self.policy == "paper" else self.fusion
 
     @property
     def target(self) -> float:

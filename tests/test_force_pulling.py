@@ -163,3 +163,17 @@ def test_force_fusion_trusts_the_gripper_path_only_after_a_strained_pull():
     drawer = Axis(JointType.PRISMATIC, np.zeros(3), np.array([1.0, 0.0, 0.0]), confidence=0.9)
     assert choose_axis(vision, drawer, JointType.REVOLUTE, moved, cfg, strained=True) == (vision, "vision")
     assert choose_axis(NoAxis("none yet"), path, JointType.REVOLUTE, moved, cfg, True)[1] == "trajectory (force)"
+
+
+def test_the_papers_policy_acts_on_its_estimator_alone():
+    """The gripper's path and the force cue are this project's: the paper's schedule does not borrow them."""
+    vision = Axis(JointType.REVOLUTE, np.zeros(3), np.array([0.0, 0.0, 1.0]), confidence=0.9)
+    path = Axis(JointType.REVOLUTE, np.array([0.02, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), confidence=0.9)
+    moved = np.radians(30.0)
+    for fusion in ("force", "fused", "trajectory"):
+        cfg = OpeningConfig(task="door", policy="paper", fusion=fusion)
+        assert cfg.acting_fusion == "vision"
+        assert choose_axis(vision, path, JointType.REVOLUTE, moved, cfg, strained=True) == (vision, "vision")
+        assert choose_axis(NoAxis("none yet"), path, JointType.REVOLUTE, moved, cfg, True)[1] == "none"
+        closed = cfg.model_copy(update={"policy": "closed"})
+        assert choose_axis(vision, path, JointType.REVOLUTE, moved, closed, strained=True)[0] is path

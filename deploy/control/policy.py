@@ -48,21 +48,23 @@ def choose_axis(
     moved >= the trajectory minimum and confidence >= the minimum; vision otherwise. "force": the trajectory
     fit of the expected type when strained and moved >= the minimum (the compliant path followed the object
     where the commanded axis was off), vision otherwise. "trajectory" drops the gates; "vision" never uses it.
+    The rule is `config.acting_fusion` (the paper's policy acts on vision alone).
     """
+    fusion = config.acting_fusion
     expected = joint if joint is not None else (vision.joint_type if isinstance(vision, Axis) else None)
     use_trajectory = (
-        config.fusion != "vision"
+        fusion != "vision"
         and isinstance(trajectory, Axis)
         and (expected is None or trajectory.joint_type is expected)
     )
-    if use_trajectory and config.fusion in ("fused", "force"):
+    if use_trajectory and fusion in ("fused", "force"):
         min_travel = (config.trajectory_min_travel_m if trajectory.joint_type is JointType.PRISMATIC
                       else np.radians(config.trajectory_min_travel_deg))
-        confident = strained if config.fusion == "force" else \
+        confident = strained if fusion == "force" else \
             trajectory.confidence >= config.trajectory_min_confidence
         use_trajectory = moved >= min_travel and confident
     if use_trajectory:
-        return trajectory, "trajectory (force)" if config.fusion == "force" else "trajectory"
+        return trajectory, "trajectory (force)" if fusion == "force" else "trajectory"
     door = isinstance(vision, Axis) and vision.joint_type is JointType.REVOLUTE
     min_confidence = config.door_vision_min_confidence if door else config.vision_min_confidence
     if isinstance(vision, Axis) and (joint is None or vision.joint_type is joint) \
