@@ -48,7 +48,8 @@ ViewOpt = Annotated[bool, typer.Option("--view", help="Show frames, the camera, 
                                       "true in simulation) in a rerun viewer, saved to RUN/episode.rrd.")]
 OverwriteOpt = overwrite_option("run folder at --run-dir")
 PolicyOrConfigOpt = Annotated[PolicyChoice | None, typer.Option(
-    help="closed (re-estimate every step), open or paper \\[default: the config's, closed].")]
+    help="closed (re-estimate every step), open (estimate once, after the first pull) or paper (the paper's "
+         "straight steps and box estimator, alone) \\[default: the config's, closed].")]
 DistanceOpt = Annotated[float | None, typer.Option(
     "--distance", help="Target opening of a drawer, in metres \\[default: the config's, 0.30].")]
 AngleOpt = Annotated[float | None, typer.Option(

@@ -138,7 +138,9 @@ BoxOpt = Annotated[tuple[float, float, float, float] | None, typer.Option(
     "(needed by --segmenter classical).")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object instead of a table (on an error: "
                                        "{error, kind, exit_code, motors}).")]
-PolicyOpt = Annotated[PolicyChoice, typer.Option(help="closed (re-estimate every step), open or paper.")]
+PolicyOpt = Annotated[PolicyChoice, typer.Option(help="closed (re-estimate every step), open (estimate once, after "
+                                                  "the first pull) or paper (the paper's straight steps and box "
+                                                  "estimator, alone).")]
 RobotOpt = robot_option("Robot config: a shipped one's name (panda_sim, damiao_6dof) or a TOML file "
                         "\\[default: panda_sim].")
 StationSeedOpt = seed_option("Seed of the station generator (and sim noise).")
