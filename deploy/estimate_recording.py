@@ -19,7 +19,8 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
                        viewer: Any = None) -> dict:
     """Every frame through the pipeline, in order; returns the final axis, the estimate per step and the filter
     used (`filter`: radius_m, eps). The gripper's path (frames.jsonl `ee_pose`, e.g. from `deploy record --arm`)
-    goes in with the frames where recorded.
+    goes in with the frames where recorded. A frame marked `first` (a run that looked again from the start)
+    starts the pipeline over, as the run did: its body box is fixed there.
 
     Axes are in the base frame when the recording has `T_base_camera`, else in the camera frame. progress(done,
     total) follows the frames; `viewer` (deploy.control.viewer.RerunViewer) is shown every frame, its mask and
@@ -38,6 +39,8 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
             frame = recording.frame(i)
             pose = recording.records[i].get("ee_pose")
             pose = None if pose is None else np.asarray(pose)
+            if i > 0 and recording.records[i].get("first"):
+                pipe = AxisPipeline(config)
             step = pipe.update_frame(frame, frame.mask, pose)
             final = step.result
             steps.append(_entry(frame.index, step))

@@ -37,6 +37,21 @@ def test_drawer_closed_loop_opens_and_its_run_folder_replays(tmp_path):
     assert replay["n_samples"] >= 5 and replay["joint_type"] == "prismatic"
 
 
+def test_a_run_that_looked_again_replays_from_where_it_looked(tmp_path):
+    """Test drawer 12: the arm hid the cabinet on the first frame, swung out of the view and looked again. The
+    replay starts its pipeline over at that second first frame, as the run did, so it computes the axis the run
+    acted on (the paper's estimator, acted on alone); from the first frame's body box it computed another."""
+    result = simulate_episode("drawer", 12, "test", target=0.10, policy="paper", run_dir=tmp_path / "run")
+    frames = tmp_path / "run" / "frames"
+    records = [json.loads(line) for line in (frames / "frames.jsonl").read_text().splitlines()]
+    assert [r["index"] for r in records if r.get("first")] == [0, 1]
+    acted = json.loads((tmp_path / "run" / "steps.json").read_text())["steps"][0]
+    assert acted["source"] == "vision"
+    replay = estimate_recording(frames, Config().replace(estimator={"name": "paper-obb", "joint": "prismatic"}))
+    directions = [s["direction"] for s in replay["steps"] if s["direction"] is not None]
+    assert any(np.allclose(d, acted["axis"]["direction"], atol=1e-6) for d in directions), result["message"]
+
+
 @pytest.mark.parametrize(("seed", "split"), [(1, "train"), (0, "test")])
 def test_door_closed_loop_opens(seed, split):
     result = simulate_episode("door", seed, split, target=30.0)

@@ -67,7 +67,7 @@ class Observer:
                               "the segmenter found no object on the first frame: point the camera at it")
         pose = self.kin.fk(state.q)
         self.pipeline.update_frame(frame, mask, pose)
-        self._log(raw, mask, state)
+        self._log(raw, mask, state, first=True)
         self.first_points = frame_points(frame, mask, self.pipeline.config)
         log.info("first frame %d: segmenter %s found the object (prompt %r): %d pixels in box %s px, %d points",
                  frame.index, getattr(self.segmenter, "name", "?"), self.config.perception.object_prompt,
@@ -116,10 +116,11 @@ class Observer:
             return frame, np.zeros(frame.depth_m.shape, bool)
         return self.self_filter.apply(frame, state.q, state.gripper_width_m)
 
-    def _log(self, frame: Frame, mask: np.ndarray, state: ArmState) -> None:
+    def _log(self, frame: Frame, mask: np.ndarray, state: ArmState, first: bool = False) -> None:
+        """Record the frame (marked `first` where the pipeline starts over on it) and show it."""
         pose = self.kin.fk(state.q)
         if self.folder is not None:
-            self.folder.write_frame(frame, mask, state.q, pose)
+            self.folder.write_frame(frame, mask, state.q, pose, first=first)
         if self.viewer is not None:
             self.viewer.frame(state.t - self.t0, frame, mask, pose)
 

@@ -53,13 +53,14 @@ class RunFolder:
         (self.path / CONFIG_FILE).write_text(json.dumps(data, indent=1) + "\n")
         self._config = None
 
-    def write_frame(self, frame: Frame, mask: np.ndarray, q: np.ndarray, ee_pose: np.ndarray) -> None:
+    def write_frame(self, frame: Frame, mask: np.ndarray, q: np.ndarray, ee_pose: np.ndarray,
+                    first: bool = False) -> None:
         if self._config is not None:
             self.write_config(self._config)
         if self._writer is None:
             self._writer = FramesWriter(self.path / "frames", frame.intrinsics, T_base_camera=frame.T_base_camera,
                                         camera=self.camera, simulated=self.simulated)
-        self._writer.write(frame, mask=mask, joint_positions=q, ee_pose=ee_pose)
+        self._writer.write(frame, mask=mask, joint_positions=q, ee_pose=ee_pose, first=first)
 
     def add_motion(self, label: str, result: PathResult) -> None:
         self.motions.append({"label": label, "reason": result.reason, "t": result.t.tolist(),

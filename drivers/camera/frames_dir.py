@@ -105,8 +105,10 @@ class FramesWriter:
         mask: np.ndarray | None = None,
         joint_positions: np.ndarray | list[float] | None = None,
         ee_pose: np.ndarray | None = None,
+        first: bool = False,
     ) -> None:
-        """Append one frame (`mask` defaults to `frame.mask`); its PNGs first, then its frames.jsonl line."""
+        """Append one frame (`mask` defaults to `frame.mask`); its PNGs first, then its frames.jsonl line.
+        `first`: the object's body box was fixed on this frame (a run that looked again from the start)."""
         if self._jsonl.closed:
             raise RecordingError(f"cannot write to {self.path}: the writer is closed")
         h, w = self.intrinsics.height, self.intrinsics.width
@@ -142,6 +144,8 @@ class FramesWriter:
             record["joint_positions"] = [float(v) for v in np.ravel(joint_positions)]
         if ee_pose is not None:
             record["ee_pose"] = _pose_list(ee_pose, "ee_pose")
+        if first:
+            record["first"] = True
         pose = frame.T_base_camera  # a camera that moves (eye-in-hand): its pose per frame, where not meta.json's
         if pose is not None and not (self._pose is not None and np.allclose(pose, self._pose, rtol=0, atol=1e-9)):
             record["T_base_camera"] = _pose_list(pose, "T_base_camera")
