@@ -234,6 +234,14 @@ def test_arbitrary_input_never_crashes_or_gives_nan(points, joint):
         assert result.reason
 
 
+def test_one_glitch_in_a_standing_path_is_no_motion():
+    """Hypothesis found it: the 1 m spread is one glitch, dropped, which left a single place to fit a line to."""
+    points = np.array([[0.0, 0, 0], [0, 0, 0], [0, 0, 1], [0, 0, 0], [0, 0, 0]])
+    for joint in (None, JointType.PRISMATIC, JointType.REVOLUTE):
+        result = fit_trajectory(points, joint=joint)
+        assert isinstance(result, NoAxis) and "not enough motion" in result.reason
+
+
 def test_parse_trajectory_text_formats():
     text = "# x y z\n0 0 0\n\n0.01, 0.0, 0.0  # comment\n0.02\t0 0\n"
     positions, quaternions = parse_trajectory_text(text)

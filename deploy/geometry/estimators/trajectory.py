@@ -368,6 +368,9 @@ def _fit(positions, quaternions, joint, times, up) -> tuple[AxisResult, Prepared
         return NoAxis(f"not enough motion yet: {spread * 1000:.1f} mm of {MIN_SPREAD_M * 1000:.0f} mm",
                       {"spread_m": spread}), None
     path = prepare_path(positions, quaternions)
+    if len(path.cells) < 3:  # the spread was a glitch: what is left stands still
+        return NoAxis(f"not enough motion yet: the samples left after dropping glitches fill {len(path.cells)} "
+                      f"place(s) {path.cell_m * 1000:.0f} mm apart", {"travel_m": path.travel_m}), path
     line = _fit_line(path.cells)
     circle = _fit_circle(path.cells) if joint is not JointType.PRISMATIC else None
     turn = gripper_turn(path, line)
