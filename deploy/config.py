@@ -215,6 +215,11 @@ class Config(_Section):
     opening: OpeningConfig = OpeningConfig()
     perception: PerceptionConfig = PerceptionConfig()
 
+    @property
+    def acting_estimator(self) -> str:
+        """The estimator the policy acts with: `estimator.name`, but the paper's own for the paper's policy."""
+        return "paper-obb" if self.opening.policy == "paper" else self.estimator.name
+
     def for_camera(self, camera: str) -> Config:
         """This config with the filter profile of camera `camera` (a registry spec) where none was chosen."""
         if self.filter.profile is not None:

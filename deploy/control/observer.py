@@ -34,9 +34,8 @@ class Observer:
                  viewer: RerunViewer | None = None, self_filter: SelfFilter | None = None) -> None:
         self.camera, self.segmenter, self.kin, self.config = camera, segmenter, kin, config
         self.folder, self.viewer, self.self_filter = folder, viewer, self_filter
-        estimator = "paper-obb" if config.opening.policy == "paper" else config.estimator.name
         self._pipeline_config = config.replace(estimator={
-            "name": estimator, "joint": "auto" if joint is None else joint.value})
+            "name": config.acting_estimator, "joint": "auto" if joint is None else joint.value})
         self.pipeline = AxisPipeline(self._pipeline_config)
         self.first_frame: Frame | None = None
         self.first_mask = np.zeros((0, 0), bool)

@@ -147,7 +147,7 @@ def _log_config(config: Config) -> None:
               else f"{o.target_distance_m:g} m or {o.target_angle_deg:g} deg")
     log.info("run config: filter %s (%s); estimator %s, joint %s, window %d; opening %s to %s, policy %s, fusion "
              "%s, max %d steps, timeout %g s; prompt %r, box %s", config.filter.profile, config.filter.resolve(),
-             "paper-obb" if o.policy == "paper" else e.name, e.joint, e.window, o.task, target, o.policy,
+             config.acting_estimator, e.joint, e.window, o.task, target, o.policy,
              o.acting_fusion, o.max_steps, o.timeout_s,
              config.perception.object_prompt, config.perception.box)
 
