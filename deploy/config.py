@@ -160,7 +160,8 @@ class OpeningConfig(_Section):
     fusion: Fusion = "force"
     force_cue_n: float = Field(default=10.0, gt=0, description="fusion force: a pull resisted across its path "
                                "by this much (N) was off the object's axis")
-    first_pull_m: float = Field(default=0.05, gt=0, le=0.15)
+    first_pull_m: float = Field(default=0.05, gt=0, le=0.15, description="the handle's travel (m) before the "
+                                "first estimate, less for a target nearer than that")
     probe_pull_m: float = Field(default=0.025, gt=0, le=0.1, description="task auto: straight pull that classifies")
     drawer_step_m: float = Field(default=0.08, gt=0, le=0.3)
     door_step_deg: float = Field(default=12.0, gt=0, le=45)

@@ -142,9 +142,11 @@ def check_spec(spec: RigSpec) -> None:
     if spec.segmenter is not None:
         SEGMENTERS.entry(spec.segmenter)
     if camera is not None and arm is not None and arm.simulated and not camera.simulated:
+        replay = " (to replay a recording without hardware: --arm ideal --robot panda_sim --dry-run)" \
+            if spec.camera.startswith("replay") else ""
         raise ConfigError(f"--arm {spec.arm} needs --camera {kinds(CAMERAS, simulated=True)} (a simulated arm "
                           f"cannot act on what a real camera sees): use --arm {kinds(ARMS, simulated=False)} with "
-                          f"--camera {spec.camera}")
+                          f"--camera {spec.camera}{replay}")
     if camera is not None and arm is not None and camera.simulated and not arm.simulated:
         raise ConfigError(f"--camera {spec.camera} needs a simulated arm (--arm {kinds(ARMS, simulated=True)}), not "
                           f"{spec.arm!r}: it cannot see --arm {spec.arm}, only the simulated Panda")

@@ -185,3 +185,10 @@ def test_bench_open_reports_the_issue_keys():
     assert 0 < out["frame_cpu_ms_median"] <= out["frame_ms_median"] * 1.01
     json.dumps(out)
 
+
+
+def test_a_target_nearer_than_the_first_pull_is_not_overshot_by_it():
+    """The first pull stops at the steps' goal (target + 1.5 cm): a 1 cm target is not pulled the whole 5 cm."""
+    result = simulate_episode("drawer", 0, "test", target=0.01)
+    assert result["success"] and result["stop_reason"] == "target reached", result["message"]
+    assert 0.01 <= result["true_opened_m"] < 0.035

@@ -61,6 +61,8 @@ def test_hardware_path_on_a_recording_with_the_kinematic_arm(capsys, tmp_path):
 @pytest.mark.parametrize(("args", "text"), [
     (("--camera", "d415", "--arm", "sim"), "--arm sim needs --camera sim"),
     (("--camera", "sim", "--arm", "can"), "--camera sim needs a simulated arm"),
+    (("--camera", "replay:/nonexistent"), "to replay a recording without hardware: --arm ideal --robot panda_sim"),
+    (("--calibration-error", "1000", "0"), "1000 mm 0 deg is outside 0-100 mm and 0-10 deg"),
     (("--camera", "replay:/nonexistent", "--arm", "can"), "--arm can needs --robot"),
     (("--segmenter", "classical"), "the classical segmenter needs the object's box on the first frame"),
     (("--camera", "webcam", "--arm", "ideal", "--robot", ROBOT), "unknown camera 'webcam'"),

@@ -126,3 +126,11 @@ def test_bench_perception_reports_every_backend():
     assert set(model) >= {"latency_ms_median", "iou_median", "frames"}
     if "skipped" in model:  # no real weights on this machine: says how to fetch them
         assert "hf download" in model["skipped"] and model["frames"] == 0
+
+
+def test_a_box_over_the_whole_image_still_segments(sim_recording):
+    """GrabCut learns the background outside the box: a box that leaves none is inset, not an OpenCV error."""
+    frame = FramesRecording(sim_recording).frame(0)
+    h, w = frame.depth_m.shape
+    mask = make_segmenter("classical", PerceptionConfig(box=(-50, -50, w + 50, h + 50))).start(frame)
+    assert 0 < np.count_nonzero(mask) < h * w

@@ -120,9 +120,22 @@ ArmOpt = kind_option(ARMS, "--arm")
 SegmenterOpt = kind_option(SEGMENTERS, "--segmenter", " \\[default: gdino-sam2 where its weights are on this "
                            "machine, else rgbd]", optional=True)
 EstimatorOpt = kind_option(ESTIMATORS, "--estimator", " \\[default: the config's, screw-grip]", optional=True)
+MAX_CALIBRATION_ERROR = (100.0, 10.0)  # mm, deg: far past any calibration a run could act on
+
+
+def _calibration_error(value: tuple[float, float]) -> tuple[float, float]:
+    """Refuse a simulated calibration error outside 0..MAX_CALIBRATION_ERROR."""
+    (mm, deg), (max_mm, max_deg) = value, MAX_CALIBRATION_ERROR
+    if not (0.0 <= mm <= max_mm and 0.0 <= deg <= max_deg):
+        raise typer.BadParameter(f"{mm:g} mm {deg:g} deg is outside 0-{max_mm:g} mm and 0-{max_deg:g} deg (a field "
+                                 "hand-eye calibration is off by about 5 mm and 0.5 deg)")
+    return value
+
+
 CalibrationErrorOpt = Annotated[tuple[float, float], typer.Option(
-    "--calibration-error", metavar="MM DEG", help="Simulation: the calibrated camera pose is off by MM and DEG "
-    "(each in a random direction drawn from the seed), as a field hand-eye calibration is; 0 0 for the exact pose.")]
+    "--calibration-error", metavar="MM DEG", callback=_calibration_error,
+    help="Simulation: the calibrated camera pose is off by MM (0-100) and DEG (0-10), each in a random direction "
+    "drawn from the seed, as a field hand-eye calibration is; 0 0 for the exact pose.")]
 ConfigFileOpt = Annotated[Path | None, typer.Option(
     "--config", metavar="FILE", help="The run's TOML config: \\[filter] (profile, radius_m, eps) \\[geometry] "
     "\\[estimator] \\[opening] (targets, steps, speeds, timeouts) \\[perception] (prompts, box, thresholds, models); "

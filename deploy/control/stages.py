@@ -205,18 +205,24 @@ def probe_and_classify(episode: Episode, handle: Handle) -> None:
 
 def first_pull(episode: Episode, handle: Handle) -> None:
     """A first opening before any estimate: straight out along the front normal (drawer, and the paper's
-    policy), or a small arc about the door's likely hinge (the front's far edge)."""
+    policy), or a small arc about the door's likely hinge (the front's far edge); `first_pull_m` of the
+    handle's travel, or less where the steps' goal (target plus overshoot) is nearer."""
     state, opening_cfg = episode.state, episode.config.opening
-    if state.joint is JointType.REVOLUTE:
+    revolute, radius = state.joint is JointType.REVOLUTE, 1.0  # radius: metres of handle travel per unit left
+    if revolute:
         state.axis = _prior(episode, handle)
-    if state.joint is JointType.REVOLUTE and opening_cfg.policy != "paper":
-        axis = state.axis
-        radius = max(float(np.linalg.norm(np.cross(axis.direction, state.p_grasp - axis.origin))),
+        radius = max(float(np.linalg.norm(np.cross(state.axis.direction, state.p_grasp - state.axis.origin))),
                      MIN_DOOR_RADIUS_M)
-        _pull(episode, arc_path(episode.tool(), axis.origin, axis.direction), opening_cfg.first_pull_m / radius,
-              "first pull", episode.arc_limits())
+    left = episode.target() + OVERSHOOT[state.joint_type()] - state.opened_before  # m, or rad for a door
+    length = min(opening_cfg.first_pull_m, left * radius)
+    if length <= 0.0:  # the probe pull already went past the goal
+        return
+    if revolute and opening_cfg.policy != "paper":
+        axis = state.axis
+        _pull(episode, arc_path(episode.tool(), axis.origin, axis.direction), length / radius, "first pull",
+              episode.arc_limits())
     else:
-        _pull(episode, line_path(episode.tool(), handle.normal), opening_cfg.first_pull_m, "first pull")
+        _pull(episode, line_path(episode.tool(), handle.normal), length, "first pull")
 
 
 def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:

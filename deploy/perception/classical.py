@@ -24,6 +24,7 @@ log = logging.getLogger(__name__)
 
 _BINS = 16  # colour histogram bins per channel
 _SHIFT = 4  # 256 / _BINS = 2**_SHIFT
+BACKGROUND_BORDER_PX = 8  # GrabCut's background band when a box leaves none
 
 
 def _clip_box(box: tuple[float, float, float, float], w: int, h: int) -> tuple[int, int, int, int]:
@@ -90,9 +91,14 @@ def keep_touching(mask: np.ndarray, previous: np.ndarray) -> np.ndarray:
 
 
 def grabcut_in_box(color: np.ndarray, box: tuple[int, int, int, int], iterations: int = 3) -> np.ndarray:
-    """GrabCut foreground of the RGB image inside `box` (x0, y0, x1, y1); computed on a crop around it."""
+    """GrabCut foreground of the RGB image inside `box` (x0, y0, x1, y1); computed on a crop around it. GrabCut
+    learns the background from the pixels outside the box: a box that leaves none (the whole image) is inset by
+    BACKGROUND_BORDER_PX."""
     h, w = color.shape[:2]
     x0, y0, x1, y1 = box
+    if x0 <= 0 and y0 <= 0 and x1 >= w and y1 >= h:
+        b = min(BACKGROUND_BORDER_PX, w // 4, h // 4)
+        x0, y0, x1, y1 = b, b, w - b, h - b
     mx, my = max(8, (x1 - x0) // 5), max(8, (y1 - y0) // 5)
     cx0, cy0, cx1, cy1 = max(0, x0 - mx), max(0, y0 - my), min(w, x1 + mx), min(h, y1 + my)
     crop = cv2.cvtColor(np.ascontiguousarray(color[cy0:cy1, cx0:cx1]), cv2.COLOR_RGB2BGR)
