@@ -147,6 +147,8 @@ def test_corrupt_or_mismatched_checkpoint_is_one_model_error(checkpoints, tmp_pa
         load_tracker(str(broken))
     with pytest.raises(ModelError, match="is a 'grounding-dino' model, not a tracker"):
         load_tracker(str(checkpoints[0]))
+    with pytest.raises(ModelError, match="model.safetensors is a file, not a model directory; point --detector"):
+        load_tracker(str(broken / "model.safetensors"))
 
 
 def test_model_found_in_the_hugging_face_cache(checkpoints, tmp_path, monkeypatch):

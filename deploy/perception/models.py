@@ -40,6 +40,9 @@ def resolve_checkpoint(source: str) -> Path:
     path = Path(source).expanduser()
     if path.is_dir():
         return path
+    if path.is_file():
+        raise ModelError(f"model {source} is a file, not a model directory; point --detector/--tracker at the "
+                         "directory that holds it (config.json and the weights, as save_pretrained writes them)")
     if path.is_absolute() or source.startswith(".") or source.count("/") != 1:
         raise ModelError(f"model {source}: no such directory; {_fix(source)}")
     from huggingface_hub import snapshot_download
