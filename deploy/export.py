@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import json
 import shutil
+import uuid
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import Literal
 
@@ -25,6 +27,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from deploy.errors import RecordingError
+from deploy.output_folder import PNGS, Layout, check_apart, stranger
 from drivers.camera.base import Frame
 from drivers.camera.frames_dir import FramesRecording
 
@@ -34,38 +37,68 @@ OPEN3D_DEPTH_PER_M = 1000.0
 Progress = Callable[[float, float], None]
 
 
-MARKERS = {"tum": "rgb.txt", "open3d": "camera_intrinsic.json"}  # what an earlier export of ours holds
+# what an earlier export of ours holds, and the file that marks it
+LAYOUTS: dict[str, tuple[Layout, str]] = {
+    "tum": ({"rgb": PNGS, "depth": PNGS, "rgb.txt": None, "depth.txt": None, "associations.txt": None,
+             "groundtruth.txt": None, "tool.txt": None}, "rgb.txt"),
+    "open3d": ({"color": PNGS, "depth": PNGS, "camera_intrinsic.json": None, "config.json": None,
+                "trajectory.log": None}, "camera_intrinsic.json"),
+}
 
 
 def export_recording(recording: Path, out: Path, fmt: Format, progress: Progress | None = None,
                      overwrite: bool = False) -> dict:
     """Write the frames recording at `recording` to `out` in layout `fmt`; a summary {"format", "out", "frames",
     "files"} (files: the index files written, relative to `out`). An earlier export at `out` is replaced only
-    with `overwrite`; anything else there is refused."""
+    with `overwrite`; anything else there is refused. The export is written to a hidden sibling of `out` and
+    moved into place when complete: a failed one leaves nothing."""
+    out = Path(out)
     rec = FramesRecording(recording)
     if len(rec) == 0:
         raise RecordingError(f"recording {recording} has no frames: nothing to export; record again")
-    _prepare(Path(out), fmt, overwrite)
-    writer = {"tum": _tum, "open3d": _open3d, "rrd": _rrd}[fmt]
-    files = writer(rec, Path(out), progress)
+    check_apart(out, [recording])
+    if fmt == "rrd" and out.suffix != ".rrd":
+        raise RecordingError(f"export to {out}: a rerun recording is one file: give --out NAME.rrd")
+    _check(out, fmt, overwrite)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    work = out.with_name(f".{out.name}.{uuid.uuid4().hex[:8]}.partial")
+    work.mkdir()
+    try:
+        if fmt == "rrd":
+            files = _rrd(rec, work / out.name, progress)
+            _replace(out, work / out.name)
+        else:
+            files = {"tum": _tum, "open3d": partial(_open3d, final=out)}[fmt](rec, work, progress)
+            _replace(out, work)
+    finally:
+        if work.exists():
+            shutil.rmtree(work)
     return {"format": fmt, "out": str(out), "frames": len(rec), "files": files}
 
 
-def _prepare(out: Path, fmt: Format, overwrite: bool) -> None:
-    """Make room for the export at `out`: RecordingError unless it is new, empty, or ours and `overwrite`."""
-    if not out.exists() or (out.is_dir() and not any(out.iterdir())):
+def _check(out: Path, fmt: Format, overwrite: bool) -> None:
+    """RecordingError unless `out` is new, an empty folder, or an export of ours and `overwrite`."""
+    if not out.exists() or (fmt != "rrd" and out.is_dir() and not any(out.iterdir())):
         return
-    ours = out.is_file() and out.suffix == ".rrd" if fmt == "rrd" else (out / MARKERS[fmt]).is_file()
-    if not ours:
-        raise RecordingError(f"--out {out} exists and is not a {fmt} export: refusing to write there; choose a new "
-                             "path")
+    if fmt == "rrd":
+        found = None if out.is_file() else out
+    else:
+        layout, marker = LAYOUTS[fmt]
+        found = stranger(out, layout) if (out / marker).is_file() else out
+    if found is not None:
+        held = "" if found == out else f" (it holds {found.relative_to(out)}, which deploy export does not write)"
+        raise RecordingError(f"--out {out} exists and is not a {fmt} export{held}: refusing to write there; choose "
+                             "a new path")
     if not overwrite:
         raise RecordingError(f"--out {out}: a {fmt} export is already there: pass --overwrite to replace it, or "
                              "choose another --out")
+
+
+def _replace(out: Path, new: Path) -> None:
+    """Move the complete export `new` to `out`, removing what `_check` let be replaced there."""
     if out.is_dir():
         shutil.rmtree(out)
-    else:
-        out.unlink()
+    new.replace(out)
 
 
 def _frames(rec: FramesRecording, progress: Progress | None):
@@ -119,7 +152,8 @@ def _tum(rec: FramesRecording, out: Path, progress: Progress | None) -> list[str
     return list(files)
 
 
-def _open3d(rec: FramesRecording, out: Path, progress: Progress | None) -> list[str]:
+def _open3d(rec: FramesRecording, out: Path, progress: Progress | None, final: Path) -> list[str]:
+    """Write the export to `out`, naming the files by where it ends up, `final`."""
     for sub in ("color", "depth"):
         (out / sub).mkdir(parents=True, exist_ok=True)
     poses = []
@@ -135,8 +169,8 @@ def _open3d(rec: FramesRecording, out: Path, progress: Progress | None) -> list[
         "intrinsic_matrix": [float(v) for v in K.T.ravel()],  # column-major, as Open3D writes it
     }, indent=2) + "\n", encoding="utf-8")
     (out / "config.json").write_text(json.dumps({
-        "name": rec.path.name, "path_dataset": str(out.resolve()),
-        "path_intrinsic": str((out / "camera_intrinsic.json").resolve()),
+        "name": rec.path.name, "path_dataset": str(final.resolve()),
+        "path_intrinsic": str((final / "camera_intrinsic.json").resolve()),
         "depth_scale": OPEN3D_DEPTH_PER_M, "depth_max": 3.0,
     }, indent=2) + "\n", encoding="utf-8")
     files = ["camera_intrinsic.json", "config.json"]
@@ -151,8 +185,6 @@ def _open3d(rec: FramesRecording, out: Path, progress: Progress | None) -> list[
 def _rrd(rec: FramesRecording, out: Path, progress: Progress | None) -> list[str]:
     from deploy.control.viewer import RerunViewer
 
-    if out.suffix != ".rrd":
-        raise RecordingError(f"export to {out}: a rerun recording is one file: give --out NAME.rrd")
     viewer = RerunViewer(out, spawn=False, name=f"axisloop {rec.path.name}")
     try:
         for i, frame in _frames(rec, progress):

@@ -1,34 +1,119 @@
 """Nothing replaced without asking: a command that writes a recording or a run folder refuses one that exists
-unless the user passed `--overwrite`, and an overwrite removes every file of the old one first (a shorter new
-recording must not keep the old frames or the old truth.json).
+unless the user passed `--overwrite`, and an overwrite removes every file of the old one (a shorter new recording
+must not keep the old frames or the old truth.json), but only once the new one is under way: a command refused
+before it wrote anything puts the old one back.
 
 Only a folder this project wrote is ever removed: a frames recording (meta.json) or a run folder (steps.json or
-frames/); anything else is refused even with --overwrite.
+frames/) holding nothing but what this project writes there; anything else is refused even with --overwrite. An
+output is never the recording it reads, nor inside it, nor around it.
 """
 
 from __future__ import annotations
 
 import shutil
+import uuid
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from fnmatch import fnmatch
 from pathlib import Path
 
 from deploy.errors import RecordingError
 
-MARKERS = ("meta.json", "steps.json", "frames")  # what a frames recording or a run folder holds
+Layout = str | dict[str, "Layout | None"]  # name -> None (a file) or a layout (a folder); a str: files matching it
+PNGS = "*.png"
+RECORDING: Layout = {"meta.json": None, "frames.jsonl": None, "truth.json": None, "color": PNGS, "depth": PNGS,
+                     "mask": PNGS, "overlay.png": None, "track.json": None, "track.rrd": None, "recording.rrd": None}
+RUN_FOLDER: Layout = {"frames": RECORDING, "config.json": None, "steps.json": None, "report.png": None,
+                      "episode.rrd": None}
+OURS = ((RECORDING, ("meta.json",)), (RUN_FOLDER, ("steps.json", "frames")))  # a layout and what marks it
 
 
-def prepare_output(path: Path, overwrite: bool, what: str, option: str = "--out") -> None:
-    """Make `path` ready to be written as a new `what` ("recording", "run folder"): nothing to do if it does not
-    exist or is an empty folder; removed if it is one of ours and `overwrite`; RecordingError naming the fix
-    otherwise."""
+def stranger(path: Path, layout: Layout) -> Path | None:
+    """The first file or folder under the folder `path` that `layout` does not hold (None: nothing else is there;
+    a symbolic link always counts as a stranger)."""
+    for entry in sorted(path.iterdir()):
+        ours = fnmatch(entry.name, layout) if isinstance(layout, str) else entry.name in layout
+        inner = None if isinstance(layout, str) else layout.get(entry.name)
+        if not ours or entry.is_symlink() or entry.is_dir() != (inner is not None):
+            return entry
+        if inner is not None and (found := stranger(entry, inner)) is not None:
+            return found
+    return None
+
+
+def replay_input(camera: str) -> list[Path]:
+    """The recording the camera spec `camera` reads (`replay:PATH`), if any."""
+    name, _, argument = str(camera).partition(":")
+    return [Path(argument)] if name == "replay" and argument else []
+
+
+def check_apart(out: Path, inputs: Iterable[Path], option: str = "--out") -> None:
+    """RecordingError when `out` is one of the recordings `inputs` the command reads, lies inside one or holds
+    one: writing there would change or remove what is read."""
+    target = Path(out).resolve()
+    for source in inputs:
+        read = Path(source).resolve()
+        how = ("is" if target == read else "lies inside" if read in target.parents else
+               "holds" if target in read.parents else None)
+        if how is not None:
+            raise RecordingError(f"{option} {out} {how} the recording {source} that this command reads: writing "
+                                 f"there would change or remove it; give {option} a path outside it")
+
+
+def check_output(path: Path, overwrite: bool, what: str, option: str = "--out",
+                 inputs: Iterable[Path] = ()) -> bool:
+    """Check that `path` may be written as a new `what` ("recording", "run folder"): apart from `inputs`, and new,
+    an empty folder, or one of ours with `overwrite`; True when an old one is there to replace. RecordingError
+    naming the fix otherwise."""
     path = Path(path)
+    check_apart(path, inputs, option)
     if not path.exists() or (path.is_dir() and not any(path.iterdir())):
-        return
+        return False
     if not path.is_dir():
         raise RecordingError(f"{option} {path} is a file, not a {what}: choose another path")
-    if not any((path / marker).exists() for marker in MARKERS):
+    marked = [layout for layout, markers in OURS if any((path / marker).exists() for marker in markers)]
+    if not marked:
         raise RecordingError(f"{option} {path} is a folder that holds no recording or run folder: refusing to "
                              "write into it; choose a new or empty folder")
+    found = stranger(path, marked[0])
+    if found is not None:
+        name = found.relative_to(path)
+        raise RecordingError(f"{option} {path} holds {name}, which deploy never writes there: refusing to remove the "
+                             f"folder, even with --overwrite; move {name} out, or choose another {option}")
     if not overwrite:
-        raise RecordingError(f"{option} {path}: a {what} is already there: pass --overwrite to replace it (its files "
-                             f"are removed first), or choose another {option}")
-    shutil.rmtree(path)
+        raise RecordingError(f"{option} {path}: a {what} is already there: pass --overwrite to replace it (no file of "
+                             f"the old one is kept), or choose another {option}")
+    return True
+
+
+@contextmanager
+def new_output(path: Path, overwrite: bool, what: str, option: str = "--out", inputs: Iterable[Path] = (),
+               claimed: bool = False) -> Iterator[Path]:
+    """Write a new `what` at `path` inside the block, checked by `check_output`. An old one replaced is moved
+    aside to a hidden sibling and removed once the block ends having written into `path` (or without error);
+    a block that fails before writing anything puts it back, and removes the empty folder it left (`claimed`: the
+    caller made `path` for this block)."""
+    path = Path(path)
+    try:
+        replacing = check_output(path, overwrite, what, option, inputs)
+    except RecordingError:
+        if claimed:
+            path.rmdir()
+        raise
+    old = path.with_name(f".{path.name}.replaced-{uuid.uuid4().hex[:8]}") if replacing else None
+    if old is not None:
+        path.rename(old)
+    made = claimed or not path.exists()
+    done = False
+    try:
+        yield path
+        done = True
+    finally:
+        if done or (path.is_dir() and any(path.iterdir())):
+            if old is not None:
+                shutil.rmtree(old)
+        else:
+            if made and path.is_dir():
+                path.rmdir()
+            if old is not None:
+                old.rename(path)

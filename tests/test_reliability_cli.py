@@ -13,26 +13,14 @@ import time
 from pathlib import Path
 
 import pytest
+from cli_run import one_line, run, small_recording
 from realsense_recordings import scene, write_db3
 
-from deploy.cli import main
 from drivers.arm.robot_config import PANDA_SIM_CONFIG
 from drivers.camera.frames_dir import FramesRecording
 
 ROOT = Path(__file__).resolve().parents[1]
 PANDA = PANDA_SIM_CONFIG
-
-
-def run(capsys, *args):
-    code = main([str(a) for a in args])
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
-def one_line(err: str) -> str:
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in err, err
-    return lines[0]
 
 
 def _robot(tmp_path: Path, old: str, new: str) -> Path:
@@ -46,10 +34,7 @@ def _robot(tmp_path: Path, old: str, new: str) -> Path:
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory):
     """A small simulated recording (6 frames, 160x120)."""
-    path = tmp_path_factory.mktemp("rec") / "rec"
-    assert main(["record", "--camera", "sim", "--out", str(path), "--frames", "6", "--width", "160",
-                 "--height", "120"]) == 0
-    return path
+    return small_recording(tmp_path_factory.mktemp("rec") / "rec")
 
 
 # --- one line, exit code 2 ---------------------------------------------------------------------------------------

@@ -117,15 +117,15 @@ def record_cmd(
 
     from deploy.arm_bringup import parse_sim_faults
     from deploy.errors import RecordingError
-    from deploy.output_folder import prepare_output
+    from deploy.output_folder import new_output, replay_input
     from deploy.recording import record_rig
 
     if seconds is None and frames is None:
         raise RecordingError("deploy record: say how long to record with --seconds S or --frames N")
     faults = parse_sim_faults(arm or "none", sim_fault)  # SECONDS: into the recording (the arm is only read)
-    prepare_output(out, overwrite, "recording")
     columns = (TextColumn("recording"), BarColumn(), TextColumn("{task.completed} frames"), TimeElapsedColumn())
-    with progress_bar("record", frames, *columns) as bar:
+    with (new_output(out, overwrite, "recording", inputs=replay_input(camera)),
+          progress_bar("record", frames, *columns) as bar):
         summary = record_rig(camera, out, frames, seconds, arm, robot, {"width": width, "height": height,
                                                                         "fps": fps}, bar.advance, view,
                               calibration, sim_faults=faults)
@@ -152,11 +152,11 @@ def convert(
     Example: deploy convert session.db3 --out runs/session
     Example: deploy convert rosbag2_2026_01_01 --out runs/ros
     """
-    from deploy.output_folder import prepare_output
+    from deploy.output_folder import new_output
     from drivers.camera.realsense_convert import convert_recording
 
-    prepare_output(out, overwrite, "recording")
-    with progress_bar(f"converting {recording.name}") as bar:
+    with (new_output(out, overwrite, "recording", inputs=[recording]),
+          progress_bar(f"converting {recording.name}") as bar):
         summary = convert_recording(recording, out, depth_scale, progress=bar.advance)
     if json_out:
         print_json(summary)
@@ -179,8 +179,8 @@ def export_cmd(
                                               "depth.txt, groundtruth.txt with poses); open3d: Open3D's "
                                               "reconstruction layout with camera_intrinsic.json; rrd: a rerun "
                                               "recording.")] = ExportFormat.tum,
-    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an earlier export at --out; without it "
-                                            "an existing one is refused.")] = False,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an earlier export at --out (once the new "
+                                            "one is complete); without it an existing one is refused.")] = False,
     json_out: JsonOpt = False,
 ) -> None:
     """Export a frames recording to the layout other tools load (docs/recording-format.md#export).

@@ -94,27 +94,36 @@ def _value(choice: PolicyChoice | None) -> str | None:
 
 def _open(request_fields: dict, json_out: bool, sim_fault: list[str] | None, overwrite: bool) -> None:
     """Check the request (--calibration only with a real camera, --condition only with a simulated one,
-    --sim-fault only with sim-can, the run folder new or --overwrite), then run it."""
+    --sim-fault only with sim-can, the run config and the device names, the run folder new or --overwrite and
+    apart from a replayed recording), then run it; a run refused before it wrote anything leaves no folder."""
     from dataclasses import replace
 
     from deploy.arm_bringup import inject_sim_faults, parse_sim_faults
     from deploy.control.session import OpenRequest, open_object
     from deploy.control.state import StopReason
     from deploy.errors import ConfigError
-    from deploy.output_folder import prepare_output
+    from deploy.output_folder import new_output, replay_input
+    from deploy.perception.registry import SEGMENTERS
+    from drivers.arm.registry import ARMS
     from drivers.camera.registry import CAMERAS
 
     faults = parse_sim_faults(request_fields["arm"], sim_fault)
     request = OpenRequest(**request_fields)
-    if request.calibration is not None and CAMERAS.entry(request.camera)[0].simulated:
+    simulated = CAMERAS.entry(request.camera)[0].simulated
+    if request.calibration is not None and simulated:
         raise ConfigError(f"--calibration {request.calibration} is for a real camera: the simulated camera's pose "
                           "comes from the simulation; drop --calibration, or use --camera d415")
-    if request.condition != "normal" and not CAMERAS.entry(request.camera)[0].simulated:
+    if request.condition != "normal" and not simulated:
         raise ConfigError(f"--condition {request.condition} is for a simulated object: drop it, or use --camera sim")
-    request = replace(request, run_dir=request.folder())
-    prepare_output(request.run_dir, overwrite, "run folder", "--run-dir")
-    data = open_object(request, confirm=lambda question: typer.confirm(question, abort=True),
-                       setup=(lambda _world, arm: inject_sim_faults(arm, faults)) if faults else None)
+    request.config()  # a value the run config refuses (--distance, --angle, --config) fails here, before any folder
+    ARMS.entry(request.arm)
+    if request.segmenter is not None:
+        SEGMENTERS.entry(request.segmenter)
+    with new_output(request.folder() if request.run_dir is None else request.run_dir, overwrite, "run folder",
+                    "--run-dir", replay_input(request.camera), claimed=request.run_dir is None) as run_dir:
+        data = open_object(replace(request, run_dir=run_dir),
+                           confirm=lambda question: typer.confirm(question, abort=True),
+                           setup=(lambda _world, arm: inject_sim_faults(arm, faults)) if faults else None)
     _print_episode(data, json_out)
     if not (data["success"] or data["stop_reason"] == StopReason.DRY_RUN):
         raise typer.Exit(1)

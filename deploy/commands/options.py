@@ -110,9 +110,10 @@ def sim_fault_option() -> Any:
 
 
 def overwrite_option(what: str) -> Any:
-    """`--overwrite`: replace an existing `what` (its old files are removed first)."""
-    return Annotated[bool, typer.Option("--overwrite", help=f"Replace an existing {what} (all its old files are "
-                                        "removed first); without it an existing one is refused.")]
+    """`--overwrite`: replace an existing `what` (its old files go once the new one is being written)."""
+    return Annotated[bool, typer.Option("--overwrite", help=f"Replace an existing {what} (its old files are removed "
+                                        "once the new one is being written, and kept if the command fails before); "
+                                        "without it an existing one is refused.")]
 
 
 CameraOpt = kind_option(CAMERAS, "--camera")

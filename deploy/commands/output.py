@@ -179,7 +179,20 @@ def progress_bar(label: str, total: float | None = None, *columns: str | Progres
         yield Bar(progress, progress.add_task(label, total=total), label)
 
 
-def view_file(recording: Path, rrd: Path | None, what: str) -> Path:
+def view_file(recording: Path, rrd: Path | None, what: str, overwrite: bool | None = None) -> Path:
     """Where `--view` on a recording saves its rerun file: `rrd` when given, else runs/NAME-WHAT.rrd (NAME: the
-    recording folder's), never inside the recording (it may be read-only, or a shared data set)."""
-    return rrd if rrd is not None else Path("runs") / f"{Path(recording).resolve().name}-{what}.rrd"
+    recording folder's), never inside the recording (it may be read-only, or a shared data set). An existing
+    `rrd` is replaced only with `overwrite` (None: the command has no --overwrite); RecordingError otherwise."""
+    from deploy.errors import RecordingError
+    from deploy.output_folder import check_apart
+
+    if rrd is None:
+        return Path("runs") / f"{Path(recording).resolve().name}-{what}.rrd"
+    check_apart(rrd, [recording], "--rrd")
+    if rrd.is_dir():
+        raise RecordingError(f"--rrd {rrd} is a folder: give a file path, e.g. {rrd / (what + '.rrd')}")
+    if rrd.exists() and not overwrite:
+        fix = "choose another --rrd, or delete the file first" if overwrite is None else \
+            "pass --overwrite to replace it, or choose another --rrd"
+        raise RecordingError(f"--rrd {rrd} already exists: refusing to replace it; {fix}")
+    return rrd

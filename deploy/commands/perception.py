@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from deploy.commands.options import JsonOpt, kind_option, overwrite_option, view_option
+from deploy.commands.options import JsonOpt, kind_option, view_option
 from deploy.commands.output import print_json, print_rows, print_table, progress_bar, view_file
 from deploy.perception.registry import SEGMENTERS
 
@@ -22,7 +22,9 @@ TrackerOpt = Annotated[str | None, typer.Option(
 
 
 TrackSegmenterOpt = kind_option(SEGMENTERS, "--segmenter", " Backend.")
-TrackOverwriteOpt = overwrite_option("recording at --out")
+TrackOverwriteOpt = Annotated[bool, typer.Option("--overwrite", help="Replace an existing recording at --out (all "
+                                                  "its old files are removed) and an existing --rrd file; without it "
+                                                  "an existing one is refused.")]
 ViewOpt = view_option("the frames and the masks found (saved to --rrd)")
 
 
@@ -53,26 +55,28 @@ def track(
       deploy track runs/rec --prompt cabinet --out runs/rec-masks
       deploy track runs/rec --segmenter classical --box 112 79 468 362 --out runs/rec-classical --json
     """
-    from deploy.output_folder import prepare_output
+    from contextlib import nullcontext
+
+    from deploy.output_folder import new_output
     from deploy.perception.config import perception_config
     from deploy.perception.registry import make_segmenter
     from deploy.perception.track_recording import track_recording
     from drivers.camera.frames_dir import FramesRecording
 
     FramesRecording(recording)  # a wrong path fails here, before any model loads
-    if out is not None and out.resolve() != recording.resolve():
-        prepare_output(out, overwrite, "recording")
-    config = perception_config(object_prompt=prompt, handle_prompt=handle_prompt or None, box=box,
-                               detector=detector, tracker=tracker, device=device)
-    backend = make_segmenter(segmenter, config)
+    copy = out is not None and out.resolve() != recording.resolve()
     viewer = None
     if view or rrd is not None:
         from deploy.control.viewer import RerunViewer
 
         viewer = RerunViewer(out / "track.rrd" if rrd is None and out is not None else view_file(recording, rrd,
-                                                                                                  "track"))
-    with progress_bar(f"tracking {recording.name}") as bar:
-        data = track_recording(recording, backend, prompt, out, progress=bar.counts, viewer=viewer)
+                                                                                                  "track", overwrite))
+    with new_output(out, overwrite, "recording", inputs=[recording]) if copy else nullcontext():
+        config = perception_config(object_prompt=prompt, handle_prompt=handle_prompt or None, box=box,
+                                   detector=detector, tracker=tracker, device=device)
+        backend = make_segmenter(segmenter, config)
+        with progress_bar(f"tracking {recording.name}") as bar:
+            data = track_recording(recording, backend, prompt, out, progress=bar.counts, viewer=viewer)
     if viewer is not None:
         data["rrd"] = str(viewer.path)
     if json_out:

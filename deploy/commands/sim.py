@@ -26,13 +26,22 @@ def sim_show(
     seed: SeedOpt = 0,
     split: SplitOpt = Split.train,
     out: Annotated[Path, typer.Option(help="PNG to write.")] = Path("scene.png"),
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing file at --out; without it an "
+                                            "existing one is refused.")] = False,
     json_out: JsonOpt = False,
 ) -> None:
     """Render a simulated scene: colour, depth and segmentation side by side.
 
     Example: deploy sim show --task door --seed 3 --out door.png
     """
-    from sim_fallback.show import render_scene_png
+    from deploy.errors import RecordingError
+
+    if out.suffix.lower() != ".png":
+        raise RecordingError(f"--out {out}: the scene image is a PNG: give a file name ending in .png")
+    if out.exists() and not (overwrite and out.is_file()):
+        raise RecordingError(f"--out {out} already exists: pass --overwrite to replace it, or choose another --out"
+                             if out.is_file() else f"--out {out} is a folder: give a file name ending in .png")
+    from sim_fallback.show import render_scene_png  # after the checks: it prints pybullet's banner
 
     with err_console.status(f"rendering the {task.value} scene of seed {seed}"):
         render_scene_png(task.value, seed, out, split=split.value)
@@ -57,11 +66,10 @@ def sim_record(
     Writes the frames-directory format with masks, poses and truth.json.
     Example: deploy sim record --task drawer --seed 1 --out runs/drawer1 && deploy axis estimate runs/drawer1
     """
-    from deploy.output_folder import prepare_output
+    from deploy.output_folder import new_output
     from sim_fallback.scripted import record_scripted
 
-    prepare_output(out, overwrite, "recording")
-    with progress_bar(f"sim record {task.value} (seed {seed})") as bar:
+    with new_output(out, overwrite, "recording"), progress_bar(f"sim record {task.value} (seed {seed})") as bar:
         shown = {"phase": ""}
 
         def each(phase: str, frames: int) -> None:

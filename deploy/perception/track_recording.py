@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import shutil
 import time
+import uuid
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -41,9 +42,10 @@ def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | N
                     progress: Callable[[float, float], None] | None = None, viewer: Any = None) -> dict:
     """Segment every frame of the recording at `path` in order (start on the first, track on the rest).
 
-    With `out`, a copy of the recording with the new masks is written there (truth.json copied too; a recording
-    already at `out` is refused: `deploy.output_folder.prepare_output` removes it first when the user asks);
-    without, the masks go into the recording's own mask/ folder, which must not exist yet. An overlay
+    With `out`, a copy of the recording with the new masks is written there (truth.json and the `first` marks
+    copied too; a recording already at `out` is refused: `deploy.output_folder.new_output` replaces it when the
+    user asks); without, the masks go into the recording's own mask/ folder, which must not exist yet: they are
+    written to a hidden folder beside it and renamed to mask/ once every frame has one (a failure leaves none). An
     PNG strip of a few evenly spaced frames is written beside. Returns a summary (timings in ms; IoU
     against the recording's own masks when it has them). progress(done, total) follows the frames;
     `viewer` (deploy.control.viewer.RerunViewer) is shown every frame with its mask and is closed at the end.
@@ -58,14 +60,15 @@ def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | N
         raise PerceptionError(f"recording {path} already has a mask/ folder: pass --out DIR to write the new "
                               "masks into a copy (the recorded masks are kept for comparison)")
     target = out or Path(path)
-    writer = None
+    writer, masks = None, None
     if out is not None:
         writer = FramesWriter(out, recording.intrinsics, recording.depth_scale, recording.T_base_camera,
                               recording.camera, recording.simulated)
         if (Path(path) / "truth.json").exists():
             shutil.copyfile(Path(path) / "truth.json", out / "truth.json")
     else:
-        (target / "mask").mkdir()
+        masks = target / f".mask-{uuid.uuid4().hex[:8]}.partial"
+        masks.mkdir()
     tiles_at = set(np.linspace(0, n - 1, min(OVERLAY_TILES, n)).round().astype(int).tolist())
     tiles, ms, ious = [], [], []
     try:
@@ -80,9 +83,9 @@ def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | N
                 record = recording.records[i]
                 pose = record.get("ee_pose")
                 writer.write(frame, mask=mask, joint_positions=record.get("joint_positions"),
-                             ee_pose=None if pose is None else np.asarray(pose))
+                             ee_pose=None if pose is None else np.asarray(pose), first=bool(record.get("first")))
             else:
-                _write_mask(target / "mask", frame.index, mask)
+                _write_mask(masks, frame.index, mask)
             if i in tiles_at:
                 tiles.append(overlay(frame, mask))
             if viewer is not None:
@@ -90,11 +93,17 @@ def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | N
                 viewer.frame(frame.t, frame, mask, None if pose is None else np.asarray(pose))
             if progress is not None:
                 progress(i + 1, n)
+    except BaseException:
+        if masks is not None:
+            shutil.rmtree(masks)
+        raise
     finally:
         if writer is not None:
             writer.close()
         if viewer is not None:
             viewer.close()
+    if masks is not None:
+        masks.rename(target / "mask")
     strip = target / "overlay.png"
     cv2.imwrite(str(strip), cv2.cvtColor(np.hstack(tiles), cv2.COLOR_RGB2BGR))
     summary = {
