@@ -11,29 +11,28 @@ import numpy as np
 from deploy.axis_pipeline import AxisPipeline
 from deploy.config import Config
 from deploy.errors import RecordingError
+from deploy.geometry.estimators.base import AxisEstimator
+from deploy.geometry.estimators.trajectory import TrajectoryEstimator
 from deploy.geometry.types import Axis
 from drivers.camera.frames_dir import FramesRecording
 
 
 def estimate_recording(path: Path, config: Config, progress: Callable[[float, float], None] | None = None,
                        viewer: Any = None) -> dict:
-    """Every frame through the pipeline, in order; returns the final axis, the estimate per step and the filter
-    used (`filter`: radius_m, eps). The gripper's path (frames.jsonl `ee_pose`, e.g. from `deploy record --arm`)
-    goes in with the frames where recorded. A frame marked `first` (a run that looked again from the start)
+    """Every frame through the pipeline, in order; returns the last axis a frame gave (`from_frame`: that frame;
+    with none, the last frame's reason), the estimate per step and the filter used (`filter`: radius_m, eps).
+    The gripper's path (frames.jsonl `ee_pose`, e.g. from `deploy record --arm`) goes in with the frames where
+    recorded (`gripper_path`: the estimator used it). RecordingError for a recording without frames or with a
+    frame without its mask. A frame marked `first` (a run that looked again from the start)
     starts the pipeline over, as the run did: its body box is fixed there.
 
     Axes are in the base frame when the recording has `T_base_camera`, else in the camera frame. progress(done,
     total) follows the frames; `viewer` (deploy.control.viewer.RerunViewer) is shown every frame, its mask and
     the axis estimated at it, and is closed at the end.
     """
-    recording = FramesRecording(path)
-    if not recording.has_masks:
-        raise RecordingError(
-            f"recording {path} has no mask/ folder: the axis needs the object's mask per frame; "
-            "record in simulation (`deploy sim record`) or add masks with a segmenter first"
-        )
+    recording = _masked_recording(path)
     pipe = AxisPipeline(config)
-    steps, final = [], None
+    steps, final, last = [], None, None
     try:
         for i in range(len(recording)):
             frame = recording.frame(i)
@@ -42,7 +41,9 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
             if i > 0 and recording.records[i].get("first"):
                 pipe = AxisPipeline(config)
             step = pipe.update_frame(frame, frame.mask, pose)
-            final = step.result
+            last = frame.index, step.result
+            if isinstance(step.result, Axis):
+                final = last
             steps.append(_entry(frame.index, step))
             if viewer is not None:
                 viewer.frame(frame.t, frame, frame.mask, pose)
@@ -57,14 +58,41 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
         "estimator": config.estimator.name, "joint_type": None, "origin": None, "direction": None,
         "radius_m": None, "residual_m": None, "n_samples": len(recording),
         "frame": "base" if recording.T_base_camera is not None else "camera",
-        "gripper_path": any("ee_pose" in r for r in recording.records),
+        "gripper_path": _uses_gripper(pipe.estimator) and any("ee_pose" in r for r in recording.records),
         "filter": config.filter.used(), "steps": steps,
     }
-    if isinstance(final, Axis):
-        out.update(final.to_dict())
+    out["from_frame"], result = final or last
+    if isinstance(result, Axis):
+        out.update(result.to_dict())
     else:
-        out["reason"] = final.reason if final is not None else "recording has no frames"
+        out["reason"] = result.reason
     return out
+
+
+def _uses_gripper(estimator: AxisEstimator) -> bool:
+    """Whether `estimator` reads the gripper's path: the trajectory fit, or a screw estimator set to."""
+    return isinstance(estimator, TrajectoryEstimator) or getattr(estimator, "use_gripper", False)
+
+
+def _masked_recording(path: Path) -> FramesRecording:
+    """The recording at `path`; RecordingError unless it has frames and every frame has its mask."""
+    recording = FramesRecording(path)
+    if len(recording) == 0:
+        raise RecordingError(f"recording {path} has no frames (frames.jsonl is missing or empty): record again "
+                             "(`deploy record`, `deploy sim record`)")
+    unmasked = recording.unmasked
+    if len(unmasked) == len(recording):
+        raise RecordingError(
+            f"recording {path} has no masks (no mask/ PNGs): the axis needs the object's mask per frame; "
+            "record in simulation (`deploy sim record`) or add masks with `deploy track` first"
+        )
+    if unmasked:
+        raise RecordingError(
+            f"recording {path}: frame {unmasked[0]} has no mask (mask/{unmasked[0]:06d}.png is missing; "
+            f"{len(unmasked)} of {len(recording)} frames lack one): re-run `deploy track {path} --out NEW` "
+            "to mask every frame"
+        )
+    return recording
 
 
 def _entry(index: int, step) -> dict:

@@ -162,7 +162,8 @@ def record_scripted(
         camera = SimCamera(world, intrinsics=d415_intrinsics(*resolution), seed=seed, fps=fps, labels=True, posed=True)
         limits = MotionLimits.for_robot(world.robot_spec, arm.kin, fraction=0.3)
         joint_values: list[float] = []
-        with FramesWriter(out, camera.intrinsics, T_base_camera=camera.T_base_camera) as writer:
+        with FramesWriter(out, camera.intrinsics, T_base_camera=camera.T_base_camera, camera="sim",
+                          simulated=True) as writer:
             next_t, phase = 0.0, "grasp"
 
             def capture(state: ArmState, _t: float = 0.0) -> None:

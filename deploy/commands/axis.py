@@ -30,7 +30,7 @@ RrdOpt = Annotated[Path | None, typer.Option(
 
 
 AXIS_FIELDS = ("joint_type", "origin", "direction", "direction_sigma_deg", "radius_m", "residual_m", "n_samples",
-               "format", "estimator", "reason", "rrd")
+               "from_frame", "format", "estimator", "reason", "rrd")
 
 
 def _print_axis(title: str, items: Iterable[tuple[str, object]]) -> None:
@@ -73,7 +73,7 @@ def axis_fit_trajectory(
     if not file.is_file():
         raise RecordingError(f"trajectory file {file} not found: give a text file with one `x y z` per line")
     try:
-        text = file.read_text(encoding="utf-8")
+        text = file.read_text(encoding="utf-8-sig")  # a spreadsheet's CSV starts with a byte-order mark
     except UnicodeDecodeError as exc:
         raise RecordingError(f"trajectory file {file} is not UTF-8 text ({exc.reason} at byte {exc.start}): give a "
                              "text file with one `x y z` per line") from None
@@ -81,6 +81,9 @@ def axis_fit_trajectory(
         samples = parse_trajectory(text)
     except ValueError as exc:
         raise RecordingError(f"trajectory file {file}: {exc}") from exc
+    if len(samples.positions) < 3:
+        raise RecordingError(f"trajectory file {file} holds {len(samples.positions)} sample(s) but a fit needs at "
+                             "least 3: give one `x y z` per line (or a CSV header and rows) for 3 or more positions")
     world_up = None if up is UpChoice.none else np.eye(3)["xyz".index(up.value)]
     data = fit_trajectory_report(samples.positions, samples.quaternions,
                                  None if joint == JointChoice.auto else JointType(joint.value), times=samples.times,

@@ -125,10 +125,9 @@ class FramesWriter:
         if mask is not None and np.shape(mask) != (h, w):
             raise RecordingError(f"frame {frame.index}: mask must be ({h}, {w}), got {np.shape(mask)}")
 
-        units = np.where(np.isfinite(depth) & (depth > 0), np.round(depth / self.depth_scale), 0.0)
         name = _png_name(self._count)
         _write_png(self.path / "color" / name, cv2.cvtColor(color, cv2.COLOR_RGB2BGR))
-        _write_png(self.path / "depth" / name, np.clip(units, 0, 65535).astype(np.uint16))
+        _write_png(self.path / "depth" / name, depth_units(depth, self.depth_scale)[0])
         written = ["color", "depth"]
         if mask is not None:
             if not (self.path / "mask").is_dir():
@@ -172,6 +171,15 @@ class FramesWriter:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def depth_units(depth_m: np.ndarray, depth_scale: float) -> tuple[np.ndarray, int]:
+    """Depth in metres as the 16-bit units of `depth_scale` m a depth PNG stores, and how many pixels were
+    beyond its range (65535 units): those become 0, no depth, never a wrong depth."""
+    depth = np.asarray(depth_m, np.float64)
+    units = np.where(np.isfinite(depth) & (depth > 0), np.round(depth / depth_scale), 0.0)
+    beyond = units > 65535
+    return np.where(beyond, 0.0, units).astype(np.uint16), int(np.count_nonzero(beyond))
 
 
 def _write_durably(path: Path, data: bytes) -> None:
@@ -219,8 +227,8 @@ def _check_record(record: object) -> None:
 class FramesRecording:
     """Reads a frames recording; meta.json is validated on open, frames.jsonl read on first use.
 
-    An interrupted recording (truncated last frames.jsonl line, or missing PNGs of the last listed
-    frame) is read up to its last complete frame.
+    An interrupted recording (a last frames.jsonl line without its newline or not valid JSON, or missing PNGs
+    of the last listed frame) is read up to its last complete frame. Frame times `t` must increase.
     """
 
     def __init__(self, path: str | Path) -> None:
@@ -300,20 +308,29 @@ class FramesRecording:
         except UnicodeDecodeError as e:
             raise RecordingError(f"{file} is not UTF-8 text ({e.reason} at byte {e.start}): it is damaged; "
                                  "restore it from a copy or re-record") from None
-        records = []
+        last = max((n for n, line in enumerate(lines, start=1) if line.strip()), default=0)
+        records, previous = [], None
         for number, line in enumerate(lines, start=1):
             if not line.strip():
                 continue
+            parsed = False
             try:
                 record = json.loads(line)
+                parsed = True
                 _check_record(record)
             except (ValueError, KeyError, TypeError, RecursionError) as e:
-                if number == len(lines):  # no newline after it: the recording was interrupted mid-line
+                if number == len(lines) or (number == last and not parsed):  # interrupted mid-line
                     break
                 raise RecordingError(
                     f"{file}, line {number}: not a frame record ({e}); each line must be a JSON object "
                     "with 'index' and 't'; remove or fix the line"
                 ) from None
+            if previous is not None and float(record["t"]) <= previous[1]:
+                raise RecordingError(
+                    f"{file}, line {number}: t {record['t']} does not come after line {previous[0]}'s t "
+                    f"{previous[1]}: frame times must increase; fix or remove the line"
+                )
+            previous = number, float(record["t"])
             records.append(record)
         if records and not all(self._png(records[-1], s).exists() for s in ("color", "depth")):
             records.pop()  # interrupted while writing the last frame's images
@@ -327,7 +344,13 @@ class FramesRecording:
 
     @property
     def has_masks(self) -> bool:
-        return bool(self.records) and self._png(self.records[0], "mask").exists()
+        """Whether any frame has a mask (`unmasked` lists the frames without one)."""
+        return len(self.unmasked) < len(self.records)
+
+    @property
+    def unmasked(self) -> list[int]:
+        """The indices of the frames without a mask PNG."""
+        return [int(r["index"]) for r in self.records if not self._png(r, "mask").exists()]
 
     def frame(self, i: int) -> Frame:
         """Frame `i` (0-based position in frames.jsonl): RGB colour, depth in metres, mask if recorded."""

@@ -8,6 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from drivers.camera.base import Camera, Frame
+from drivers.camera.frames_dir import depth_units
 from drivers.camera.record import record
 from drivers.errors import RecordingError
 
@@ -48,12 +49,23 @@ def convert_recording(
     src: str | Path, out: str | Path, depth_scale: float = 0.001, progress: Callable[[Frame], None] | None = None
 ) -> dict:
     """Every frame of `src`, depth aligned to colour, raw (no post-processing), with the colour stream's
-    intrinsics, written to the frames directory `out`. Returns {"out", "frames", "seconds", "source",
-    "source_depth_scale"} (source: "realsense" or "ros2")."""
+    intrinsics, written to the frames directory `out`. Depth beyond the 16-bit range of `depth_scale` is stored
+    as 0, no depth (`depth_units`). Returns {"out", "frames", "seconds", "source", "source_depth_scale",
+    "depth_out_of_range_px"} (source: "realsense" or "ros2"; source_depth_scale: metres per unit of the
+    source's depth; depth_out_of_range_px: the depth pixels stored as 0 for being beyond the range)."""
     src = Path(src)
     camera = open_recording(src)
     camera.connect()
     source_depth_scale = camera.depth_scale
-    summary = record(camera, out, depth_scale=depth_scale, progress=progress,  # disconnects the camera
+    beyond = 0
+
+    def each(frame: Frame) -> None:
+        nonlocal beyond
+        beyond += depth_units(frame.depth_m, depth_scale)[1]
+        if progress is not None:
+            progress(frame)
+
+    summary = record(camera, out, depth_scale=depth_scale, progress=each,  # disconnects the camera
                      source=f"replay:{src}")
-    return {**summary, "source": recording_kind(src), "source_depth_scale": source_depth_scale}
+    return {**summary, "source": recording_kind(src), "source_depth_scale": source_depth_scale,
+            "depth_out_of_range_px": beyond}

@@ -64,7 +64,7 @@ def _open_reader(path: Path):
 class Ros2BagCamera(Camera):
     """Plays a realsense-ros bag once, every colour/depth pair in order; RecordingError at the end."""
 
-    depth_scale = 0.001  # metres per unit of the depth topic as realsense-ros publishes it (16UC1)
+    depth_scale = 0.001  # metres per unit of the depth topic (16UC1 mm; 32FC1 m): connect() reads the encoding
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
@@ -128,7 +128,16 @@ class Ros2BagCamera(Camera):
                                         else DEFAULT_PERIOD_S)
         if "aligned" in topics:
             self._depth_topic = topics["aligned"]
-            return
+        else:
+            self._aligner = self._depth_aligner()
+            self._depth_topic = topics["depth"]
+        depth = self._first("aligned" if "aligned" in topics else "depth")
+        if depth is not None:
+            self.depth_scale = _depth_encoding(depth)[1]
+
+    def _depth_aligner(self) -> DepthAligner:
+        """The aligner re-projecting the depth topic onto the colour image, from its camera_info and extrinsics."""
+        topics = self._topics
         first = {role: self._first(role) for role in ("depth_info", "extrinsics")}
         missing = [role for role in ("depth", "depth_info", "extrinsics") if role not in topics or
                    first.get(role, True) is None]
@@ -136,11 +145,10 @@ class Ros2BagCamera(Camera):
             raise RecordingError(f"ROS 2 bag {self.path} has no aligned depth topic (.../aligned_depth_to_color/"
                                  f"image_raw) and lacks {', '.join(missing)}: record with align_depth.enable:=true "
                                  "or record the depth camera_info and extrinsics topics too")
-        self._depth_topic = topics["depth"]
         extrinsics = first["extrinsics"]
         R = np.reshape(np.asarray(extrinsics.rotation, float), (3, 3)).T  # column-major
-        self._aligner = DepthAligner(_intrinsics(first["depth_info"]), self._intrinsics, R,
-                                     np.asarray(extrinsics.translation, float))
+        return DepthAligner(_intrinsics(first["depth_info"]), self._intrinsics, R,
+                            np.asarray(extrinsics.translation, float))
 
     def read(self, timeout_s: float = 2.0) -> Frame:
         """The next colour/depth pair; RecordingError at the end of the bag."""
@@ -216,10 +224,15 @@ def _color_image(msg) -> np.ndarray:
     return image.copy() if conversion is None else cv2.cvtColor(image, conversion)
 
 
-def _depth_image(msg) -> np.ndarray:
+def _depth_encoding(msg) -> tuple[type, float]:
+    """The pixel type and metres per unit of a depth image's encoding."""
     if msg.encoding not in _DEPTH:
         raise RecordingError(f"depth encoding {msg.encoding!r} is not supported: record 16UC1 (mm) or 32FC1 (m)")
-    dtype, scale = _DEPTH[msg.encoding]
+    return _DEPTH[msg.encoding]
+
+
+def _depth_image(msg) -> np.ndarray:
+    dtype, scale = _depth_encoding(msg)
     depth = _pixels(msg, dtype, 1).astype(np.float32) * np.float32(scale)
     depth[~np.isfinite(depth)] = 0.0
     return depth
