@@ -1,6 +1,7 @@
 """Arm bring-up operations behind `deploy arm ...`: scan, status, enable/disable/zero, and planned joint moves
-(home, jog, move to a pose) that are shown before they run; and the `--sim-fault` injections of the simulated CAN
-arm, which every command that takes `--arm sim-can` offers.
+(home, jog, move to a pose) that are shown before they run, keep GOAL_MARGIN_RAD inside the joint limits and fail
+unless they end on their goal; and the `--sim-fault` injections of the simulated CAN arm, which every command
+that takes `--arm sim-can` offers.
 
 The arm comes from the rig builder (`deploy.rig.build_arm`, no camera); commands that address the motors directly
 (scan, disable, zero) use the arm kind's bare bus (`deploy.rig.bare_bus`: the bus factory of its registry entry).
@@ -18,6 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+import pinocchio as pin
 from scipy.spatial.transform import Rotation
 
 from deploy.rig import bare_bus, build_arm
@@ -27,17 +29,22 @@ from drivers.arm.can_bus import CanBus
 from drivers.arm.damiao import Special, special
 from drivers.arm.disable import disable_and_confirm
 from drivers.arm.disable import motor_states as disable_states
+from drivers.arm.kinematics import Kinematics
 from drivers.arm.motion import move_to_joints
-from drivers.arm.motor_channels import MotorChannel
+from drivers.arm.motor_channels import MotorChannel, request_feedback
 from drivers.arm.registry import ARMS
 from drivers.arm.robot_config import PANDA_SIM_CONFIG, RobotConfig, load_robot_config
 from drivers.arm.trajectory import MotionLimits, joint_trajectory
-from drivers.errors import ArmError
+from drivers.errors import ArmError, IKError
 
 if TYPE_CHECKING:
     from sim_fallback.sim_faults import SimFault
 
 BRINGUP_SPEED = 0.2  # share of the velocity, acceleration and jerk limits used by bring-up moves
+GOAL_MARGIN_RAD = 0.02  # goals keep this far inside the joint limits: a move's end overshoots by up to ~0.01 rad
+GOAL_TOLERANCE_RAD = 0.01  # a move fails when a joint settles farther than this from its goal
+SETTLE_S = 1.0  # after the trajectory, the joints have this long to come to rest within GOAL_TOLERANCE_RAD
+SETTLED_SPEED = 0.05  # rad/s: below this (and within the tolerance) a joint counts as settled
 
 
 @dataclass(frozen=True)
@@ -62,7 +69,13 @@ def load(robot: Path | None) -> RobotConfig:
 
 
 def make_arm(kind: str, config: RobotConfig) -> Arm:
-    """An arm of `kind` for the CLI, built as a rig builds its arm ("sim" needs a world: not offered here)."""
+    """An arm of `kind` for the CLI, built as a rig builds its arm; ArmError for a simulated kind without simulated
+    motors of its own (it lives in a simulated world, which bring-up does not build)."""
+    entry, _ = ARMS.entry(kind)
+    if entry.simulated and entry.bus is None:
+        instead = " or ".join(f"--arm {e.usage} ({e.description})" for e in ARMS.entries()
+                              if e.simulated and e.bus is not None)
+        raise ArmError(f"--arm {kind} lives in a simulated world, which arm commands do not build: use {instead}")
     return build_arm(kind, config)
 
 
@@ -108,12 +121,12 @@ def motor_states(arm: Arm) -> list[dict]:
 
 @contextmanager
 def released(arm: Arm) -> Iterator[Arm]:
-    """Disconnect `arm` when an exception leaves (it then carries the motors' final states as `motors`)."""
+    """Disconnect `arm` when an exception leaves (a CAN arm's exception then carries the motors' final states as
+    `motors`: drivers/arm/can_arm.py, as `with arm:` does)."""
     try:
         yield arm
     except BaseException as exc:
-        arm.disconnect()
-        exc.motors = motor_states(arm)
+        arm.__exit__(type(exc), exc, exc.__traceback__)
         raise
 
 
@@ -134,7 +147,8 @@ def scan(kind: str, config: RobotConfig, ids: range, faults: list[SimFault] | No
 
 
 def status(arm: Arm) -> dict:
-    """Joint positions, tool pose and, for CAN arms, each motor's status (connects: enables, then stops)."""
+    """Joint positions, tool pose and, for CAN arms, each motor's report while enabled (`motors`) and state
+    once damped and disabled (`motors_after_stop`: drivers/arm/disable.py). Connects: enables, then stops."""
     with arm:
         state = arm.state()
         kin = arm.kin
@@ -145,6 +159,8 @@ def status(arm: Arm) -> dict:
                 "gripper_width_m": round(state.gripper_width_m, 4)}
         if isinstance(arm, CanArm):
             data["motors"] = arm.motor_report()
+    if isinstance(arm, CanArm):
+        data["motors_after_stop"] = arm.motor_states()
     return data
 
 
@@ -159,19 +175,30 @@ def disable_all(config: RobotConfig, kind: str, faults: list[SimFault] | None = 
 
 
 def set_zero(config: RobotConfig, kind: str, joint: str, faults: list[SimFault] | None = None) -> dict:
-    """Make motor `joint`'s current position its zero (the motor must be disabled; it stores the zero)."""
+    """Make motor `joint`'s current position its zero: disable it (confirmed by its answer), then send set-zero
+    and wait for the answer (it stores the zero). ArmError naming the motor when either goes unanswered."""
     motors = {getattr(m, "name", "gripper"): m for m in config.motors}
     if joint not in motors:
         raise ArmError(f"joint {joint!r} is not in robot config {config.name!r}: joints are {', '.join(motors)}")
+    c = MotorChannel(joint, motors[joint], motors[joint].default_limits)
+    timeout = config.watchdog.reply_timeout_s
+    fix = "check its power, CAN id, master id and the bus bitrate (`deploy arm scan` lists the ids that answer)"
     with raw_bus(config, kind, faults) as bus:
-        bus.send(motors[joint].can_id, special(Special.DISABLE))
-        bus.send(motors[joint].can_id, special(Special.SET_ZERO))
+        if disable_and_confirm(bus, [c], timeout, threading.RLock(), time.perf_counter):
+            raise ArmError(f"motor {c.describe()} did not answer the disable: not zeroed (it may still be enabled); "
+                           f"{fix}")
+        try:
+            request_feedback(bus, c, special(Special.SET_ZERO), c.config.can_id, timeout, time.perf_counter)
+        except ArmError:
+            raise ArmError(f"motor {c.describe()} did not answer the set-zero: its zero may not be set; {fix}, "
+                           "then zero it again") from None
     return {"joint": joint, "can_id": motors[joint].can_id, "zeroed": True}
 
 
 def plan(arm: Arm, config: RobotConfig, what: str, q_goal: np.ndarray | None = None,
          pose: tuple[float, ...] | None = None, joint: str | None = None, delta: float | None = None) -> Plan:
-    """The move `what` ("home", "jog", "move") from the measured joints; the arm must be connected."""
+    """The move `what` ("home", "jog", "move") from the measured joints; the arm must be connected. ArmError
+    for a goal outside the joint limits less GOAL_MARGIN_RAD or a tool outside the workspace box."""
     kin = arm.kin
     q0 = arm.state().q
     if what == "home":
@@ -182,24 +209,51 @@ def plan(arm: Arm, config: RobotConfig, what: str, q_goal: np.ndarray | None = N
         q_goal = q0.copy()
         q_goal[arm.joint_names.index(joint)] += float(delta)
     elif what == "move":
-        x, y, z, roll, pitch, yaw = pose
-        T = np.eye(4)
-        T[:3, :3] = Rotation.from_euler("xyz", [roll, pitch, yaw], degrees=True).as_matrix()
-        T[:3, 3] = x, y, z
-        q_goal = kin.ik(T, q0)
+        q_goal = _pose_goal(arm, pose, q0)
     limits = arm.guard.limits if hasattr(arm, "guard") else None
     if limits is not None:
-        bad = (q_goal < limits.q_min) | (q_goal > limits.q_max)
-        if bad.any():
-            j = int(np.argmax(bad))
-            raise ArmError(f"{what}: joint {arm.joint_names[j]} goal {q_goal[j]:.3f} rad is outside its limits "
-                           f"[{limits.q_min[j]:.3f}, {limits.q_max[j]:.3f}]: choose a smaller move")
-        tool = kin.fk(q_goal)[:3, 3]
-        if np.any(tool < limits.workspace_min) or np.any(tool > limits.workspace_max):
-            raise ArmError(f"{what}: the tool would end at {tool.round(3).tolist()} m, outside the workspace box "
-                           f"{limits.workspace_min.tolist()} .. {limits.workspace_max.tolist()}: choose another goal")
+        _check_goal(arm, what, q_goal, limits)
     duration = joint_trajectory(q0, q_goal, motion_limits(arm, config)).duration
     return Plan(what, q0, q_goal, duration, kin.fk(q0)[:3, 3], kin.fk(q_goal)[:3, 3])
+
+
+def _pose_goal(arm: Arm, pose: tuple[float, ...], q0: np.ndarray) -> np.ndarray:
+    """IK for tool pose (x, y, z m; roll, pitch, yaw deg, xyz Euler), seeded at q0, within the joint limits less
+    GOAL_MARGIN_RAD; IKError with the fix."""
+    x, y, z, roll, pitch, yaw = pose
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("xyz", [roll, pitch, yaw], degrees=True).as_matrix()
+    T[:3, 3] = x, y, z
+    kin = arm.kin
+    if hasattr(arm, "guard"):
+        model = pin.Model(kin.model)
+        model.lowerPositionLimit = arm.guard.limits.q_min + GOAL_MARGIN_RAD
+        model.upperPositionLimit = arm.guard.limits.q_max - GOAL_MARGIN_RAD
+        kin = Kinematics(model, kin.tool_frame)
+    try:
+        return kin.ik(T, q0)
+    except IKError as exc:
+        found = str(exc).split("; ")[0]  # what IK found, without its advice for a grasp
+        raise IKError(f"move: {found}: the pose is out of the arm's reach or orientation range: give another --pose "
+                      "(`deploy arm status` prints the current tool position and rpy)") from None
+
+
+def _check_goal(arm: Arm, what: str, q_goal: np.ndarray, limits) -> None:
+    """ArmError when a joint goal is outside its limits less GOAL_MARGIN_RAD or the tool leaves the workspace."""
+    m = GOAL_MARGIN_RAD
+    low, high = limits.q_min + m, limits.q_max - m
+    bad = (q_goal < low) | (q_goal > high)
+    if bad.any():
+        j = int(np.argmax(bad))
+        fix = {"home": "set q_ready inside it in the robot config", "jog": "choose a smaller --delta"}.get(
+            what, "choose another goal")
+        raise ArmError(f"{what}: joint {arm.joint_names[j]} goal {q_goal[j]:.3f} rad is outside its limits "
+                       f"[{limits.q_min[j]:.3f}, {limits.q_max[j]:.3f}] less the {m} rad margin a move may "
+                       f"overshoot by, [{low[j]:.3f}, {high[j]:.3f}]: {fix}")
+    tool = arm.kin.fk(q_goal)[:3, 3]
+    if np.any(tool < limits.workspace_min) or np.any(tool > limits.workspace_max):
+        raise ArmError(f"{what}: the tool would end at {tool.round(3).tolist()} m, outside the workspace box "
+                       f"{limits.workspace_min.tolist()} .. {limits.workspace_max.tolist()}: choose another goal")
 
 
 def motion_limits(arm: Arm, config: RobotConfig) -> MotionLimits:
@@ -208,20 +262,56 @@ def motion_limits(arm: Arm, config: RobotConfig) -> MotionLimits:
 
 def execute(arm: Arm, config: RobotConfig, p: Plan, hold_s: float = 0.0,
             progress: Callable[[float], None] | None = None) -> dict:
-    """Run a planned move (the arm is connected), hold `hold_s` seconds; the final joints and tool position."""
+    """Run a planned move (the arm is connected), let it come to rest (SETTLE_S at most), hold `hold_s` s; the
+    final joints and tool position. ArmError (the arm then stops) when a measured joint passes its limit or a
+    joint ends farther than GOAL_TOLERANCE_RAD from its goal."""
     limits = motion_limits(arm, config)
 
-    def on_tick(_state, t: float) -> None:
+    def on_tick(state, t: float) -> None:
+        _check_limits(arm, p, state.q)
         if progress is not None:
             progress(min(1.0, t / max(p.duration_s, 1e-9)))
 
-    gap = np.abs(arm.state().q - p.q_start).max()
-    if gap > 0.02:
-        raise ArmError(f"the arm moved {gap:.3f} rad since the plan was made: run the command again")
+    gap = np.abs(arm.state().q - p.q_start)
+    if gap.max() > 0.02:
+        j = int(np.argmax(gap))
+        raise ArmError(f"{p.what}: joint {arm.joint_names[j]} moved {gap[j]:.3f} rad since the plan was made: run "
+                       "the command again; if it moves again, it sags when enabled: check the gravity model "
+                       "(gravity_compensation and the URDF's inertias) and the gains (kp, kd)")
     move_to_joints(arm, p.q_goal, limits, on_tick)
+    for _ in range(int(np.ceil(SETTLE_S / arm.control_period_s))):
+        state = arm.state()
+        if np.abs(state.q - p.q_goal).max() <= GOAL_TOLERANCE_RAD and np.abs(state.dq).max() <= SETTLED_SPEED:
+            break
+        arm.sync()
+        _check_limits(arm, p, arm.state().q)
     end = time.perf_counter() + hold_s
     while time.perf_counter() < end:
         arm.sync()
+        _check_limits(arm, p, arm.state().q)
     q = arm.state().q
+    _check_limits(arm, p, q)
+    error = np.abs(q - p.q_goal)
+    if error.max() > GOAL_TOLERANCE_RAD:
+        j = int(np.argmax(error))
+        raise ArmError(f"{p.what}: joint {arm.joint_names[j]} ended {error[j]:.3f} rad from its goal "
+                       f"{p.q_goal[j]:.3f} (tolerance {GOAL_TOLERANCE_RAD} rad): the arm does not hold its goal; "
+                       "check the gravity model (gravity_compensation and the URDF's inertias), the gains (kp, kd) "
+                       "and any load on the arm")
     return {"q": q.round(4).tolist(), "tool_position_m": arm.kin.fk(q)[:3, 3].round(4).tolist(),
-            "max_joint_error_rad": float(np.abs(q - p.q_goal).max())}
+            "max_joint_error_rad": float(error.max())}
+
+
+def _check_limits(arm: Arm, p: Plan, q: np.ndarray) -> None:
+    """ArmError when a measured joint is past its limit (the arm's safety limits, when it has them), farther than
+    it was at the plan's start (a joint zeroed slightly outside may move back in)."""
+    if not hasattr(arm, "guard"):
+        return
+    lim = arm.guard.limits
+    past = np.maximum(lim.q_min - q, q - lim.q_max)
+    beyond = past - np.maximum(0.0, np.maximum(lim.q_min - p.q_start, p.q_start - lim.q_max))
+    j = int(np.argmax(beyond))
+    if beyond[j] > 0 and past[j] > 0:
+        raise ArmError(f"{p.what}: joint {arm.joint_names[j]} measured {q[j]:.4f} rad, {past[j]:.4f} rad past its "
+                       f"limits [{lim.q_min[j]:.3f}, {lim.q_max[j]:.3f}]: the joint overshoots; raise kd or lower "
+                       "kp in the robot config")

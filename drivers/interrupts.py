@@ -4,8 +4,10 @@ prints what stopped.
 
 `Interrupted` derives from BaseException, not KeyboardInterrupt: nothing that catches Exception or
 KeyboardInterrupt (the CLI framework turns the latter into a silent exit 130) swallows it. Inside a `critical`
-section (CAN I/O, one control cycle) the exception waits for the section's end: an exception raised right after
-a lock was taken could leave it taken, and the disable that follows would wait for it forever.
+section (CAN I/O, one control cycle, a whole stop-disable-report sequence) the exception waits for the section's
+end: an exception raised right after a lock was taken could leave it taken, and the disable that follows would
+wait for it forever. Only the first signal raises: once an Interrupted was raised the program is on its way out,
+and later signals (a second Ctrl-C) are recorded without cutting the cleanup short.
 """
 
 from __future__ import annotations
@@ -41,21 +43,26 @@ class Interrupted(BaseException):  # noqa: N818 - it is not an error: the user s
 _received: list[int] = []  # the signals received since `interrupts()` installed its handlers
 _pending: list[int] = []  # a signal that came inside a critical section, raised when the section ends
 _depth = [0]  # critical sections of the main thread currently open
+_stopping = [False]  # an Interrupted was raised: later signals are only recorded
 _MAIN = threading.main_thread().ident
 
 
 def _raise_interrupted(signum: int, _frame: object) -> None:
     _received.append(signum)
+    if _stopping[0]:
+        return
     if _depth[0] > 0:
         _pending.append(signum)
         return
+    _stopping[0] = True
     raise Interrupted(signum)
 
 
 class _Critical:
     """`with critical:` marks code that must not be cut by an exception halfway (it holds locks that are not
     re-entrant, e.g. python-can's queues, or sends one control cycle): a signal arriving inside is raised as
-    Interrupted when the outermost section ends. Only the main thread counts (signals interrupt only it)."""
+    Interrupted when the outermost section ends (once: not when an Interrupted was raised already). Only the main
+    thread counts (signals interrupt only it)."""
 
     def __enter__(self) -> None:
         if threading.get_ident() == _MAIN:
@@ -68,6 +75,7 @@ class _Critical:
         if _depth[0] == 0 and _pending:
             signum = _pending.pop(0)
             _pending.clear()
+            _stopping[0] = True
             raise Interrupted(signum)
 
 
@@ -95,6 +103,7 @@ def interrupts() -> Iterator[None]:
         return
     _received.clear()
     _pending.clear()
+    _stopping[0] = False
     old = {sig: signal.signal(sig, _raise_interrupted) for sig in SIGNAL_NAMES}
     try:
         yield

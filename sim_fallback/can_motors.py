@@ -4,7 +4,9 @@ is tested without hardware.
 
 Motor state comes from one of two backends:
 - `IntegratedMotors`: each joint is an inertia with viscous friction driven by the MIT law
-  tau = kp (q* - q) + kd (dq* - dq) + tau*, clipped to TMAX, integrated in sub-steps;
+  tau = kp (q* - q) + kd (dq* - dq) + tau*, clipped to TMAX, integrated in sub-steps; for a config with
+  `gravity_compensation` the enabled joints also carry the gravity of its URDF (`GravityLoad`: the model the
+  driver compensates), so that compensation cancels it (a disabled joint rests on its support);
 - `PyBulletMotors`: the joints of a `SimArm` (PyBullet position control toward q*, dq* within the URDF efforts;
   gains are not modelled, disabled motors hold still) and its gripper.
 
@@ -26,6 +28,7 @@ from dataclasses import dataclass, field
 
 import can
 import numpy as np
+import pinocchio as pin
 
 from drivers.arm.can_bus import CAN_ERR_BUSOFF, CAN_ERR_CRTL, CAN_ERR_CRTL_TX_PASSIVE
 from drivers.arm.damiao import (
@@ -87,23 +90,42 @@ class SimMotor:
         return Status.ENABLED if self.enabled else Status.DISABLED
 
 
-class IntegratedMotors:
-    """Joint dynamics integrated from the MIT commands (no gravity: the motors are unloaded)."""
+class GravityLoad:
+    """The gravity torque of `config`'s arm (its URDF's inertias, Pinocchio) on each joint's motor, motor side."""
 
-    def __init__(self, inertia: float = DEFAULT_INERTIA, friction: float = DEFAULT_FRICTION) -> None:
-        self.inertia, self.friction = inertia, friction
+    def __init__(self, config: RobotConfig) -> None:
+        self.model = config.kinematics().model
+        self.data = self.model.createData()
+        self.direction = np.array([j.direction for j in config.joints], float)
+        self.zero_offset = np.array([j.zero_offset for j in config.joints], float)
+
+    def __call__(self, q_motor: np.ndarray) -> np.ndarray:
+        q = self.direction * q_motor + self.zero_offset
+        return self.direction * pin.computeGeneralizedGravity(self.model, self.data, q)
+
+
+class IntegratedMotors:
+    """Joint dynamics integrated from the MIT commands; `gravity` (None: unloaded motors) loads the first joints'
+    motors while they are enabled."""
+
+    def __init__(self, inertia: float = DEFAULT_INERTIA, friction: float = DEFAULT_FRICTION,
+                 gravity: GravityLoad | None = None) -> None:
+        self.inertia, self.friction, self.gravity = inertia, friction, gravity
 
     def advance(self, motors: list[SimMotor], dt: float) -> None:
         n = max(1, int(np.ceil(dt / SUBSTEP_S)))
         h = dt / n
-        for m in motors:
-            for _ in range(n):
+        loaded = motors[: len(self.gravity.direction)] if self.gravity is not None else []
+        for _ in range(n):
+            load = self.gravity(np.array([m.q for m in loaded])) if loaded else ()
+            for i, m in enumerate(motors):
                 tau = 0.0
                 if m.enabled and m.command is not None:
                     q_ref, dq_ref, kp, kd, tau_ff = m.command
                     tau = kp * (q_ref - m.q) + kd * (dq_ref - m.dq) + tau_ff
                     tau = min(max(tau, -m.limits.t_max), m.limits.t_max)
-                m.dq += h * (tau - self.friction * m.dq) / self.inertia
+                weight = load[i] if i < len(load) and m.enabled else 0.0
+                m.dq += h * (tau - weight - self.friction * m.dq) / self.inertia
                 m.q += h * m.dq
                 m.tau = tau
 
@@ -171,7 +193,7 @@ class SimMotorBus:
     def __init__(self, config: RobotConfig, backend: IntegratedMotors | PyBulletMotors | None = None,
                  q0: np.ndarray | None = None, seed: int = 0) -> None:
         self.config = config
-        self.backend = backend or IntegratedMotors()
+        self.backend = backend or IntegratedMotors(gravity=GravityLoad(config) if config.gravity_compensation else None)
         self.motors = [SimMotor(m, m.default_limits) for m in config.motors]
         q0 = np.asarray(config.q_ready if q0 is None else q0, float)
         if config.gripper is not None:  # the gripper starts open

@@ -182,7 +182,7 @@ def test_bus_commands_take_faults_too(capsys):
     code, out, _ = run(capsys, "arm", "disable", "--sim-fault", "silent:gripper")
     assert code == 1 and "except gripper, which did not answer" in " ".join(out.split())
     code, _, err = run(capsys, "arm", "zero", "--joint", "panda_joint1", "--yes", "--sim-fault", "bus-off")
-    assert code == 0  # a set-zero is not answered: nothing to check (the frames are lost)
+    assert code == 2 and "did not answer the disable" in " ".join(err.split())  # never "zeroed" unconfirmed
 
 
 @pytest.mark.parametrize(("args", "words"), [
@@ -208,7 +208,7 @@ def test_a_fault_during_an_opening_names_the_joint_and_the_motors(capsys, tmp_pa
 
 
 def test_a_fault_during_calibration_is_the_json_error_with_the_motors(capsys, tmp_path):
-    code, out, err = run(capsys, "calibrate", "intrinsics", "--camera", "sim", "--arm", "sim-can", "--poses", "3",
+    code, out, err = run(capsys, "calibrate", "intrinsics", "--camera", "sim", "--arm", "sim-can", "--poses", "4",
                          "--yes", "--dir", tmp_path, "--sim-fault", "bus-off@0.5", "--json")
     data = json.loads(out)
     assert code == 2 and "bus-off" in data["error"] and all(m["enabled"] for m in data["motors"])

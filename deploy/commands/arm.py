@@ -27,6 +27,15 @@ def _print_motors(title: str, motors: list[dict]) -> None:
                               for m in motors])
 
 
+def _print_plan_to_stderr(title: str, rows: dict) -> None:
+    from rich.table import Table
+
+    table = Table(title=title, show_header=False)
+    for key, value in rows.items():
+        table.add_row(key, str(value))
+    err_console.print(table)
+
+
 @app.command("scan")
 def scan_cmd(
     arm: ArmOpt = "sim-can",
@@ -65,18 +74,23 @@ def status_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, sim_fault: SimFa
     Example: deploy arm status --arm sim-can --json
     """
     from deploy.arm_bringup import inject_sim_faults, load, make_arm, parse_sim_faults, released, status
+    from drivers.arm.disable import disable_summary
 
     faults = parse_sim_faults(arm, sim_fault)
     a = make_arm(arm, load(robot))
     with released(a):
         inject_sim_faults(a, faults)
     data = status(a)
+    after = data.get("motors_after_stop", [])
     if json_out:
         print_json(data)
-        return
-    print_rows("arm", {k: v for k, v in data.items() if k != "motors"}, digits=None)
-    if "motors" in data:
-        _print_motors("motors", data["motors"])
+    else:
+        print_rows("arm", {k: v for k, v in data.items() if not k.startswith("motors")}, digits=None)
+        if after:
+            _print_motors("motors (while enabled)", data["motors"])
+            console.print(f"then damped; {disable_summary(after)}")
+    if any(m["enabled"] for m in after):  # a motor did not confirm the disable: it may still be enabled
+        raise typer.Exit(1)
 
 
 @app.command("enable")
@@ -103,7 +117,7 @@ def enable_cmd(
     a = make_arm(arm, load(robot))
     with released(a):
         inject_sim_faults(a, faults)
-        if not yes and not typer.confirm(f"Enable the motors of the {arm} arm and hold position?"):
+        if not yes and not typer.confirm(f"Enable the motors of the {arm} arm and hold position?", err=json_out):
             a.disconnect()
             raise typer.Exit(1)
         if clear_errors and isinstance(a, CanArm):
@@ -157,7 +171,7 @@ def zero_cmd(
     from deploy.arm_bringup import load, parse_sim_faults, set_zero
 
     faults = parse_sim_faults(arm, sim_fault)
-    if not yes and not typer.confirm(f"Set the zero of {joint}'s motor at its current position?"):
+    if not yes and not typer.confirm(f"Set the zero of {joint}'s motor at its current position?", err=json_out):
         raise typer.Exit(1)
     result = set_zero(load(robot), arm, joint, faults)
     if json_out:
@@ -180,11 +194,14 @@ def _move(kind: str, robot: Path | None, what: str, dry_run: bool, yes: bool, ho
         if isinstance(a, CanArm):
             a.probe()  # measured joints without enabling
         p = plan(a, config, what, **target)
+        title = f"{what} plan ({kind} arm{', dry run' if dry_run else ''})"
         if json_out and dry_run:
             print_json({"dry_run": True, **p.to_dict()})
         elif not json_out:
-            print_rows(f"{what} plan ({kind} arm{', dry run' if dry_run else ''})", p.to_dict(), digits=None)
-        go = not dry_run and (yes or typer.confirm("Run this motion now?"))
+            print_rows(title, p.to_dict(), digits=None)
+        elif not yes:  # the JSON goes to stdout after the move: the plan to confirm goes to stderr
+            _print_plan_to_stderr(title, p.to_dict())
+        go = not dry_run and (yes or typer.confirm("Run this motion now?", err=json_out))
     if not go:
         a.disconnect()
         if not dry_run:

@@ -14,7 +14,8 @@ URDF inertias) as MIT feed-forward, so that low (compliant) gains do not let the
 Every fault (safety limit, status fault, stale feedback, late cycle, bus error) disables all motors and makes
 the next `command()` / `sync()` raise ArmError naming the joint and the fault, and any motor that did not confirm
 the disable (drivers/arm/disable.py). SIGINT / SIGTERM disable the motors too (installed at connect when running
-in the main thread, unless drivers.interrupts turns them into an exception that stops the arm on its way out).
+in the main thread, unless drivers.interrupts turns them into an exception that stops the arm on its way out;
+then stopping, disabling, reporting and closing the bus complete before a signal that came meanwhile is raised).
 An exception leaving `with arm:` carries the motors' final states as `motors`. The motors' channels, requests and
 the bus scan live in drivers/arm/motor_channels.py (re-exported here).
 """
@@ -49,6 +50,7 @@ from drivers.arm.robot_config import RobotConfig
 from drivers.arm.safety import SafetyGuard, SafetyLimits
 from drivers.arm.signals import StopSignals
 from drivers.errors import ArmError
+from drivers.interrupts import Interrupted, critical
 from drivers.interrupts import active as interrupts_active
 
 __all__ = ["CanArm", "LoopStats", "MotorChannel", "ScannedMotor", "read_param", "scan_bus"]
@@ -133,14 +135,15 @@ class CanArm(Arm):
             request_feedback(self.bus, c, refresh_request(c.config.can_id), PARAM_ID, timeout, self.loop.now)
 
     def disconnect(self) -> None:
-        """Stop (damp, disable), close the bus; safe after any failure."""
-        self.stop()
-        if not self._closed:
-            self._closed = True
-            self._signals.restore()
-            self.bus.close()
-            if self._on_close is not None:
-                self._on_close()
+        """Stop (damp, disable), close the bus; safe after any failure. Signals wait for its end."""
+        with critical:
+            self.stop()
+            if not self._closed:
+                self._closed = True
+                self._signals.restore()
+                self.bus.close()
+                if self._on_close is not None:
+                    self._on_close()
 
     def state(self) -> ArmState:
         with self._lock:
@@ -180,26 +183,26 @@ class CanArm(Arm):
             self._grip_force = max(MIN_GRIP_FORCE_N, float(force_n))
 
     def stop(self) -> None:
-        """Damp (kp = 0) for `stop_damping_s`, then disable every motor (also when a signal cuts the damping
-        short). Idempotent, raises no Exception; nothing to do once disconnected."""
+        """Damp (kp = 0) for `stop_damping_s`, then disable every motor. Idempotent, raises no Exception; nothing
+        to do once disconnected. Signals (drivers.interrupts) wait for its end: a second Ctrl-C cannot cut it."""
         if self._closed:
             return
-        try:
-            if self._enabled and self.loop.fault is None:
+        with critical:
+            try:
+                if self._enabled and self.loop.fault is None:
+                    with self._lock:
+                        self._kp = np.zeros(len(self.joints))
+                        self._q_cmd, self._dq_cmd, self._fresh = self._measured_q(), np.zeros(len(self.joints)), True
+                    for _ in range(int(np.ceil(self.config.watchdog.stop_damping_s / self.control_period_s))):
+                        self.sync()
+            except Exception:  # noqa: BLE001 - stopping must go on to disabling whatever happened
+                pass
+            finally:
+                self.loop.stop()
+                self._disable_all()
                 with self._lock:
-                    self._kp = np.zeros(len(self.joints))
-                    self._q_cmd, self._dq_cmd, self._fresh = self._measured_q(), np.zeros(len(self.joints)), True
-                n = int(np.ceil(self.config.watchdog.stop_damping_s / self.control_period_s))
-                for _ in range(n):
-                    self.sync()
-        except Exception:  # noqa: BLE001 - stopping must go on to disabling whatever happened
-            pass
-        finally:
-            self.loop.stop()
-            self._disable_all()
-            with self._lock:
-                self._enabled = False
-                self._kp = np.array([j.kp for j in self.config.joints])
+                    self._enabled = False
+                    self._kp = np.array([j.kp for j in self.config.joints])
 
     # --- extras --------------------------------------------------------------------------------------------
 
@@ -234,9 +237,7 @@ class CanArm(Arm):
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        self.disconnect()
-        if exc is not None:
-            exc.motors = self.motor_states()
+        disconnect_reporting(self, exc)
 
     @property
     def fault(self) -> ArmError | None:
@@ -307,6 +308,19 @@ class CanArm(Arm):
         self.loop.trip(ArmError(f"stopped by {signal_name}: motors disabled"))
         self.loop.stop()
         self._enabled = False
+
+
+def disconnect_reporting(arm: CanArm, exc: BaseException | None) -> None:
+    """Disconnect `arm`; the leaving exception `exc` carries the motors' final states as `motors`, and so does the
+    Interrupted of a signal that came meanwhile (raised once all is done: drivers/interrupts.py)."""
+    try:
+        with critical:
+            arm.disconnect()
+            if exc is not None:
+                exc.motors = arm.motor_states()
+    except Interrupted as late:
+        late.motors = arm.motor_states()
+        raise
 
 
 def enable_motors(bus: CanBus, channels: list[MotorChannel], limits: SafetyLimits, timeout_s: float,

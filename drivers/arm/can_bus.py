@@ -7,6 +7,7 @@ a full transmit queue ("No buffer space available", ENOBUFS), and any other send
 from __future__ import annotations
 
 import errno
+import logging
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
@@ -26,6 +27,10 @@ CAN_ERR_CRTL_RX_PASSIVE, CAN_ERR_CRTL_TX_PASSIVE = 0x10, 0x20
 FIX_BUS_OFF = ("check the CAN wiring, both 120 ohm terminations and the motor power, then restart the interface "
                "(`sudo ip link set can0 down && sudo ip link set can0 up type can bitrate 1000000 restart-ms 100`)")
 FIX_PASSIVE = "too many bus errors: check the bitrate matches the motors, the wiring and the terminations"
+# the pip package an interface of python-can needs (its extra); the others need their vendor's driver
+INTERFACE_PACKAGES = {"slcan": "pyserial", "serial": "pyserial", "robotell": "pyserial", "seeedstudio": "pyserial",
+                      "gs_usb": "gs-usb", "cantact": "cantact", "canalystii": "canalystii", "neovi": "python-ics",
+                      "nixnet": "nixnet", "udp_multicast": "msgpack"}
 FIX_NOBUFS = ("the transmit queue is full (frames are not acknowledged): check that the motors are powered and "
               "wired, or raise the queue (`sudo ip link set can0 txqueuelen 1000`)")
 
@@ -50,13 +55,20 @@ class CanBus:
             kwargs["bitrate"] = bitrate
         if fd:
             kwargs.update(fd=True, data_bitrate=data_bitrate)
+        can_log = logging.getLogger("can")
+        level = can_log.level
+        can_log.setLevel(logging.ERROR)  # python-can warns of a missing library on its own line: the error says it
         try:
             self._bus = can.Bus(**kwargs)
         except (can.CanError, OSError, ValueError, ImportError) as exc:
+            if isinstance(exc, can.CanInterfaceNotImplementedError) and interface in can.interfaces.VALID_INTERFACES:
+                raise missing_driver_error(exc, interface) from exc
             raise CanBusError(
                 f"CAN interface {interface!r} channel {channel!r} cannot be opened ({exc}): check the adapter is "
                 f"plugged in and up (`ip link show {channel}`), or pick the interface in the robot config"
             ) from exc
+        finally:
+            can_log.setLevel(level)
         self._closed = False
 
     @classmethod
@@ -134,6 +146,16 @@ class CanBus:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def missing_driver_error(exc: Exception, interface: str) -> CanBusError:
+    """The CanBusError for an interface python-can knows but cannot use here: the library or driver to install."""
+    package = INTERFACE_PACKAGES.get(interface)
+    fix = (f"install {package} in the environment that runs deploy (`pip install {package}`)" if package else
+           f"install the driver of your {interface} adapter from its vendor (python-can's documentation of the "
+           f"{interface!r} interface names it)")
+    return CanBusError(f"CAN interface {interface!r} cannot be used: the library or driver it needs is missing "
+                       f"({exc}): {fix}")
 
 
 def classify_send_error(exc: Exception, channel: str, arbitration_id: int) -> CanBusError:
