@@ -12,6 +12,8 @@ from PIL import Image
 from drivers.errors import CalibrationError
 
 INCH_M = 0.0254
+MAX_PAGE_M = (0.841, 1.189)  # A0, the largest ISO sheet: a board beyond it cannot be printed in one piece
+MAX_SIDE_PX = 20000  # the rendered image's longest side (memory, and the PDF encoder's 65500 px)
 
 
 @dataclass(frozen=True)
@@ -79,6 +81,16 @@ def write_board(cfg: BoardConfig, path: str | Path, dpi: float = 300.0, margin_m
         raise CalibrationError(f"board output {path} must end in .png or .pdf")
     if not path.parent.is_dir():
         raise CalibrationError(f"folder {path.parent} does not exist: create it or choose another --out")
+    page = sorted(v + 2 * margin_m for v in cfg.size_m)
+    if page[0] > MAX_PAGE_M[0] or page[1] > MAX_PAGE_M[1]:
+        raise CalibrationError(
+            f"a {cfg.squares[0]}x{cfg.squares[1]} board of {cfg.square_m * 1e3:g} mm squares is {page[0] * 1e3:.0f} x "
+            f"{page[1] * 1e3:.0f} mm, larger than an A0 sheet ({MAX_PAGE_M[0] * 1e3:.0f} x {MAX_PAGE_M[1] * 1e3:.0f} "
+            "mm): use a smaller --square-mm or fewer --squares")
+    side_px = page[1] * dpi / INCH_M
+    if side_px > MAX_SIDE_PX:
+        raise CalibrationError(f"at --dpi {dpi:g} the board is {side_px:.0f} px long, more than the {MAX_SIDE_PX} px "
+                               f"limit: use --dpi {MAX_SIDE_PX * INCH_M / page[1]:.0f} or less")
     image = Image.fromarray(render_board(cfg, dpi / INCH_M, margin_m))
     if path.suffix.lower() == ".pdf":
         image.save(path, "PDF", resolution=dpi)

@@ -10,8 +10,10 @@ from datetime import datetime
 import numpy as np
 
 from calibration.hand_eye import Sample, evaluate
+from calibration.intrinsics import MAX_FACTORY_OFFSET, factory_offset
 from calibration.store import HandEyeRecord
 from calibration.transforms import inv, mean_pose
+from drivers.camera.base import Intrinsics
 
 
 @dataclass(frozen=True)
@@ -19,7 +21,7 @@ class CheckReport:
     """spread_mm/deg: the base-fixed frame (eye-in-hand: board; eye-to-hand: camera) over the samples with the
     stored camera transform; reprojection_px over all samples; one_shot_mm: eye-to-hand, the board's centre
     corner seen by the camera vs where forward kinematics and the stored board mount put it (last sample);
-    eye-in-hand, None here (the routine's pointing test measures it); warnings: age and serial."""
+    eye-in-hand, None here (the routine's pointing test measures it); warnings: age, serial, intrinsics."""
 
     spread_mm: float
     spread_deg: float
@@ -33,9 +35,15 @@ class CheckReport:
 
 
 def staleness_warnings(record: HandEyeRecord, camera_serial: str, max_age_days: float,
-                       now: datetime | None = None) -> list[str]:
-    """Warnings for a calibration older than `max_age_days` or made with another camera serial."""
+                       now: datetime | None = None, factory: Intrinsics | None = None) -> list[str]:
+    """Warnings for a calibration older than `max_age_days`, made with another camera serial, or solved with
+    intrinsics far from the camera's `factory` ones (a scale error that its own reprojection cannot show)."""
     warnings = []
+    offset = factory and factory_offset(record.intrinsics, factory)
+    if offset:
+        warnings.append(f"calibration was solved with intrinsics whose {offset} (factory) differ by more than "
+                        f"{MAX_FACTORY_OFFSET:.0%}: its distances may be off by as much; delete the intrinsics file "
+                        "and run `deploy calibrate hand-eye --existing redo`")
     age = record.age_days(now)
     if age > max_age_days:
         warnings.append(f"calibration is {age:.0f} days old (limit {max_age_days:g}): the camera or its mount may "
@@ -58,7 +66,7 @@ def corner_in_base(record: HandEyeRecord, sample: Sample, corner_id: int | None 
 
 
 def check_samples(record: HandEyeRecord, samples: Sequence[Sample], camera_serial: str, max_age_days: float = 30.0,
-                  now: datetime | None = None) -> CheckReport:
+                  factory: Intrinsics | None = None, now: datetime | None = None) -> CheckReport:
     """Evaluate the stored camera transform on fresh samples. The board's own transform (on the tool or on the
     table) is estimated from the samples for the spread, so a board moved since calibration is no error there."""
     eye_in_hand = record.setup == "eye-in-hand"
@@ -75,4 +83,4 @@ def check_samples(record: HandEyeRecord, samples: Sequence[Sample], camera_seria
         T = last.T_base_tool @ record.T_board
         one_shot = float(np.linalg.norm(seen - (T[:3, :3] @ view.points[k] + T[:3, 3])) * 1e3)
     return CheckReport(result.spread_mm, result.spread_deg, result.reprojection_px, one_shot, len(samples),
-                       staleness_warnings(record, camera_serial, max_age_days, now))
+                       staleness_warnings(record, camera_serial, max_age_days, now, factory))

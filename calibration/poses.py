@@ -34,6 +34,12 @@ class PoseConfig:
     seed: int = 0
 
 
+def intrinsics_stations(pivot_tool_m: tuple[float, float, float], seed: int = 0) -> PoseConfig:
+    """Stations for intrinsics: steeper tilts (20-40 deg) to fix the focal length and larger shifts (10 cm) to
+    spread the board over the image; hand-eye's gentler defaults leave fx uncertain by 1-1.5 %."""
+    return PoseConfig(tilt_deg=(20.0, 40.0), shift_m=0.10, pivot_tool_m=pivot_tool_m, seed=seed)
+
+
 def candidate_poses(T_start: np.ndarray, n: int, cfg: PoseConfig) -> list[np.ndarray]:
     """`n` tool poses (4x4, base frame) around T_start, deterministic for a given seed."""
     rng = np.random.default_rng(cfg.seed)

@@ -17,7 +17,7 @@ from calibration.board import BoardConfig
 from calibration.check import CheckReport, check_samples, corner_in_base
 from calibration.detect import BoardDetector
 from calibration.hand_eye import METHODS, MIN_POSES, HandEyeSolution, Sample, Setup, calibrate, check_pose_set
-from calibration.intrinsics import IntrinsicsResult, calibrate_intrinsics
+from calibration.intrinsics import MIN_VIEWS, IntrinsicsResult, calibrate_intrinsics
 from calibration.poses import PoseConfig, plan_stations
 from calibration.store import HandEyeRecord
 from drivers.arm.base import Arm
@@ -28,6 +28,7 @@ from drivers.camera.base import Camera, Intrinsics
 from drivers.errors import CalibrationError
 
 Progress = Callable[[int, int], None]
+MIN_STATIONS = {"hand-eye": (MIN_POSES, 15), "intrinsics": (MIN_VIEWS, 12), "check": (2, 6)}  # (least, advised)
 
 
 @dataclass(frozen=True)
@@ -132,6 +133,22 @@ class Stations:
         return Collection(samples, missed, len(stations))
 
 
+def check_poses(task: str, poses: int) -> None:
+    """CalibrationError when `poses` stations are too few for `task` (a key of MIN_STATIONS): checked before the
+    arm is enabled."""
+    least, advised = MIN_STATIONS[task]
+    if poses < least:
+        raise CalibrationError(f"--poses {poses} is too few: {task} needs at least {least}, use {advised}+")
+
+
+def check_pointing(record: HandEyeRecord) -> None:
+    """CalibrationError when the pointing test cannot run on `record` (it needs eye-in-hand): checked before the
+    arm is enabled."""
+    if record.setup != "eye-in-hand":
+        raise CalibrationError(f"--point is for eye-in-hand (the board is fixed), this calibration is {record.setup}:"
+                               " drop --point; the check reports the camera-vs-kinematics corner error instead")
+
+
 def plan_around_start(kin: Kinematics, arm: Arm, cfg: RoutineConfig) -> list[np.ndarray]:
     """`cfg.poses` station joints around the arm's current pose, inside its safety workspace if it has one."""
     guard = getattr(arm, "guard", None)
@@ -144,8 +161,7 @@ def run_hand_eye(camera: Camera, arm: Arm, kin: Kinematics, cfg: RoutineConfig, 
                  progress: Progress | None = None) -> HandEyeRun:
     """The hand-eye routine: board check at the start pose, `cfg.poses` stations, every solver, the most
     consistent refined. Raises CalibrationError when the board is not seen or the poses are degenerate."""
-    if cfg.poses < MIN_POSES:
-        raise CalibrationError(f"--poses {cfg.poses} is too few: hand-eye needs at least {MIN_POSES}, use 15+")
+    check_poses("hand-eye", cfg.poses)
     stations = Stations(camera, arm, kin, limits, cfg.board, intrinsics, distortion, cfg.settle_s)
     stations.require_board()
     collection = stations.collect(plan_around_start(kin, arm, cfg), progress)
@@ -164,6 +180,7 @@ def run_hand_eye(camera: Camera, arm: Arm, kin: Kinematics, cfg: RoutineConfig, 
 def run_intrinsics(camera: Camera, arm: Arm, kin: Kinematics, cfg: RoutineConfig, limits: MotionLimits,
                    progress: Progress | None = None) -> IntrinsicsResult:
     """Intrinsics from board views at `cfg.poses` stations, seeded with the camera's factory values."""
+    check_poses("intrinsics", cfg.poses)
     stations = Stations(camera, arm, kin, limits, cfg.board, settle_s=cfg.settle_s)
     stations.require_board()
     collection = stations.collect(plan_around_start(kin, arm, cfg), progress)
@@ -185,23 +202,23 @@ class PointResult:
 def run_check(camera: Camera, arm: Arm, kin: Kinematics, record: HandEyeRecord, cfg: RoutineConfig,
               limits: MotionLimits, camera_serial: str, max_age_days: float = 30.0,
               progress: Progress | None = None) -> CheckReport:
-    """Fresh samples at `cfg.poses` stations evaluated with the stored calibration (calibration.check)."""
+    """Fresh samples at `cfg.poses` stations evaluated with the stored calibration and the camera's factory
+    intrinsics (calibration.check)."""
+    check_poses("check", cfg.poses)
     stations = Stations(camera, arm, kin, limits, record.board, record.intrinsics, record.distortion, cfg.settle_s)
     stations.require_board()
     collection = stations.collect(plan_around_start(kin, arm, cfg), progress)
     if len(collection.samples) < 2:
         raise CalibrationError(f"board detected at only {len(collection.samples)} of {collection.stations} "
                                    "check poses: keep it in view")
-    return check_samples(record, collection.samples, camera_serial, max_age_days)
+    return check_samples(record, collection.samples, camera_serial, max_age_days, camera.intrinsics)
 
 
 def point_at_board(camera: Camera, arm: Arm, kin: Kinematics, record: HandEyeRecord, limits: MotionLimits,
                    hover_m: float = 0.02, settle_s: float = 0.3) -> PointResult:
     """Eye-in-hand one-shot test: move the tool tip to `hover_m` in front of the board's centre corner, keeping
     its orientation, so the user can see the gap; then back to the start. Needs the fixed board in view."""
-    if record.setup != "eye-in-hand":
-        raise CalibrationError("the pointing test is for eye-in-hand (the board is fixed); eye-to-hand "
-                                   "`deploy calibrate check` reports the camera-vs-kinematics corner error instead")
+    check_pointing(record)
     stations = Stations(camera, arm, kin, limits, record.board, record.intrinsics, record.distortion, settle_s)
     sample = stations.require_board()
     corner = corner_in_base(record, sample)

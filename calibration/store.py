@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from calibration.board import BoardConfig
+from calibration.intrinsics import MAX_FACTORY_OFFSET, factory_offset
 from drivers.camera.base import Intrinsics
 from drivers.errors import CalibrationError
 
@@ -150,7 +151,8 @@ def load_for(serial: str, robot_id: str, directory: str | Path | None = None) ->
     if (record.camera_serial, record.robot_id) != (serial, robot_id):
         raise CalibrationError(
             f"calibration file {path} holds camera {record.camera_serial!r} on robot {record.robot_id!r}, not "
-            f"camera {serial!r} on robot {robot_id!r}: it was copied or renamed; run `deploy calibrate hand-eye`"
+            f"camera {serial!r} on robot {robot_id!r}: it was copied or renamed; replace it with `deploy calibrate "
+            "hand-eye --existing redo`"
         )
     return record
 
@@ -165,8 +167,10 @@ def save_intrinsics(record: IntrinsicsRecord, directory: str | Path | None = Non
     return path
 
 
-def load_intrinsics_for(serial: str, directory: str | Path | None = None) -> IntrinsicsRecord | None:
-    """This camera's own intrinsics if `deploy calibrate intrinsics` made them, else None (factory values)."""
+def load_intrinsics_for(serial: str, directory: str | Path | None = None,
+                        factory: Intrinsics | None = None) -> IntrinsicsRecord | None:
+    """This camera's own intrinsics if `deploy calibrate intrinsics` made them, else None (factory values).
+    CalibrationError when the file is for another camera or (given its `factory` values) too far from them."""
     path = intrinsics_path(serial, directory)
     if not path.is_file():
         return None
@@ -175,7 +179,13 @@ def load_intrinsics_for(serial: str, directory: str | Path | None = None) -> Int
                                   r.real("rms_px"), int(r.real("views")), r.created())
     if record.camera_serial != serial:
         raise CalibrationError(f"intrinsics file {path} is for camera {record.camera_serial!r}, not {serial!r}: "
-                                   "run `deploy calibrate intrinsics` for this camera")
+                               "replace it with `deploy calibrate intrinsics --existing redo`, or delete it to use "
+                               "the factory values")
+    offset = factory and factory_offset(record.intrinsics, factory)
+    if offset:
+        raise CalibrationError(f"intrinsics file {path} has {offset} (factory), more than {MAX_FACTORY_OFFSET:.0%} "
+                               "off, so distances solved with it would be off too: delete it to use the factory "
+                               "values, or redo it with `deploy calibrate intrinsics --existing redo`")
     return record
 
 

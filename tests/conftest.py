@@ -6,8 +6,11 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 
+from contextlib import contextmanager  # noqa: E402
+
 import pytest  # noqa: E402
 
+import deploy.calibration_devices as devices  # noqa: E402
 import sim_fallback.scenario as scenario  # noqa: E402
 
 NEAR_DOORS_M = (0.4, 0.7)  # the scenario's door distances before RGBManip's 0.5-0.85 m: scenes some tests need
@@ -17,3 +20,19 @@ NEAR_DOORS_M = (0.4, 0.7)  # the scenario's door distances before RGBManip's 0.5
 def near_doors(monkeypatch):
     """Doors placed 0.4-0.7 m from the robot, where some swing into the arm's own column or are grasped pressed."""
     monkeypatch.setitem(scenario.CABINET_DISTANCE_M, "door", NEAR_DOORS_M)
+
+
+@pytest.fixture
+def opened(monkeypatch):
+    """The Devices each command opened (the real ones: this only keeps a reference to look at afterwards)."""
+    seen = []
+    real = devices.open_devices
+
+    @contextmanager
+    def keep(*args, **kwargs):
+        with real(*args, **kwargs) as dev:
+            seen.append(dev)
+            yield dev
+
+    monkeypatch.setattr(devices, "open_devices", keep)
+    return seen

@@ -4,13 +4,11 @@ dry run, and the confirmation before a real arm's first motion."""
 
 import itertools
 import json
-from contextlib import contextmanager
 
 import numpy as np
 import pytest
 import typer
 
-import deploy.calibration_devices as devices
 from calibration.poses import PoseConfig
 from calibration.routine import RoutineConfig
 from calibration.store import load_hand_eye
@@ -23,22 +21,6 @@ from sim_fallback.can_motors import SimMotorBus
 
 TARGET_MM, TARGET_DEG = 3.0, 0.3  # issue 10: 15 poses at 640x480
 _channels = itertools.count()
-
-
-@pytest.fixture
-def opened(monkeypatch):
-    """The Devices each command opened (the real ones: this only keeps a reference to look at afterwards)."""
-    seen = []
-    real = devices.open_devices
-
-    @contextmanager
-    def keep(*args, **kwargs):
-        with real(*args, **kwargs) as dev:
-            seen.append(dev)
-            yield dev
-
-    monkeypatch.setattr(devices, "open_devices", keep)
-    return seen
 
 
 @pytest.fixture

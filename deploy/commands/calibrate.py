@@ -50,6 +50,11 @@ DryRunOpt = dry_run_option("Open the camera, read the arm's joints, plan and pri
                            "nothing.")
 SetupOpt = Annotated[SetupChoice, typer.Option("--setup", help="eye-to-hand (fixed camera, board on the tool) or "
                                                "eye-in-hand (wrist camera, board fixed).")]
+HandEyeSetupOpt = Annotated[SetupChoice | None, typer.Option(
+    "--setup", help="eye-to-hand (fixed camera, board on the tool) or eye-in-hand (wrist camera, board fixed) "
+    "\\[default: the stored calibration's, else eye-to-hand].", show_default=False)]
+ExistingOpt = Annotated[ExistingChoice, typer.Option("--existing", help="When the calibration file exists: ask, "
+                                                  "reuse it, or redo it.")]
 PosesOpt = Annotated[int, typer.Option("--poses", min=1, help="Stations the arm visits.")]
 DirOpt = Annotated[Path | None, typer.Option("--dir", help="Calibration folder (default: $AXISLOOP_CALIBRATION_DIR "
                                              "or ~/.config/axisloop/calibration).")]
@@ -123,91 +128,145 @@ def intrinsics_cmd(
     camera: CameraOpt = "sim", arm: ArmOpt = None, robot: RobotOpt = None, pivot_mm: PivotOpt = None,
     poses: PosesOpt = 12, setup: SetupOpt = SetupChoice.eye_to_hand,
     squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0, marker_mm: MarkerMmOpt = 28.0,
-    dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False, directory: DirOpt = None,
-    yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 0, sim_fault: SimFaultOpt = None,
-    json_out: JsonOpt = False,
+    dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False, existing: ExistingOpt = ExistingChoice.ask,
+    directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 0,
+    sim_fault: SimFaultOpt = None, json_out: JsonOpt = False,
 ) -> None:
     """Fit the camera's own intrinsics from board views at N stations (default: RealSense factory values).
 
+    The fit is saved (and hand-eye uses it) only when it is precise and differs significantly from the factory
+    values; one that confirms them saves nothing; an unreliable or implausible one is refused.
+
     Example: deploy calibrate intrinsics --camera d415 --arm can --robot my_arm.toml --pivot-mm 0 0 30 --poses 12
     """
-    from calibration.poses import PoseConfig
-    from calibration.routine import RoutineConfig, run_intrinsics
-    from calibration.store import IntrinsicsRecord, save_intrinsics
+    from calibration.intrinsics import compare_with_factory
+    from calibration.poses import intrinsics_stations
+    from calibration.routine import RoutineConfig, check_poses, run_intrinsics
+    from calibration.store import intrinsics_path, load_intrinsics_for
     from deploy.arm_bringup import parse_sim_faults
     from deploy.calibration_devices import choose, open_devices
 
+    check_poses("intrinsics", poses)
     choice = choose(camera, arm, robot, pivot_mm)
     faults = parse_sim_faults(choice.arm, sim_fault)
     board = _board(squares, square_mm, marker_mm, dictionary, legacy)
     with open_devices(choice, setup.value, board, seed) as dev:
         _inject(dev, faults)
-        cfg = RoutineConfig(setup.value, poses, board, PoseConfig(pivot_tool_m=dev.pivot(), seed=seed))
+        factory, serial, path = dev.camera.intrinsics, dev.serial, intrinsics_path(dev.serial, directory)
+        old = load_intrinsics_for(serial, directory, factory) if existing != ExistingChoice.redo and not dry_run \
+            else None
+        if old is not None and _reuse(existing, path, f"fx {old.intrinsics.fx:.1f}, {old.views} views, "
+                                                      f"{old.created:%Y-%m-%d}", json_out):
+            return
+        cfg = RoutineConfig(setup.value, poses, board, intrinsics_stations(dev.pivot(), seed))
         if not _prepare(dev, cfg, board, dry_run, yes, json_out):
             return
         with progress_bar("intrinsics") as bar:
             result = run_intrinsics(dev.camera, dev.arm, dev.kin, cfg, dev.limits, bar.counts)
-        factory, serial = dev.camera.intrinsics, dev.serial
-    path = save_intrinsics(IntrinsicsRecord(serial, result.intrinsics, result.distortion, result.rms_px,
-                                            result.views), directory)
-    data = {"file": str(path), "views": result.views, "rms_px": result.rms_px, **result.intrinsics.to_dict(),
+    _keep_intrinsics(result, factory, serial, path, compare_with_factory(result, factory), json_out)
+
+
+def _keep_intrinsics(result, factory, serial: str, path: Path, differs: bool, json_out: bool) -> None:
+    """Save a fit that differs from the factory values; for one that confirms them remove this camera's old file
+    (the user chose to redo it) so that hand-eye uses the factory values. Print the outcome."""
+    from calibration.intrinsics import SIGNIFICANT_SIGMAS
+    from calibration.store import IntrinsicsRecord, save_intrinsics
+
+    removed = not differs and path.is_file()
+    if differs:
+        save_intrinsics(IntrinsicsRecord(serial, result.intrinsics, result.distortion, result.rms_px, result.views),
+                        path.parent)
+    elif removed:
+        path.unlink()
+    data = {"file": str(path) if differs else None, "saved": differs, "removed_old_file": removed,
+            "views": result.views, "rms_px": result.rms_px, "coverage": result.coverage, **result.intrinsics.to_dict(),
+            "std": dict(zip(("fx", "fy", "cx", "cy"), result.std[:4].tolist(), strict=True)),
             "distortion": result.distortion.tolist(), "factory": factory.to_dict()}
     if json_out:
         print_json(data)
+        return
+    print_rows(f"intrinsics of {serial}", {k: v for k, v in data.items() if k not in ("factory", "std")}, digits=4)
+    if differs:
+        console.print(f"saved {path}: they differ from the factory values by more than {SIGNIFICANT_SIGMAS:g} sigma; "
+                      "hand-eye uses them from now on")
     else:
-        print_rows(f"intrinsics of {serial}", {k: v for k, v in data.items() if k not in ("factory",)}, digits=4)
+        console.print(f"the fit agrees with the factory values within {SIGNIFICANT_SIGMAS:g} sigma: nothing saved, "
+                      "hand-eye uses the factory values" + (f" (removed the old {path})" if removed else ""))
+
+
+def _reuse(existing: ExistingChoice, path: Path, about: str, json_out: bool) -> bool:
+    """Whether to reuse the existing file at `path` (--existing, else the user's answer, default yes); print it
+    when reused. ConfigError naming --existing when nobody can answer."""
+    from deploy.errors import ConfigError
+
+    if existing == ExistingChoice.ask:
+        try:
+            reuse = typer.confirm(f"{path} exists ({about}): reuse it?", default=True, err=True)
+        except typer.Abort as exc:
+            if not isinstance(exc.__context__, EOFError):
+                raise
+            typer.echo(err=True)  # end the question's line
+            raise ConfigError(f"{path} exists and standard input is closed, so whether to reuse it cannot be asked: "
+                              "pass --existing reuse or --existing redo") from exc
+    else:
+        reuse = existing == ExistingChoice.reuse
+    if reuse:
+        if json_out:
+            print_json({"file": str(path), "reused": True})
+        else:
+            console.print(f"reusing {path}")
+    return reuse
 
 
 @app.command("hand-eye")
 def hand_eye_cmd(
-    setup: SetupOpt = SetupChoice.eye_to_hand, poses: PosesOpt = 15, camera: CameraOpt = "sim", arm: ArmOpt = None,
+    setup: HandEyeSetupOpt = None, poses: PosesOpt = 15, camera: CameraOpt = "sim", arm: ArmOpt = None,
     robot: RobotOpt = None, pivot_mm: PivotOpt = None, squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0,
     marker_mm: MarkerMmOpt = 28.0, dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False,
-    existing: Annotated[ExistingChoice, typer.Option("--existing", help="When a calibration exists: ask, reuse "
-                                                     "it, or redo it.")] = ExistingChoice.ask,
+    existing: ExistingOpt = ExistingChoice.ask,
     directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 0,
     sim_fault: SimFaultOpt = None, json_out: JsonOpt = False,
 ) -> None:
     """Hand-eye: move through N diverse poses, detect the board, solve, refine and save the calibration.
 
     Several solvers run; the most consistent one is refined on the corners' reprojection error. The file is
-    one per camera serial and robot config name; an existing one is offered for reuse first. A real arm asks
-    before it moves (--yes skips); --dry-run prints the stations and moves nothing.
+    one per camera serial and robot config name; an existing one is offered for reuse first (--existing reuse|redo
+    answers in advance; a file of another --setup is never reused). A real arm asks before it moves (--yes
+    skips); --dry-run prints the stations and moves nothing.
 
     Example: deploy calibrate hand-eye --camera d415 --arm can --robot my_arm.toml --pivot-mm 0 0 30 --poses 15
     """
     from calibration.poses import PoseConfig
-    from calibration.routine import RoutineConfig, run_hand_eye
-    from calibration.store import hand_eye_path, load_for, load_intrinsics_for
+    from calibration.routine import RoutineConfig, check_poses, run_hand_eye
+    from calibration.store import intrinsics_path, load_for, load_intrinsics_for
     from deploy.arm_bringup import parse_sim_faults
     from deploy.calibration_devices import choose, open_devices
+    from deploy.rig import SIM_SERIAL
 
+    check_poses("hand-eye", poses)
     choice = choose(camera, arm, robot, pivot_mm)
     faults = parse_sim_faults(choice.arm, sim_fault)
     board = _board(squares, square_mm, marker_mm, dictionary, legacy)
-    with open_devices(choice, setup.value, board, seed) as dev:
+    reusable = not dry_run and existing != ExistingChoice.redo
+    old = load_for(SIM_SERIAL, choice.robot.name, directory) if reusable and choice.simulated else None
+    with open_devices(choice, _setup_name(setup, old), board, seed) as dev:  # the sim scene needs the setup
         _inject(dev, faults)
         serial, robot_id = dev.serial, dev.robot_id
-        old = load_for(serial, robot_id, directory) if existing != ExistingChoice.redo and not dry_run else None
-        if old is not None and (existing == ExistingChoice.reuse or typer.confirm(
-                f"{hand_eye_path(serial, robot_id, directory)} exists ({old.setup}, {old.method}, "
-                f"{old.created:%Y-%m-%d}, spread {old.spread_mm:.1f} mm): reuse it?", default=True,
-                err=True)):
-            data = {"file": str(hand_eye_path(serial, robot_id, directory)), "reused": True}
-            if json_out:
-                print_json(data)
-            else:
-                console.print(f"reusing {data['file']}")
+        old = load_for(serial, robot_id, directory) if reusable else None
+        setup_name = _setup_name(setup, old)
+        if old is not None and _reuse_hand_eye(old, setup_name, existing, directory, json_out):
             return
-        own = load_intrinsics_for(serial, directory)  # else the camera's factory values
-        cfg = RoutineConfig(setup.value, poses, board, PoseConfig(pivot_tool_m=dev.pivot(), seed=seed))
+        own = load_intrinsics_for(serial, directory, dev.camera.intrinsics)  # else the camera's factory values
+        cfg = RoutineConfig(setup_name, poses, board, PoseConfig(pivot_tool_m=dev.pivot(), seed=seed))
         if not _prepare(dev, cfg, board, dry_run, yes, json_out):
             return
-        with progress_bar(f"hand-eye {setup.value}") as bar:
+        with progress_bar(f"hand-eye {setup_name}") as bar:
             run = run_hand_eye(dev.camera, dev.arm, dev.kin, cfg, dev.limits, own and own.intrinsics,
                                own and own.distortion, bar.counts)
         path = _save(run, dev, board, directory)
-        data = _hand_eye_summary(run, path) | {"camera_serial": serial, "robot_id": robot_id}
+        data = _hand_eye_summary(run, path) | {"camera_serial": serial, "robot_id": robot_id,
+                                               "intrinsics_from": str(intrinsics_path(serial, directory)) if own
+                                               else "factory"}
         if dev.rig is not None:  # simulation: scored against the scene's truth
             from deploy.evaluation import calibration_error
 
@@ -217,7 +276,25 @@ def hand_eye_cmd(
         print_json(data)
     else:
         rows = {k: v for k, v in data.items() if k != "methods"}
-        print_rows(f"hand-eye {setup.value} ({serial} on {robot_id})", rows, digits=4)
+        print_rows(f"hand-eye {setup_name} ({serial} on {robot_id})", rows, digits=4)
+
+
+def _setup_name(setup: SetupChoice | None, old) -> str:
+    """--setup, else the stored calibration's, else eye-to-hand."""
+    return setup.value if setup is not None else old.setup if old is not None else SetupChoice.eye_to_hand.value
+
+
+def _reuse_hand_eye(old, setup: str, existing: ExistingChoice, directory: Path | None, json_out: bool) -> bool:
+    """Whether to reuse the stored calibration `old` (see `_reuse`); CalibrationError when it is of another setup."""
+    from calibration.store import hand_eye_path
+    from deploy.errors import CalibrationError
+
+    path = hand_eye_path(old.camera_serial, old.robot_id, directory)
+    if old.setup != setup:
+        raise CalibrationError(f"{path} holds an {old.setup} calibration, not {setup}: pass --existing redo to "
+                               f"replace it, or --setup {old.setup} to reuse it")
+    return _reuse(existing, path, f"{old.setup}, {old.method}, {old.created:%Y-%m-%d}, spread {old.spread_mm:.1f} mm",
+                  json_out)
 
 
 @app.command("check")
@@ -238,7 +315,7 @@ def check_cmd(
     import numpy as np
 
     from calibration.poses import PoseConfig
-    from calibration.routine import RoutineConfig, point_at_board, run_check
+    from calibration.routine import RoutineConfig, check_pointing, check_poses, point_at_board, run_check
     from calibration.store import load_for
     from deploy.arm_bringup import parse_sim_faults
     from deploy.calibration_devices import choose, open_devices
@@ -252,12 +329,15 @@ def check_cmd(
                                    "`deploy calibrate hand-eye` first")
         return record
 
+    check_poses("check", poses)
     choice = choose(camera, arm, robot, pivot_mm, pivot_from_record=True)
     faults = parse_sim_faults(choice.arm, sim_fault)
     record = stored(SIM_SERIAL, choice.robot.name) if choice.simulated else None  # the rig needs its setup
     with open_devices(choice, record.setup if record else "eye-to-hand", record and record.board, seed) as dev:
         _inject(dev, faults)
         record = record or stored(dev.serial, dev.robot_id)
+        if point:
+            check_pointing(record)
         cfg = RoutineConfig(record.setup, poses, record.board,  # type: ignore[arg-type]
                             PoseConfig(pivot_tool_m=dev.pivot(record), seed=seed))
         note = " Then the tool tip goes to 2 cm in front of the board's centre corner." if point else ""
