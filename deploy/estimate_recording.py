@@ -11,8 +11,6 @@ import numpy as np
 from deploy.axis_pipeline import AxisPipeline
 from deploy.config import Config
 from deploy.errors import RecordingError
-from deploy.geometry.estimators.base import AxisEstimator
-from deploy.geometry.estimators.trajectory import TrajectoryEstimator
 from deploy.geometry.types import Axis
 from drivers.camera.frames_dir import FramesRecording
 
@@ -58,7 +56,7 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
         "estimator": config.estimator.name, "joint_type": None, "origin": None, "direction": None,
         "radius_m": None, "residual_m": None, "n_samples": len(recording),
         "frame": "base" if recording.T_base_camera is not None else "camera",
-        "gripper_path": _uses_gripper(pipe.estimator) and any("ee_pose" in r for r in recording.records),
+        "gripper_path": pipe.estimator.use_gripper and any("ee_pose" in r for r in recording.records),
         "filter": config.filter.used(), "steps": steps,
     }
     out["from_frame"], result = final or last
@@ -67,11 +65,6 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
     else:
         out["reason"] = result.reason
     return out
-
-
-def _uses_gripper(estimator: AxisEstimator) -> bool:
-    """Whether `estimator` reads the gripper's path: the trajectory fit, or a screw estimator set to."""
-    return isinstance(estimator, TrajectoryEstimator) or getattr(estimator, "use_gripper", False)
 
 
 def _masked_recording(path: Path) -> FramesRecording:

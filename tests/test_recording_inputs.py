@@ -4,6 +4,7 @@ samples, and what `deploy sim record` and `deploy axis estimate` report."""
 
 import json
 
+import cv2
 import numpy as np
 import pytest
 
@@ -12,6 +13,7 @@ from deploy.synthetic.sequence import synthetic_sequence
 from drivers.camera.base import Frame, Intrinsics
 from drivers.camera.frames_dir import FramesRecording, FramesWriter
 from drivers.camera.realsense_convert import convert_recording
+from drivers.camera.snapshot import save_snapshot
 from drivers.errors import RecordingError
 from sim_fallback.scripted import record_scripted
 
@@ -81,6 +83,8 @@ def test_depth_beyond_the_16_bit_range_is_no_depth_not_a_wrong_depth(tmp_path):
     recording = FramesRecording(tmp_path / "fine")
     assert recording.frame(0).depth_m[0, 0] == pytest.approx(0.5, abs=1e-5)
     assert not recording.frame(1).depth_m.any()
+    save_snapshot(still_frame(2, 0.2, depth_m=1.002), tmp_path / "snap", depth_scale=1e-5)  # `deploy cameras snapshot`
+    assert not cv2.imread(str(tmp_path / "snap" / "depth.png"), cv2.IMREAD_UNCHANGED).any()
 
 
 def write_float_depth_bag(path, frames: int):
@@ -118,11 +122,13 @@ def write_float_depth_bag(path, frames: int):
     return path
 
 
-def test_convert_counts_depth_beyond_the_range_and_reports_the_bags_unit(tmp_path):
+def test_convert_counts_depth_beyond_the_range_and_reports_the_bags_unit(tmp_path, capsys):
     bag = write_float_depth_bag(tmp_path / "bag", 3)
     summary = convert_recording(bag, tmp_path / "fine", depth_scale=1e-5)
     assert summary["source_depth_scale"] == 1.0  # 32FC1 is metres
     assert summary["frames"] == 3 and summary["depth_out_of_range_px"] == 3 * (12 * 16 - 1)
+    assert main(["convert", str(bag), "--out", str(tmp_path / "cli"), "--depth-scale", "0.00001"]) == 0
+    assert "573 depth pixels lay beyond what 16 bits" in " ".join(capsys.readouterr().out.split())
     assert not FramesRecording(tmp_path / "fine").frame(2).depth_m.any()
     summary = convert_recording(bag, tmp_path / "mm", depth_scale=0.001)
     assert summary["depth_out_of_range_px"] == 0

@@ -163,6 +163,10 @@ def convert(
     else:
         console.print(f"wrote {summary['frames']} frames ({summary['seconds']:.2f} s) to {out} "
                       f"(source depth unit {summary['source_depth_scale']:g} m)")
+        if summary["depth_out_of_range_px"]:
+            console.print(f"{summary['depth_out_of_range_px']} depth pixels lay beyond what 16 bits of "
+                          f"{depth_scale:g} m hold and were stored as no depth: pass a larger --depth-scale to "
+                          "keep them")
 
 
 class ExportFormat(str, Enum):

@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 
 from drivers.camera.base import Frame
+from drivers.camera.frames_dir import depth_units
 from drivers.errors import RecordingError
 
 
@@ -31,7 +32,7 @@ def save_snapshot(frame: Frame, out: str | Path, depth_scale: float = 0.001) -> 
     if out.exists() and not out.is_dir():
         raise RecordingError(f"cannot write a snapshot to {out}: it is a file; choose a directory")
     out.mkdir(parents=True, exist_ok=True)
-    units = np.clip(np.round(frame.depth_m / depth_scale), 0, 65535).astype(np.uint16)
+    units, _ = depth_units(frame.depth_m, depth_scale)  # beyond 16 bits: no depth, never a wrong one
     files = {
         "color.png": cv2.cvtColor(frame.color, cv2.COLOR_RGB2BGR),
         "depth.png": units,

@@ -36,6 +36,7 @@ class AxisEstimator(ABC):
     """
 
     name: str
+    use_gripper: bool = False  # whether it reads the gripper's path (the observations' gripper poses)
 
     @abstractmethod
     def estimate(self, window: Sequence[Observation], joint: JointType | None = None) -> AxisResult: ...

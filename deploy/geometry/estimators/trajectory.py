@@ -559,6 +559,7 @@ class TrajectoryEstimator(AxisEstimator):
     """The axis from the gripper poses of the window (forward kinematics), via `fit_trajectory`."""
 
     name = "trajectory"
+    use_gripper = True
 
     def estimate(self, window: Sequence[Observation], joint: JointType | None = None) -> AxisResult:
         poses = [o.gripper_pose for o in window]
