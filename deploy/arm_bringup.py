@@ -257,7 +257,8 @@ def _check_goal(arm: Arm, what: str, q_goal: np.ndarray, limits) -> None:
 
 
 def motion_limits(arm: Arm, config: RobotConfig) -> MotionLimits:
-    return MotionLimits.for_robot(config.robot_spec(), arm.kin, BRINGUP_SPEED)
+    """BRINGUP_SPEED of the robot config's limits (the URDF's narrowed by the config's per-joint ones)."""
+    return config.motion_limits(arm.kin, BRINGUP_SPEED)
 
 
 def execute(arm: Arm, config: RobotConfig, p: Plan, hold_s: float = 0.0,

@@ -219,3 +219,14 @@ def test_arm_doc_commands_name_joints_of_their_robot():
         joint = re.search(r"--joint (\S+)", command).group(1)
         robot = re.search(r"--robot (\S+)", command)
         assert robot is not None or joint in PANDA.joint_names, f"{command}: {joint} is not a joint of panda_sim"
+
+
+def test_bring_up_moves_keep_to_the_robot_configs_joint_speed(tmp_path, capsys):
+    """A joint the config slows to 0.3 rad/s (below its URDF limit) is planned at a share of that, not of the
+    URDF's: planned faster, the jog had tripped the safety layer's speed limit halfway."""
+    text = (ROOT / "drivers/arm/configs/damiao_6dof.toml").read_text()
+    robot = tmp_path / "slow.toml"
+    robot.write_text(text.replace("v_max = 2.0", "v_max = 0.3", 1))
+    code, out, _ = run(capsys, "arm", "jog", "--arm", "sim-can", "--robot", robot, "--joint", "joint1", "--delta",
+                       "0.3", "--dry-run", "--json")
+    assert code == 0 and json.loads(out)["duration_s"] >= 0.3 / (0.2 * 0.3)  # BRINGUP_SPEED of 0.3 rad/s

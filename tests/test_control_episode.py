@@ -11,6 +11,7 @@ import pytest
 from deploy.bench.open import bench_open, simulate_episode
 from deploy.config import Config
 from deploy.control import run_episode
+from deploy.control.session import OpenRequest, open_object
 from deploy.estimate_recording import estimate_recording
 from deploy.perception.oracle import OracleSegmenter
 from sim_fallback.arm import SimArm
@@ -192,3 +193,26 @@ def test_a_target_nearer_than_the_first_pull_is_not_overshot_by_it():
     result = simulate_episode("drawer", 0, "test", target=0.01)
     assert result["success"] and result["stop_reason"] == "target reached", result["message"]
     assert 0.01 <= result["true_opened_m"] < 0.035
+
+
+
+def test_a_dry_run_commands_no_motion_even_when_the_arm_hides_the_object(tmp_path, caplog):
+    """The default start pose hides part of the drawer: a run swings joint 1 out of the view first, a dry run
+    only says so (it had swung the arm, without the confirmation a run asks for)."""
+    moved = []
+
+    def spy(_world, arm):
+        start, command = arm.state().q.copy(), arm.command
+
+        def watched(q, dq=None):
+            moved.append(float(np.abs(np.asarray(q) - start).max()))
+            command(q, dq)
+
+        arm.command = watched
+
+    with caplog.at_level("INFO", logger="deploy.control.stages"):
+        data = open_object(OpenRequest(task="drawer", scene="drawer", run_dir=tmp_path / "run", dry_run=True),
+                           setup=spy)
+    assert data["stop_reason"] == "dry run"
+    assert "dry run: the arm hides part of the object; a run would first turn panda_joint1" in caplog.text
+    assert max(moved, default=0.0) < 1e-9

@@ -8,7 +8,7 @@ import time
 import numpy as np
 
 from drivers.arm.robot_config import RobotConfig
-from drivers.arm.trajectory import MotionLimits, joint_trajectory
+from drivers.arm.trajectory import joint_trajectory
 from drivers.errors import ArmError
 from sim_fallback.devices import sim_can_arm
 
@@ -43,7 +43,7 @@ def bench_ik(config: RobotConfig, n: int = 500, seed: int = 0) -> dict:
 def bench_ruckig(config: RobotConfig, n: int = 500, seed: int = 0) -> dict:
     """Offline Ruckig calculation between random joint positions (all joints, phase-synchronised)."""
     kin = config.kinematics()
-    limits = MotionLimits.for_robot(config.robot_spec(), kin, 0.5)
+    limits = config.motion_limits(kin, 0.5)
     rng = np.random.default_rng(seed)
     times = []
     for _ in range(n):

@@ -66,7 +66,7 @@ EASE_STEP_M, MAX_EASE_M = 0.004, 0.02  # easing back: step, and at most this far
 
 def run(episode: Episode, dry_run: bool = False) -> tuple[StopReason, str]:
     """All stages; returns how the episode ended when it did not stop early (EpisodeStop)."""
-    handle = perceive(episode)
+    handle = perceive(episode, dry_run)
     if dry_run:
         return plan(episode, handle)
     grasp(episode, handle)
@@ -81,13 +81,19 @@ def run(episode: Episode, dry_run: bool = False) -> tuple[StopReason, str]:
         step(episode, axis, source)
 
 
-def perceive(episode: Episode) -> Handle:
+def perceive(episode: Episode, dry_run: bool = False) -> Handle:
     """The first frame: the object's mask and body box, the handle (its own mask when the segmenter tells it
     apart, else the points protruding from the front). When the arm hides the handle or touches the object in
-    the image, it swings out of the view first and the camera looks again."""
+    the image, it swings out of the view first and the camera looks again (a dry run only says so)."""
     clock = time.perf_counter()
     handle = _find_handle(episode)
-    if (handle is None or _arm_in_the_way(episode)) and _move_out_of_view(episode):
+    clear = _clear_view(episode) if handle is None or _arm_in_the_way(episode) else None
+    if clear is not None and dry_run:
+        log.info("dry run: the arm hides part of the object; a run would first turn %s to %.2f rad and look again",
+                 episode.kin.joint_names[0], clear[0])
+    elif clear is not None:
+        move_to_joints(episode.arm, clear, episode.joint_limits)
+        episode.wait(SETTLE_S)
         handle = _find_handle(episode)
     episode.state.timings["perceive_s"] += time.perf_counter() - clock
     if handle is None:
@@ -122,12 +128,13 @@ def _arm_in_the_way(episode: Episode) -> bool:
     return int(np.count_nonzero(near & observer.first_robot)) > ARM_TOUCH_PX
 
 
-def _move_out_of_view(episode: Episode) -> bool:
-    """Swing the first joint (the base's turn) so that the arm hides the least of the object, if that is less
-    than now; False when there is nothing better (or no self-filter to tell)."""
+def _clear_view(episode: Episode) -> np.ndarray | None:
+    """The joints with the first joint (the base's turn) swung so that the arm hides the least of the object,
+    within the arm's joint limits, if that is less than now; None when there is nothing better (or no
+    self-filter to tell)."""
     observer, arm = episode.observer, episode.arm
     if observer.self_filter is None or observer.first_frame is None:
-        return False
+        return None
     state = arm.state()
     near = cv2.dilate(observer.first_mask.astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
 
@@ -135,15 +142,13 @@ def _move_out_of_view(episode: Episode) -> bool:
         return int(np.count_nonzero(near & observer.self_filter.mask(observer.first_frame, q, state.gripper_width_m,
                                                                      depth_test=False)))
 
-    low, high = episode.kin.q_min[0] + 0.1, episode.kin.q_max[0] - 0.1
+    guard = getattr(arm, "guard", None)  # the robot config's limits where the arm enforces them, else the URDF's
+    q_min, q_max = (guard.limits.q_min, guard.limits.q_max) if guard is not None else (episode.kin.q_min,
+                                                                                         episode.kin.q_max)
     candidates = [state.q + np.eye(len(state.q))[0] * turn for turn in CLEAR_VIEW_TURNS_RAD]
-    candidates = [q for q in candidates if low <= q[0] <= high]
+    candidates = [q for q in candidates if q_min[0] + 0.1 <= q[0] <= q_max[0] - 0.1]
     best = min(candidates, key=hidden, default=None)
-    if best is None or hidden(best) >= hidden(state.q):
-        return False
-    move_to_joints(arm, best, episode.joint_limits)
-    episode.wait(SETTLE_S)
-    return True
+    return None if best is None or hidden(best) >= hidden(state.q) else best
 
 
 def plan(episode: Episode, handle: Handle) -> tuple[StopReason, str]:
