@@ -215,13 +215,19 @@ def test_run_folder_keeps_the_resolved_config(capsys, tmp_path):
                        tmp_path / "run", "--json")
     assert code == 0
     kept = json.loads((tmp_path / "run" / "config.json").read_text())
-    assert set(kept) == {"filter", "geometry", "estimator", "opening", "perception", "filter_used"}
+    assert set(kept) == {"filter", "geometry", "estimator", "opening", "perception", "filter_used", "acted_with"}
+    assert kept["acted_with"] == {"estimator": "screw-grip", "fusion": "force"}
     assert kept["filter"] == {"profile": "sim", "radius_m": 0.04, "eps": None}  # the camera chose the profile
     assert kept["filter_used"] == {"radius_m": 0.04, "eps": 100} == {k: json.loads(out)["filter"][k]
                                                                     for k in ("radius_m", "eps")}
     assert kept["opening"]["task"] == "door" and kept["opening"]["max_steps"] == 2
     assert kept["perception"]["object_prompt"] == "cupboard"
-    assert Config.model_validate({k: v for k, v in kept.items() if k != "filter_used"}).opening.timeout_s == 30
+    assert Config.model_validate({k: v for k, v in kept.items()
+                                  if k not in ("filter_used", "acted_with")}).opening.timeout_s == 30
+    code, _, _ = run(capsys, "open-door", "--dry-run", "--policy", "paper", "--run-dir", tmp_path / "paper")
+    kept = json.loads((tmp_path / "paper" / "config.json").read_text())
+    assert code == 0 and kept["acted_with"] == {"estimator": "paper-obb", "fusion": "vision"}
+    assert kept["estimator"]["name"] == "screw-grip"  # the config's, which the paper's policy does not act with
 
 
 def test_units_in_json_keys(capsys, tmp_path):

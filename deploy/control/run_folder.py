@@ -3,7 +3,8 @@
     RUN/frames/      frames-directory recording (colour, depth, segmenter mask, ee_pose, joint_positions);
                      replays through `deploy axis estimate RUN/frames`
     RUN/config.json  the resolved run config the episode used (every section, the filter profile the camera
-                     chose, and `filter_used`: the radius in metres and eps), written with the first frame
+                     chose, `filter_used`: the radius in metres and eps, and `acted_with`: the estimator and
+                     fusion the policy acted with), written with the first frame
     RUN/steps.json   result, axis estimate per step, commanded and measured gripper poses per motion, and a CAN
                      arm's final motor states (`motors`: name, CAN id, enabled, status)
     RUN/report.png   axis estimates over the first colour frame, opening vs time, axis error per step
@@ -49,7 +50,8 @@ class RunFolder:
     def write_config(self, config: Config) -> None:
         """RUN/config.json: `config` as the episode used it (JSON: no value is left out, None is null)."""
         used = config.filter.resolve()
-        data = {**config.model_dump(mode="json"), "filter_used": {"radius_m": used.radius_m, "eps": used.eps}}
+        data = {**config.model_dump(mode="json"), "filter_used": {"radius_m": used.radius_m, "eps": used.eps},
+                "acted_with": {"estimator": config.acting_estimator, "fusion": config.opening.acting_fusion}}
         (self.path / CONFIG_FILE).write_text(json.dumps(data, indent=1) + "\n")
         self._config = None
 
