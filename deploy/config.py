@@ -272,6 +272,9 @@ def load_config(path: Path | None = None, overrides: dict[str, Any] | None = Non
     if path is not None:
         path = Path(path)
         source = str(path)
+        if path.is_dir():
+            raise ConfigError(f"config file {path} is a directory: give the path of a TOML file in it, or omit "
+                              "--config to use defaults")
         if not path.is_file():
             raise ConfigError(f"config file {path} not found: check the path or omit --config to use defaults")
         data = read_toml(path, "config file", ConfigError, "docs/quickstart.md#configuration shows the sections")

@@ -13,9 +13,10 @@ else:  # pragma: no cover
 
 def read_toml(path: Path, what: str, error: type[Exception], example: str) -> dict:
     """The tables of TOML file `path`; `error` naming `what` the file is, the cause and the fix (`example`: a
-    command or document to follow) when it cannot be read or parsed."""
+    command or document to follow) when it cannot be read or parsed. A UTF-8 byte-order mark (Windows editors) is
+    skipped."""
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
+        return tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except UnicodeDecodeError as exc:
         raise error(f"{what} {path} is not UTF-8 text ({exc.reason} at byte {exc.start}): give a TOML file "
                     f"({example})") from None

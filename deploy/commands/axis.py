@@ -99,6 +99,11 @@ def axis_fit_trajectory(
         raise typer.Exit(1)
 
 
+ESTIMATE_OPTIONS = {"estimator.name": "--estimator", "estimator.joint": "--joint", "filter.profile": "--filter",
+                    "filter.radius_m": "--filter-radius-m", "filter.eps": "--filter-eps"}
+"""The `axis estimate` options that set these config fields (error messages name the option)."""
+
+
 @app.command("estimate")
 def axis_estimate(
     recording: Annotated[Path, typer.Argument(help="Frames directory with masks (docs/recording-format.md).")],
@@ -131,7 +136,7 @@ def axis_estimate(
         "estimator.joint": joint.value if joint != JointChoice.auto else None,
         "filter.profile": filter_profile.value if filter_profile is not None else None,
         "filter.radius_m": filter_radius_m, "filter.eps": filter_eps,
-    }).for_camera(f"replay:{recording}")
+    }, ESTIMATE_OPTIONS).for_camera(f"replay:{recording}")
     viewer = None
     if view or rrd is not None:
         from deploy.control.viewer import RerunViewer

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Sequence
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 import pinocchio as pin
@@ -47,9 +48,7 @@ class Kinematics:
     def from_urdf(cls, path: str | Path, tool_frame: str, locked_joints: Sequence[str] = ()) -> Kinematics:
         """Build from a URDF, locking `locked_joints` (e.g. fingers) at their zero position."""
         path = Path(path)
-        if not path.is_file():
-            raise ArmError(f"robot URDF {path} does not exist: check the robot model path")
-        full = pin.buildModelFromUrdf(str(path))
+        full = _urdf_model(path)
         missing = [name for name in locked_joints if not full.existJointName(name)]
         if missing:
             raise ArmError(f"joints to lock {missing} are not in {path.name}: check the joint names")
@@ -268,6 +267,26 @@ class Kinematics:
                 )
             qs[i] = q = q_next
         return qs
+
+
+def _urdf_model(path: Path) -> pin.Model:
+    """Pinocchio's model of the URDF at `path`; ArmError naming the file when it is not one."""
+    if path.is_dir():
+        raise ArmError(f"robot URDF {path} is a directory, not a file (`urdf` empty?): give the path of the arm's "
+                       ".urdf file")
+    if not path.is_file():
+        raise ArmError(f"robot URDF {path} does not exist: check the robot model path")
+    fix = "give the path of the arm's .urdf file (XML with a <robot> root)"
+    try:
+        root = ElementTree.parse(path).getroot().tag
+    except (ElementTree.ParseError, UnicodeDecodeError) as exc:
+        raise ArmError(f"robot URDF {path} is not XML ({exc}): {fix}") from None
+    if root != "robot":
+        raise ArmError(f"robot URDF {path} has root <{root}>, not <robot>: {fix}")
+    try:
+        return pin.buildModelFromUrdf(str(path))
+    except ValueError as exc:
+        raise ArmError(f"robot URDF {path} is not a valid URDF model ({exc}): {fix}") from None
 
 
 def _dls_step(J: np.ndarray, err: np.ndarray | None, posture: np.ndarray | None = None) -> np.ndarray:

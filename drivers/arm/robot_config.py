@@ -3,7 +3,9 @@
 Every number must be finite (nan or inf in a limit, the workspace or a timeout would switch a safety check off),
 and every limit is bounded so that an absurd finite one cannot switch a check off either: the workspace box within
 WORKSPACE_REACH_M of the base, a joint's v_max and tau_max within its motor model's VMAX and TMAX, a_max and j_max
-within 10x the shipped configs' largest, the control rate at least MIN_CONTROL_RATE_HZ, the watchdog's timeouts.
+within 10x the shipped configs' largest, the control rate at least MIN_CONTROL_RATE_HZ, the watchdog's timeouts,
+the gripper's width within MAX_GRIPPER_WIDTH_M. v_max, a_max and j_max have lower bounds too (a near-zero one makes
+every move last longer than the trajectory planner can plan). q_ready lies within the joint limits.
 The configs shipped with the package (drivers/arm/configs/*.toml, `--robot panda_sim`, `--robot damiao_6dof`) are
 complete examples; docs/arm.md describes every field.
 """
@@ -30,6 +32,8 @@ WORKSPACE_REACH_M = 3.0  # |coordinate| of the workspace box (m, base frame); ar
 MAX_A_RAD_S2 = 200.0  # joint acceleration limit: 10x the shipped configs' largest (20)
 MAX_J_RAD_S3 = 1e5  # joint jerk limit: 10x the shipped configs' largest (10000)
 MIN_CONTROL_RATE_HZ = 100.0  # a safety check at least every 10 ms
+MIN_V_RAD_S, MIN_A_RAD_S2, MIN_J_RAD_S3 = 0.05, 0.1, 1.0  # slower: a full-range bring-up move outlasts Ruckig
+MAX_GRIPPER_WIDTH_M = 0.3  # parallel grippers open 0.05-0.25 m; 80 is a width in mm given as m
 
 WorkspaceCorner = Annotated[list[Annotated[float, Field(ge=-WORKSPACE_REACH_M, le=WORKSPACE_REACH_M)]],
                             Field(min_length=3, max_length=3)]
@@ -77,9 +81,9 @@ class JointConfig(MotorConfig):
     name: str
     q_min: float | None = None
     q_max: float | None = None
-    v_max: float | None = Field(None, gt=0)
-    a_max: float = Field(10.0, gt=0, le=MAX_A_RAD_S2)
-    j_max: float = Field(5000.0, gt=0, le=MAX_J_RAD_S3)
+    v_max: float | None = Field(None, ge=MIN_V_RAD_S)  # rad/s
+    a_max: float = Field(10.0, ge=MIN_A_RAD_S2, le=MAX_A_RAD_S2)  # rad/s^2
+    j_max: float = Field(5000.0, ge=MIN_J_RAD_S3, le=MAX_J_RAD_S3)  # rad/s^3
     tau_max: float = Field(gt=0)
     kp: float = Field(30.0, ge=0, le=500)
     kd: float = Field(1.0, ge=0, le=5)
@@ -106,7 +110,7 @@ class GripperConfig(MotorConfig):
 
     `nm_per_newton` converts the requested grip force into the motor torque the driver allows (kp * error)."""
 
-    max_width_m: float = Field(gt=0)
+    max_width_m: float = Field(gt=0, le=MAX_GRIPPER_WIDTH_M)
     width_per_rad: float = Field(gt=0)
     q_closed: float = 0.0
     nm_per_newton: float = Field(0.01, gt=0)
@@ -167,15 +171,34 @@ class RobotConfig(_Strict):
             raise ValueError(f"q_ready has {len(self.q_ready)} values for {len(self.joints)} joints")
         if any(lo >= hi for lo, hi in zip(self.workspace_min, self.workspace_max, strict=True)):
             raise ValueError("workspace_min must be below workspace_max on every axis")
-        motors = [*self.joints, *([self.gripper] if self.gripper else [])]
         for key in ("can_id", "master_id"):
-            ids = [getattr(m, key) for m in motors]
+            ids = [getattr(m, key) for m in self.motors]
             if len(set(ids)) != len(ids):
                 raise ValueError(f"two motors share a {key}: {ids}")
-        for j in self.joints:
+        self._master_ids_apart()
+        for j, q in zip(self.joints, self.q_ready, strict=True):
             if j.q_min is not None and j.q_max is not None and j.q_min >= j.q_max:
                 raise ValueError(f"joint {j.name}: q_min must be below q_max")
+            for bound, outside in (("q_min", j.q_min is not None and q < j.q_min),
+                                   ("q_max", j.q_max is not None and q > j.q_max)):
+                if outside:
+                    raise ValueError(f"q_ready of joint {j.name} is {q:g} rad, beyond its {bound} "
+                                     f"{getattr(j, bound):g} rad: give q_ready in radians within q_min..q_max")
         return self
+
+    def _master_ids_apart(self) -> None:
+        """No motor's master (feedback) id is another's can_id: its feedback would reach that motor as commands."""
+        by_can_id = {m.can_id: _motor_name(m) for m in self.motors}
+        for m in self.motors:
+            if m.master_id in by_can_id:
+                raise ValueError(f"{_motor_name(m)}'s master_id {m.master_id:#x} is {by_can_id[m.master_id]}'s "
+                                 f"can_id: its feedback would reach {by_can_id[m.master_id]} as commands; give "
+                                 "every motor a master_id no motor uses as can_id (e.g. can_id + 0x10)")
+
+    @property
+    def label(self) -> str:
+        """`robot config FILE` (or the config's name when it was not read from a file), for error messages."""
+        return f"robot config {self.source}" if self.source else f"robot config {self.name!r}"
 
     @property
     def control_period_s(self) -> float:
@@ -208,21 +231,34 @@ class RobotConfig(_Strict):
         )
 
     def kinematics(self) -> Kinematics:
-        """Pinocchio kinematics of the URDF with the locked joints removed; checks joints and frames match."""
+        """Pinocchio kinematics of the URDF with the locked joints removed; checks joints, frames, the joint
+        limits and q_ready against the URDF."""
         kin = Kinematics.from_robot(self.robot_spec())
         if kin.joint_names != self.joint_names:
-            raise ArmError(f"robot config {self.name!r}: joints {self.joint_names} do not match the URDF's movable "
+            raise ArmError(f"{self.label}: joints {self.joint_names} do not match the URDF's movable "
                            f"joints {kin.joint_names}: list them in URDF order, lock the others (locked_joints)")
         if not kin.model.existFrame(self.base_frame):
-            raise ArmError(f"robot config {self.name!r}: base frame {self.base_frame!r} is not in the URDF")
+            raise ArmError(f"{self.label}: base frame {self.base_frame!r} is not in the URDF")
+        limits = self.safety_limits(kin)
+        for j, q, lo, hi in zip(self.joints, self.q_ready, limits.q_min, limits.q_max, strict=True):
+            if not lo <= q <= hi:
+                raise ArmError(f"{self.label}: q_ready of joint {j.name} is {q:g} rad, outside its limits "
+                               f"[{lo:.3f}, {hi:.3f}] rad (the URDF's narrowed by the config's): give q_ready in "
+                               "radians within them")
         return kin
 
     def safety_limits(self, kin: Kinematics) -> SafetyLimits:
-        """URDF limits narrowed by the config's per-joint limits."""
+        """URDF limits narrowed by the config's per-joint limits; ArmError naming the joint whose config range
+        lies outside the URDF's."""
         q_min, q_max, v_max = kin.q_min, kin.q_max, kin.v_max
         for i, j in enumerate(self.joints):
-            q_min[i] = q_min[i] if j.q_min is None else max(q_min[i], j.q_min)
-            q_max[i] = q_max[i] if j.q_max is None else min(q_max[i], j.q_max)
+            lo = q_min[i] if j.q_min is None else max(q_min[i], j.q_min)
+            hi = q_max[i] if j.q_max is None else min(q_max[i], j.q_max)
+            if lo >= hi:
+                raise ArmError(f"{self.label}: joint {j.name}'s range [{j.q_min}, {j.q_max}] rad lies outside the "
+                               f"URDF's [{q_min[i]:.3f}, {q_max[i]:.3f}] rad: give q_min and q_max within it (in "
+                               "radians) or omit them to use the URDF's")
+            q_min[i], q_max[i] = lo, hi
             v_max[i] = v_max[i] if j.v_max is None else min(v_max[i], j.v_max)
         return SafetyLimits(q_min, q_max, v_max, np.array([j.a_max for j in self.joints]),
                             np.array(self.workspace_min), np.array(self.workspace_max))
@@ -260,10 +296,19 @@ def load_robot_config(spec: str | Path) -> RobotConfig:
     try:
         return RobotConfig.model_validate({**data, "source": path.resolve()})
     except ValidationError as exc:
-        first = exc.errors()[0]
-        where = ".".join(str(x) for x in first["loc"]) or "(top level)"
-        raise ArmError(f"robot config {path}: {where}: {first['msg']} ({exc.error_count()} problem(s)): "
-                       "fix the field (docs/arm.md lists them)") from exc
+        raise ArmError(f"robot config {path}: {_problems(exc)}: fix the field (docs/arm.md lists them)") from exc
+
+
+def _problems(exc: ValidationError, shown: int = 3) -> str:
+    """The first `shown` problems of `exc` (unknown keys first: a misspelt key also leaves its field missing)."""
+    errors = sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")
+    texts = [": ".join(filter(None, (".".join(str(x) for x in e["loc"]), e["msg"]))) for e in errors[:shown]]
+    more = f" (and {len(errors) - shown} more)" if len(errors) > shown else ""
+    return "; ".join(texts) + more
+
+
+def _motor_name(motor: MotorConfig) -> str:
+    return f"joint {motor.name}" if isinstance(motor, JointConfig) else "the gripper"
 
 
 CONFIG_DIR = Path(__file__).resolve().parent / "configs"
