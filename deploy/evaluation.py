@@ -32,11 +32,13 @@ class Evaluation:
         t = self.truth0
         return Axis(self.joint, np.asarray(t.origin, float), np.asarray(t.direction, float))
 
-    def axis_error(self, axis: Axis) -> tuple[float, float]:
-        """(angle deg, position m) of `axis` against the true joint axis."""
+    def axis_error(self, axis: Axis) -> tuple[float, float | None]:
+        """(angle deg, position m) of `axis` against the true joint axis; no position for a drawer (its axis is
+        a direction: any parallel line is as right)."""
         t = self.truth0
-        return (axis_angle_error_deg(t.direction, axis.direction),
-                axis_position_error_m(t.origin, t.direction, axis.origin, axis.direction))
+        position = axis_position_error_m(t.origin, t.direction, axis.origin, axis.direction) \
+            if self.joint is JointType.REVOLUTE else None
+        return axis_angle_error_deg(t.direction, axis.direction), position
 
     def score(self, result: EpisodeResult, opening: OpeningConfig) -> dict:
         """Truth-based fields of the episode's JSON: true_opened_m (drawer) or true_opened_deg (door),
@@ -48,4 +50,4 @@ class Evaluation:
         key, shown = ("true_opened_deg", float(np.degrees(value))) if revolute else ("true_opened_m", value)
         return {key: shown, "success": bool(value >= opening.target_for(self.joint)),
                 "estimated_success": result.success, "axis_angle_error_deg": angle,
-                "axis_position_error_m": position if self.joint is JointType.REVOLUTE else None}
+                "axis_position_error_m": position}

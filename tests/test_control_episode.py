@@ -33,6 +33,8 @@ def test_drawer_closed_loop_opens_and_its_run_folder_replays(tmp_path):
     run = tmp_path / "run"
     steps = json.loads((run / "steps.json").read_text())
     assert len(steps["steps"]) == result["steps"] + 1 and steps["motions"][0]["label"] == "first pull"
+    assert all(s["axis_position_error_m"] is None for s in steps["steps"])  # a drawer's axis is a direction
+    assert any(s["axis_angle_error_deg"] is not None for s in steps["steps"])
     assert (run / "report.png").stat().st_size > 10_000
     replay = estimate_recording(run / "frames", Config())
     assert replay["n_samples"] >= 5 and replay["joint_type"] == "prismatic"

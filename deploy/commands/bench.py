@@ -25,6 +25,8 @@ from deploy.config import CALIBRATION_ERROR, OpeningConfig
 
 OPENING = OpeningConfig()  # the defaults of the opening targets and policy
 DEFAULT_POLICY = PolicyChoice(OPENING.policy)
+MAX_EPISODES, MAX_WORKERS, MAX_SEQUENCES = 100_000, 64, 100  # every job is built up front; a sequence is ~60 MB
+MAX_ARM_SECONDS = 3600.0
 app = typer.Typer(help="Benchmarks: accuracy and speed, results for docs/benchmarks.md.", no_args_is_help=True)
 
 
@@ -40,7 +42,8 @@ class Scenes(str, Enum):
 
 @app.command("axis")
 def bench_axis_cmd(
-    sequences: Annotated[int, typer.Option(min=1, help="Sequences per object kind (RGB-D scene sets).")] = 20,
+    sequences: Annotated[int, typer.Option(min=1, max=MAX_SEQUENCES, help="Sequences per object kind (RGB-D scene "
+                                           "sets; about 60 MB each, all held at once).")] = 20,
     seed: Annotated[int, typer.Option(min=0, help="Random seed.")] = 0,
     scenes: Annotated[Scenes, typer.Option(
         help="standard: 10 cm / 20 deg openings seen from above and aside; varied: short, eased openings seen "
@@ -108,17 +111,19 @@ def _bench_axis_paths(seed: int, json_out: bool) -> None:
 @app.command("open")
 def bench_open_cmd(
     task: Annotated[Task, typer.Option(help="drawer or door.")] = Task.drawer,
-    distance: Annotated[float, typer.Option(callback=above(0.0), help="Target opening of a drawer, in metres.")
-                        ] = OPENING.target_distance_m,
-    angle: Annotated[float, typer.Option(callback=above(0.0), help="Target opening of a door, in degrees.")
-                     ] = OPENING.target_angle_deg,
+    distance: Annotated[float | None, typer.Option(callback=above(0.0), help="Target opening of a drawer, in "
+                                                   f"metres \\[default: {OPENING.target_distance_m:g}].")] = None,
+    angle: Annotated[float | None, typer.Option(callback=above(0.0), help="Target opening of a door, in degrees "
+                                                f"\\[default: {OPENING.target_angle_deg:g}].")] = None,
     target: Annotated[float | None, typer.Option(callback=above(0.0), hidden=True,
                                                  help="Old name: the target in m (drawer) or deg (door).")] = None,
-    episodes: Annotated[int, typer.Option(min=1, help="Episodes (consecutive scenario seeds).")] = 10,
+    episodes: Annotated[int, typer.Option(min=1, max=MAX_EPISODES, help="Episodes (consecutive scenario seeds).")
+                        ] = 10,
     split: Annotated[Split, typer.Option(help="Object family.")] = Split.test,
     policy: PolicyOpt = DEFAULT_POLICY,
     seed: Annotated[int, typer.Option(min=0, help="First scenario seed.")] = 0,
-    workers: Annotated[int, typer.Option(min=1, help="Local worker processes.")] = 1,
+    workers: Annotated[int, typer.Option(min=1, max=MAX_WORKERS, help="Local worker processes (about 0.5 GB "
+                                         "each).")] = 1,
     ray: Annotated[str | None, typer.Option(
         "--ray", metavar="ADDRESS", help="Run episodes on a Ray cluster: local, auto, ray://HOST:10001 or "
         "HOST:6379 (needs the cluster extra); --workers is then unused.")] = None,
@@ -140,7 +145,7 @@ def bench_open_cmd(
     """
     from deploy.bench.open import bench_open
 
-    goal = target if target is not None else distance if task is Task.drawer else angle
+    goal = _bench_target(task, distance, angle, target, segmenter)
     unit = "m" if task is Task.drawer else "deg"
     with progress_bar(f"bench open {task.value}", episodes) as bar:
         data = bench_open(task.value, goal, episodes, split.value, policy.value, seed, workers,
@@ -203,7 +208,8 @@ def bench_perception_cmd(
 def bench_arm_cmd(
     robot: RobotOpt = None,
     samples: Annotated[int, typer.Option(min=1, help="IK and Ruckig samples.")] = 500,
-    seconds: Annotated[float, typer.Option(callback=above(0.0), help="Control loop run time (s).")] = 3.0,
+    seconds: Annotated[float, typer.Option(callback=above(0.0), max=MAX_ARM_SECONDS,
+                                           help="Control loop run time (s).")] = 3.0,
     json_out: JsonOpt = False,
 ) -> None:
     """IK time and success, Ruckig time, and the 500 Hz CAN loop's rate and jitter (8 simulated motors).
@@ -238,4 +244,34 @@ def bench_calibration_cmd(seed: StationSeedOpt = 0, json_out: JsonOpt = False) -
                 ("setup", "noise", "method", "poses", "mm", "deg"),
                 [(r["setup"], r["noise"], r["method"], str(r["poses"]), f"{r['translation_mm']:.2f}",
                   f"{r['rotation_deg']:.3f}") for r in data["results"]])
-    console.print(f"best at 15 poses: {data['best_at_15_poses']}")
+    console.print(f"worst setup at 15 poses: {data['best_at_15_poses']}")
+
+
+def _bench_target(task: Task, distance: float | None, angle: float | None, target: float | None,
+                  segmenter: str | None) -> float:
+    """The target of `bench open` (m or deg), checked before any episode starts: ConfigError for the other task's
+    option, a value the run config refuses, or a segmenter the bench cannot feed."""
+    from pydantic import ValidationError
+
+    from deploy.errors import ConfigError
+    from deploy.perception.registry import SEGMENTERS
+
+    other = "--angle" if task is Task.drawer and angle is not None else \
+        "--distance" if task is Task.door and distance is not None else None
+    if other is not None:
+        own = "--distance" if task is Task.drawer else "--angle"
+        raise ConfigError(f"{other} is for the other task, not --task {task.value}: give {own}")
+    field, option, given = ("target_distance_m", "--distance", distance) if task is Task.drawer else \
+        ("target_angle_deg", "--angle", angle)
+    goal = target if target is not None else given if given is not None else getattr(OPENING, field)
+    try:
+        OpeningConfig(**{field: goal})
+    except ValidationError as exc:
+        raise ConfigError(f"invalid value for {option}: {goal:g}: {exc.errors()[0]['msg'].lower()}: give a value "
+                          "in that range") from None
+    if segmenter is not None:
+        SEGMENTERS.entry(segmenter)
+        if segmenter == "classical":
+            raise ConfigError("--segmenter classical needs the object's box on each scene's first frame, which bench "
+                              "open cannot give: use rgbd (the default), gdino-sam2 or oracle")
+    return goal

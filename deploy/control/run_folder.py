@@ -85,7 +85,7 @@ class RunFolder:
         if motors is not None:
             data["motors"] = motors
         (self.path / "steps.json").write_text(json.dumps(data, indent=1) + "\n")
-        write_report(self.path / "report.png", result, errors)
+        write_report(self.path / "report.png", result, errors, truth=axis_error is not None)
 
 
 def _axis(d: dict) -> Axis:
@@ -101,7 +101,8 @@ def project(points: np.ndarray, frame: Frame) -> np.ndarray:
     return uv + [frame.intrinsics.cx, frame.intrinsics.cy]
 
 
-def write_report(path: Path, result: EpisodeResult, errors: list[tuple[float, float] | None]) -> None:
+def write_report(path: Path, result: EpisodeResult, errors: list[tuple[float, float | None] | None],
+                 truth: bool = True) -> None:
     """Three panels: axis per step over the first frame, opening vs time, axis error per step."""
     import matplotlib
 
@@ -138,7 +139,8 @@ def write_report(path: Path, result: EpisodeResult, errors: list[tuple[float, fl
         if result.joint_type == "revolute":  # a line's position along itself means nothing for a drawer
             ax_err.plot(steps, [err[1] * 100 for _, err in rows], "s-", label="position (cm)")
         ax_err.legend()
-    ax_err.set(xlabel="step", title="axis error per step" if rows else "axis error (no truth)")
+    ax_err.set(xlabel="step", title="axis error per step" if rows else
+               "axis error (no axis estimated)" if truth else "axis error (no truth)")
     fig.tight_layout()
     fig.savefig(path, dpi=80)
     plt.close(fig)
