@@ -129,6 +129,7 @@ def test_a_lower_force_limit_stops_sooner():
 def test_bench_open_reports_the_condition_the_peak_force_and_the_axis_cues():
     data = bench_open("drawer", 0.15, episodes=1, split="train", condition="locked", segmenter="oracle")
     assert data["condition"] == "locked" and data["failures"] == {"blocked": 1}
+    assert data["failed_seeds"] == {"blocked": [0]} and data["first_seed"] == 0 and data["joint"] == "told"
     assert 30.0 < data["peak_pull_force_n_median"] == data["peak_pull_force_n_max"] <= 60.0
     assert {"axis_error_episodes_compared", "acted_on_axis_angle_error_deg_median",
             "vision_alone_axis_angle_error_deg_p90"} <= set(data)

@@ -3,7 +3,6 @@ target, like the paper), with the failure causes. Each episode is a `deploy open
 
 from __future__ import annotations
 
-from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -103,13 +102,13 @@ def bench_open(
     angles = [r["axis_angle_error_deg"] for r in results if r["axis_angle_error_deg"] is not None]
     positions = [r["axis_position_error_m"] for r in results if r["axis_position_error_m"] is not None]
     forces = [r["peak_pull_force_n"] for r in results]
-    failures = Counter(r["stop_reason"] if r["stop_reason"] != StopReason.TARGET_REACHED else "short of target (truth)"
-                       for r in results if not r["success"])
+    failed = _failed_seeds(results)
     frame_ms = [r["timings"]["frame_ms_median"] for r in results if "frame_ms_median" in r["timings"]]
     frame_p90 = [r["timings"]["frame_ms_p90"] for r in results if "frame_ms_p90" in r["timings"]]
     frame_cpu = [r["timings"]["frame_cpu_ms_median"] for r in results if "frame_cpu_ms_median" in r["timings"]]
     return {
         "task": task, f"target_{unit}": target, "split": split, "policy": policy, "episodes": episodes,
+        "first_seed": seed, "joint": "auto" if options.get("auto_joint") else "told",
         "segmenter": segmenter, "condition": condition,
         "calibration_error": {"translation_mm": calibration_error[0], "rotation_deg": calibration_error[1]},
         "success_rate": float(np.mean([r["success"] for r in results])) if results else 0.0,
@@ -126,8 +125,19 @@ def bench_open(
         "peak_pull_force_n_median": float(np.median(forces)) if forces else 0.0,
         "peak_pull_force_n_max": float(np.max(forces)) if forces else 0.0,
         "seconds_per_episode": float(np.mean([r["seconds"] for r in results])) if results else 0.0,
-        "failures": dict(failures),
+        "failures": {cause: len(seeds) for cause, seeds in failed.items()},
+        "failed_seeds": failed,
     }
+
+
+def _failed_seeds(results: list[dict]) -> dict[str, list[int]]:
+    """The seeds of the failed episodes by cause (as `failures` counts them): each can be run alone again."""
+    seeds: dict[str, list[int]] = {}
+    for r in results:
+        if not r["success"]:
+            cause = r["stop_reason"] if r["stop_reason"] != StopReason.TARGET_REACHED else "short of target (truth)"
+            seeds.setdefault(cause, []).append(r["seed"])
+    return seeds
 
 
 def _reachable(results: list[dict]) -> dict:
