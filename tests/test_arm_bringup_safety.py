@@ -2,7 +2,6 @@
 goal or fail naming the joint, inside the joint limits; a zero counts only when the motor answered; --json keeps
 stdout JSON; repeated Ctrl-C cannot cut the stop, the motor report, the bus shutdown or the run folder short."""
 
-import importlib.util
 import io
 import json
 import os
@@ -30,9 +29,9 @@ PANDA = load_robot_config("panda_sim")
 DAMIAO = load_robot_config("damiao_6dof")
 
 
-def _deploy(*args: str) -> subprocess.Popen:
+def _deploy(*args: str, **env: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "deploy", *args], cwd=ROOT, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=dict(os.environ, OPENBLAS_NUM_THREADS="1"))
+                            stderr=subprocess.PIPE, text=True, env=dict(os.environ, OPENBLAS_NUM_THREADS="1", **env))
 
 
 # --- finding 1: gravity -----------------------------------------------------------------------------------------
@@ -175,13 +174,16 @@ def test_repeated_ctrl_c_during_an_opening_still_finishes_the_run_folder_with_th
 
 
 def test_a_missing_adapter_library_is_one_line_naming_what_to_install(tmp_path):
-    if importlib.util.find_spec("serial") is not None:
-        pytest.skip("pyserial is installed here: slcan has its library")
+    """slcan without pyserial: a `serial` module that fails to import stands first on the path, so the library
+    is missing whether or not this machine has pyserial."""
+    (tmp_path / "no_pyserial").mkdir()
+    (tmp_path / "no_pyserial" / "serial.py").write_text('raise ImportError("No module named \'serial\'")\n')
     text = (ROOT / "drivers/arm/configs/damiao_6dof.toml").read_text()
     robot = tmp_path / "slcan.toml"
     robot.write_text(text.replace('interface = "socketcan"', 'interface = "slcan"')
                      .replace('channel = "can0"', 'channel = "/dev/ttyACM0"'))
-    process = _deploy("arm", "scan", "--arm", "can", "--robot", str(robot))
+    path = os.pathsep.join(filter(None, [str(tmp_path / "no_pyserial"), os.environ.get("PYTHONPATH")]))
+    process = _deploy("arm", "scan", "--arm", "can", "--robot", str(robot), PYTHONPATH=path)
     _, err = process.communicate(timeout=60)
     lines = [line for line in err.splitlines() if line.strip() and not line.startswith("pybullet build time")]
     assert process.returncode == 2 and len(lines) == 1, err
