@@ -81,6 +81,7 @@ class FramesWriter:
         self._sync_directory(self.path)
         self._sync_directory(self.path.parent)
         self._count = 0
+        self.depth_out_of_range_px = 0  # depth pixels stored as no depth: beyond the 16-bit range (`depth_units`)
 
     def _prepare_directory(self, replace: bool) -> None:
         if self.path.exists() and not self.path.is_dir():
@@ -127,7 +128,9 @@ class FramesWriter:
 
         name = _png_name(self._count)
         _write_png(self.path / "color" / name, cv2.cvtColor(color, cv2.COLOR_RGB2BGR))
-        _write_png(self.path / "depth" / name, depth_units(depth, self.depth_scale)[0])
+        units, beyond = depth_units(depth, self.depth_scale)
+        self.depth_out_of_range_px += beyond
+        _write_png(self.path / "depth" / name, units)
         written = ["color", "depth"]
         if mask is not None:
             if not (self.path / "mask").is_dir():

@@ -8,7 +8,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 from drivers.camera.base import Camera, Frame
-from drivers.camera.frames_dir import depth_units
 from drivers.camera.record import record
 from drivers.errors import RecordingError
 
@@ -57,15 +56,6 @@ def convert_recording(
     camera = open_recording(src)
     camera.connect()
     source_depth_scale = camera.depth_scale
-    beyond = 0
-
-    def each(frame: Frame) -> None:
-        nonlocal beyond
-        beyond += depth_units(frame.depth_m, depth_scale)[1]
-        if progress is not None:
-            progress(frame)
-
-    summary = record(camera, out, depth_scale=depth_scale, progress=each,  # disconnects the camera
+    summary = record(camera, out, depth_scale=depth_scale, progress=progress,  # disconnects the camera
                      source=f"replay:{src}")
-    return {**summary, "source": recording_kind(src), "source_depth_scale": source_depth_scale,
-            "depth_out_of_range_px": beyond}
+    return {**summary, "source": recording_kind(src), "source_depth_scale": source_depth_scale}

@@ -32,7 +32,8 @@ def record(
     the arm's joint positions and tool pose, read right after each frame and stored with it. A frame's pose
     (a camera on the arm moves) is stored where it differs from the first frame's (FramesWriter).
     A camera failure (e.g. unplugged) stops the recording and raises CameraError saying how many frames
-    were kept; they stay readable. Returns {"out", "frames", "seconds", "arm"}.
+    were kept; they stay readable. Returns {"out", "frames", "seconds", "arm", "depth_out_of_range_px"} (depth
+    pixels stored as no depth: beyond what 16 bits of `depth_scale` hold).
     """
     if (frames is not None and frames <= 0) or (seconds is not None and seconds <= 0):
         raise RecordingError(f"frames and seconds must be positive, got frames={frames} seconds={seconds}")
@@ -60,4 +61,5 @@ def record(
                 except CameraError as exc:
                     raise CameraError(f"{exc}; recording stopped: the {count} frames recorded so far are kept "
                                       f"in {out}") from None
-    return {"out": str(out), "frames": count, "seconds": t, "arm": arm is not None}
+    return {"out": str(out), "frames": count, "seconds": t, "arm": arm is not None,
+            "depth_out_of_range_px": writer.depth_out_of_range_px}
