@@ -65,16 +65,18 @@ def track(
 
     FramesRecording(recording)  # a wrong path fails here, before any model loads
     copy = out is not None and out.resolve() != recording.resolve()
-    viewer = None
-    if view or rrd is not None:
-        from deploy.control.viewer import RerunViewer
-
-        viewer = RerunViewer(out / "track.rrd" if rrd is None and out is not None else view_file(recording, rrd,
-                                                                                                  "track", overwrite))
+    viewer, rrd_path = None, None
+    if view or rrd is not None:  # checked now, opened once the output folder is the new one
+        rrd_path = out / "track.rrd" if rrd is None and out is not None else view_file(recording, rrd, "track",
+                                                                                        overwrite)
     with new_output(out, overwrite, "recording", inputs=[recording]) if copy else nullcontext():
         config = perception_config(object_prompt=prompt, handle_prompt=handle_prompt or None, box=box,
                                    detector=detector, tracker=tracker, device=device)
         backend = make_segmenter(segmenter, config)
+        if rrd_path is not None:
+            from deploy.control.viewer import RerunViewer
+
+            viewer = RerunViewer(rrd_path)
         with progress_bar(f"tracking {recording.name}") as bar:
             data = track_recording(recording, backend, prompt, out, progress=bar.counts, viewer=viewer)
     if viewer is not None:
