@@ -179,7 +179,7 @@ def set_zero(config: RobotConfig, kind: str, joint: str, faults: list[SimFault] 
     and wait for the answer (it stores the zero). ArmError naming the motor when either goes unanswered."""
     motors = {getattr(m, "name", "gripper"): m for m in config.motors}
     if joint not in motors:
-        raise ArmError(f"joint {joint!r} is not in robot config {config.name!r}: joints are {', '.join(motors)}")
+        raise ArmError(f"joint {joint!r} is not in {config.label}: joints are {', '.join(motors)}")
     c = MotorChannel(joint, motors[joint], motors[joint].default_limits)
     timeout = config.watchdog.reply_timeout_s
     fix = "check its power, CAN id, master id and the bus bitrate (`deploy arm scan` lists the ids that answer)"

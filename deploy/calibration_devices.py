@@ -81,7 +81,7 @@ def choose(camera: str, arm: str | None, robot: Path | None, pivot_mm: tuple[flo
         raise ConfigError(NO_PIVOT)
     config = load_robot_config(robot or PANDA_SIM_CONFIG)
     if arm_entry.simulated and config.joint_names != load_robot_config(PANDA_SIM_CONFIG).joint_names:
-        raise ConfigError(f"robot config {config.name!r} is not the simulated Panda: use --robot panda_sim (or none) "
+        raise ConfigError(f"{config.label} is not the simulated Panda: use --robot panda_sim (or none) "
                           "with the simulation")
     return DeviceChoice(camera, arm, config, pivot_mm, robot)
 

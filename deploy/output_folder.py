@@ -6,10 +6,17 @@ before it wrote anything puts the old one back.
 Only a folder this project wrote is ever removed: a frames recording (meta.json) or a run folder (steps.json or
 frames/) holding nothing but what this project writes there; anything else is refused even with --overwrite. An
 output is never the recording it reads, nor inside it, nor around it.
+
+A command killed outright (kill -9, power loss) leaves its hidden work behind: the old output an overwrite set
+aside (`.NAME.replaced-XXXXXXXX`, beside it) and a track's half-written masks (`.mask-XXXXXXXX.partial`, inside the
+recording; XXXXXXXX: 8 hex digits). These exact names count as this project's: the masks go with the recording
+they lie in, and an output's set-aside old ones go when it is next overwritten. Any other name stays a stranger.
 """
 
 from __future__ import annotations
 
+import glob
+import re
 import shutil
 import uuid
 from collections.abc import Iterable, Iterator
@@ -19,10 +26,13 @@ from pathlib import Path
 
 from deploy.errors import RecordingError
 
-Layout = str | dict[str, "Layout | None"]  # name -> None (a file) or a layout (a folder); a str: files matching it
+Layout = str | dict[str | re.Pattern[str], "Layout | None"]
+"""name (or a pattern the whole name matches) -> None (a file) or a layout (a folder); a str: files matching it"""
 PNGS = "*.png"
+MASKS_PARTIAL = re.compile(r"\.mask-[0-9a-f]{8}\.partial")  # `deploy track`'s masks being written (perception)
 RECORDING: Layout = {"meta.json": None, "frames.jsonl": None, "truth.json": None, "color": PNGS, "depth": PNGS,
-                     "mask": PNGS, "overlay.png": None, "track.json": None, "track.rrd": None, "recording.rrd": None}
+                     "mask": PNGS, "overlay.png": None, "track.json": None, "track.rrd": None, "recording.rrd": None,
+                     MASKS_PARTIAL: PNGS}
 RUN_FOLDER: Layout = {"frames": RECORDING, "config.json": None, "steps.json": None, "report.png": None,
                       "episode.rrd": None}
 OURS = ((RECORDING, ("meta.json",)), (RUN_FOLDER, ("steps.json", "frames")))  # a layout and what marks it
@@ -32,13 +42,36 @@ def stranger(path: Path, layout: Layout) -> Path | None:
     """The first file or folder under the folder `path` that `layout` does not hold (None: nothing else is there;
     a symbolic link always counts as a stranger)."""
     for entry in sorted(path.iterdir()):
-        ours = fnmatch(entry.name, layout) if isinstance(layout, str) else entry.name in layout
-        inner = None if isinstance(layout, str) else layout.get(entry.name)
+        ours, inner = (fnmatch(entry.name, layout), None) if isinstance(layout, str) else _lookup(layout, entry.name)
         if not ours or entry.is_symlink() or entry.is_dir() != (inner is not None):
             return entry
         if inner is not None and (found := stranger(entry, inner)) is not None:
             return found
     return None
+
+
+def _lookup(layout: dict, name: str) -> tuple[bool, Layout | None]:
+    """Whether `layout` holds `name` (by name, or by a pattern the whole name matches), and what it holds there."""
+    if name in layout:
+        return True, layout[name]
+    for key, inner in layout.items():
+        if isinstance(key, re.Pattern) and key.fullmatch(name):
+            return True, inner
+    return False, None
+
+
+def set_aside(path: Path) -> list[Path]:
+    """The old outputs `new_output` set aside beside `path` and never removed (it was killed): folders named
+    exactly `.NAME.replaced-XXXXXXXX` that hold a recording or run folder and nothing else."""
+    name = re.compile(re.escape(f".{path.name}.replaced-") + "[0-9a-f]{8}")
+    found = [p for p in sorted(path.parent.glob(f".{glob.escape(path.name)}.replaced-*"))
+             if name.fullmatch(p.name) and p.is_dir() and not p.is_symlink()]
+    return [p for p in found if (layout := _layout(p)) is not None and stranger(p, layout) is None]
+
+
+def _layout(path: Path) -> Layout | None:
+    """The layout of ours that the folder `path` is marked as (None: neither a recording nor a run folder)."""
+    return next((layout for layout, markers in OURS if any((path / marker).exists() for marker in markers)), None)
 
 
 def replay_input(camera: str) -> list[Path]:
@@ -71,11 +104,11 @@ def check_output(path: Path, overwrite: bool, what: str, option: str = "--out",
         return False
     if not path.is_dir():
         raise RecordingError(f"{option} {path} is a file, not a {what}: choose another path")
-    marked = [layout for layout, markers in OURS if any((path / marker).exists() for marker in markers)]
-    if not marked:
+    layout = _layout(path)
+    if layout is None:
         raise RecordingError(f"{option} {path} is a folder that holds no recording or run folder: refusing to "
                              "write into it; choose a new or empty folder")
-    found = stranger(path, marked[0])
+    found = stranger(path, layout)
     if found is not None:
         name = found.relative_to(path)
         raise RecordingError(f"{option} {path} holds {name}, which deploy never writes there: refusing to remove the "
@@ -90,9 +123,10 @@ def check_output(path: Path, overwrite: bool, what: str, option: str = "--out",
 def new_output(path: Path, overwrite: bool, what: str, option: str = "--out", inputs: Iterable[Path] = (),
                claimed: bool = False) -> Iterator[Path]:
     """Write a new `what` at `path` inside the block, checked by `check_output`. An old one replaced is moved
-    aside to a hidden sibling and removed once the block ends having written into `path` (or without error);
-    a block that fails before writing anything puts it back, and removes the empty folder it left (`claimed`: the
-    caller made `path` for this block)."""
+    aside to a hidden sibling and removed once the block ends having written into `path` (or without error), with
+    any older ones an earlier, killed overwrite left there (`set_aside`); a block that fails before writing
+    anything puts it back, and removes the empty folder it left (`claimed`: the caller made `path` for this
+    block)."""
     path = Path(path)
     try:
         replacing = check_output(path, overwrite, what, option, inputs)
@@ -100,6 +134,7 @@ def new_output(path: Path, overwrite: bool, what: str, option: str = "--out", in
         if claimed:
             path.rmdir()
         raise
+    leftovers = set_aside(path) if overwrite else []
     old = path.with_name(f".{path.name}.replaced-{uuid.uuid4().hex[:8]}") if replacing else None
     if old is not None:
         path.rename(old)
@@ -110,8 +145,8 @@ def new_output(path: Path, overwrite: bool, what: str, option: str = "--out", in
         done = True
     finally:
         if done or (path.is_dir() and any(path.iterdir())):
-            if old is not None:
-                shutil.rmtree(old)
+            for gone in ([old] if old is not None else []) + leftovers:
+                shutil.rmtree(gone)
         else:
             if made and path.is_dir():
                 path.rmdir()

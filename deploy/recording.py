@@ -18,7 +18,7 @@ from deploy.errors import ConfigError
 from deploy.rig import Rig, RigSpec, open_rig
 from drivers.camera.base import Frame
 from drivers.camera.record import ArmReading, record
-from drivers.camera.registry import CAMERAS, simulated_source, stream_options
+from drivers.camera.registry import CAMERAS, check_stream_size, simulated_source, stream_options
 
 VIEW_FILE = "recording.rrd"  # in the recording's folder, with --view
 
@@ -42,6 +42,7 @@ def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float
         viewer = RerunViewer(out / VIEW_FILE)
     with open_rig(RigSpec(camera=camera, arm=arm, robot=robot, calibration=calibration,
                           camera_options=options)) as rig:
+        check_stream_size(camera, camera_options or {}, rig.camera)
 
         latest: dict[str, np.ndarray] = {}  # the arm's last reading: the tool pose shown with its frame
         faults = _sim_faults_by_frame(rig, sim_faults or [])

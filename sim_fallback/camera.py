@@ -81,8 +81,10 @@ class SimCamera(Camera):
         labels: bool = False,
         posed: bool = False,
     ) -> None:
-        if not fps > 0 or not 0.0 <= drop_rate < 1.0:
-            raise ValueError(f"SimCamera: fps must be > 0 (got {fps}), drop_rate in [0, 1) (got {drop_rate})")
+        rate = 1.0 / world.clock.dt  # one frame per physics step at most
+        if not 0 < fps <= rate + 1e-9 or not 0.0 <= drop_rate < 1.0:
+            raise ValueError(f"SimCamera: fps must be in (0, {rate:g}], the physics rate (got {fps}), drop_rate in "
+                             f"[0, 1) (got {drop_rate})")
         self._clock = world.clock  # the camera keeps the clock and body ids, never the world's ground truth
         self._robot, self._cabinet, self._handle_link = world.robot_id, world.cabinet_id, world.handle_link
         self._intrinsics = intrinsics or d415_intrinsics()

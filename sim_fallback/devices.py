@@ -31,10 +31,15 @@ _channels = itertools.count()
 def open_sim_camera(_argument: str, world: SimWorld | None = None, width: int = 640, height: int = 480,
                     fps: float = 10.0, seed: int = 0, noise: DepthNoise | None = None,
                     intrinsics: Intrinsics | None = None, labels: bool = False) -> SimCamera:
-    """The simulated D415 of `world` at width x height (D415 field of view), `fps` on the simulated clock; its
-    frames carry no pose (the rig adds the calibrated one) and labels only when asked (the oracle ablation)."""
+    """The simulated D415 of `world` at width x height (D415 field of view), `fps` on the simulated clock (at most
+    the physics rate: CameraError above it); its frames carry no pose (the rig adds the calibrated one) and labels
+    only when asked (the oracle ablation)."""
     if world is None:
         raise CameraError("camera 'sim' needs a simulated world: use it from a rig (`deploy open-* --camera sim`)")
+    rate = 1.0 / world.clock.dt  # a frame per physics step at most: faster slots would repeat a step's image
+    if fps > rate + 1e-9:
+        raise CameraError(f"camera sim: --fps {fps:g} is more than the simulated camera gives: at most {rate:g} "
+                          f"frames per second (its physics rate); pass --fps {rate:g} or less")
     return SimCamera(world, intrinsics=intrinsics or d415_intrinsics(width, height), noise=noise, seed=seed, fps=fps,
                      labels=labels)
 
@@ -92,5 +97,5 @@ def sim_can_arm(config: RobotConfig, world: SimWorld | None = None, faults: dict
 
 def _check_panda(config: RobotConfig, world: SimWorld) -> None:
     if tuple(config.joint_names) != tuple(world.robot_spec.arm_joints):
-        raise ArmError(f"robot config {config.name!r} is not the simulated Panda (joints {config.joint_names}): "
+        raise ArmError(f"{config.label} is not the simulated Panda (joints {config.joint_names}): "
                        "use --robot panda_sim with the simulation")

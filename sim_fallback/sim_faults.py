@@ -89,6 +89,6 @@ class SimFault:
         names = [getattr(m, "name", "gripper") for m in motors.config.motors]
         name = self.joint or names[0]
         if name not in names:
-            raise ArmError(f"--sim-fault {self.kind}:{name}: no motor {name!r} in robot config "
-                           f"{motors.config.name!r}; one of {', '.join(names)}")
+            raise ArmError(f"--sim-fault {self.kind}:{name}: no motor {name!r} in "
+                           f"{motors.config.label}; one of {', '.join(names)}")
         return motors.motor(name)

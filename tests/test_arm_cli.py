@@ -2,10 +2,12 @@
 
 import io
 import json
+import shutil
 
 import pytest
 
 from deploy.cli import main
+from drivers.arm.robot_config import PANDA_SIM_CONFIG
 
 
 def run(capsys, *args):
@@ -79,6 +81,12 @@ def test_enable_disable_zero(capsys):
     code, out, _ = run(capsys, "arm", "zero", "--joint", "panda_joint7", "--yes", "--json")
     assert code == 0 and json.loads(out) == {"joint": "panda_joint7", "can_id": 7, "zeroed": True}
 
+
+def test_zero_of_a_joint_the_config_lacks_names_the_config_file(capsys, tmp_path):
+    robot = tmp_path / "my_arm.toml"
+    shutil.copyfile(PANDA_SIM_CONFIG, robot)
+    code, _, err = run(capsys, "arm", "zero", "--joint", "elbow", "--robot", str(robot), "--yes")
+    assert code == 2 and f"joint 'elbow' is not in robot config {robot.resolve()}:" in err and "Traceback" not in err
 
 def test_bench_arm_json_keys(capsys):
     code, out, _ = run(capsys, "bench", "arm", "--samples", "20", "--seconds", "0.5", "--json")

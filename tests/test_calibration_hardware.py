@@ -103,6 +103,13 @@ def test_bad_device_choices_are_one_clear_error(args, message, calib_dir, capsys
     assert not list(calib_dir.iterdir())
 
 
+def test_a_robot_config_that_is_not_the_panda_is_named_by_its_file(calib_dir, tmp_path, capsys):
+    robot = tmp_path / "my_arm.toml"
+    robot.write_text((PANDA_SIM_CONFIG.parent / "damiao_6dof.toml").read_text())
+    assert main(["calibrate", "hand-eye", "--arm", "sim-can", "--robot", str(robot)]) == 2
+    err = capsys.readouterr().err
+    assert f"robot config {robot.resolve()} is not the simulated Panda" in " ".join(err.split())
+
 def test_dry_run_lists_the_stations_and_moves_nothing(calib_dir, opened, capsys):
     data = run_json(["calibrate", "hand-eye", "--arm", "sim-can", "--poses", "12", "--dry-run", "--json"], capsys)
     (dev,) = opened

@@ -5,6 +5,7 @@ import json
 import cv2
 import numpy as np
 import pytest
+from cli_run import one_line
 from realsense_recordings import scene, write_db3
 from rerun_files import entities
 
@@ -63,6 +64,33 @@ def test_record_sim(capsys, tmp_path):
     rec = FramesRecording(tmp_path / "sim")
     assert len(rec) == 2 and rec.intrinsics.width == 160 and rec.T_base_camera is not None
 
+
+def test_sim_fps_above_the_physics_rate_is_refused_not_lowered(capsys, tmp_path):
+    for args in (("record", "--frames", 2), ("cameras", "snapshot")):
+        code, _, err = run(capsys, *args, "--camera", "sim", "--fps", 1000, "--out", tmp_path / "x",
+                           "--width", 160, "--height", 120)
+        assert code == 2 and "--fps 1000 is more than the simulated camera gives" in one_line(err)
+        assert "at most 240" in err and "--fps 240 or less" in err and not (tmp_path / "x").exists()
+    code, _, err = run(capsys, "record", "--camera", "sim", "--fps", 240, "--frames", 3, "--out", tmp_path / "x",
+                       "--width", 160, "--height", 120)
+    assert code == 0, err
+    assert [r["t"] for r in FramesRecording(tmp_path / "x").records] == pytest.approx([0, 1 / 240, 2 / 240])
+
+
+def test_a_replay_plays_at_its_recorded_size_and_refuses_another(capsys, db3, tmp_path):
+    frames = tmp_path / "frames"
+    assert run(capsys, "record", "--camera", f"replay:{db3}", "--out", frames, "--frames", 2)[0] == 0
+    for source in (db3, frames):  # 64x48
+        for size in (("--width", 1280, "--height", 720), ("--height", 720)):
+            for args in (("record", "--frames", 1), ("cameras", "snapshot")):
+                code, _, err = run(capsys, *args, "--camera", f"replay:{source}", *size, "--out", tmp_path / "x")
+                line = one_line(err)
+                assert code == 2 and f"replay:{source} plays its recording at 64x48, not {' '.join(map(str, size))}" \
+                    in line and "drop --width and --height" in line, line
+                assert not (tmp_path / "x").exists()
+    code, _, err = run(capsys, "record", "--camera", f"replay:{frames}", "--width", 64, "--height", 48,
+                       "--frames", 1, "--out", tmp_path / "same")
+    assert code == 0, err
 
 def test_record_with_the_arm_stores_joints_and_tool_pose_and_views(capsys, tmp_path):
     out = tmp_path / "arm"

@@ -1,7 +1,7 @@
 """Nothing the user has is lost or replaced unasked: a refused command keeps the old output and makes no new
 one; `--overwrite` never removes the recording a command reads, nor a folder holding anything deploy does not
 write there; a failed export or track leaves nothing half-written; `--rrd` and `sim show --out` never replace a
-file unasked; a tracked copy keeps the `first` marks."""
+file unasked; a tracked copy keeps the `first` and `grasped` marks."""
 
 import json
 import shutil
@@ -96,6 +96,32 @@ def test_overwrite_removes_only_a_folder_that_holds_nothing_else(capsys, tmp_pat
     assert code == 2 and f"holds {stranger}" in err and _files(out) == before
 
 
+def test_overwrite_clears_the_leftovers_of_a_killed_command_and_nothing_else(capsys, tmp_path, recording):
+    """After a kill -9: a track's hidden masks inside the recording and an earlier overwrite's old recording set
+    aside beside it. Their exact names are deploy's; near misses, and a set-aside folder with more, stay."""
+    out = tmp_path / "rec"
+    shutil.copytree(recording, out)
+    (out / ".mask-0123abcd.partial").mkdir()
+    (out / ".mask-0123abcd.partial" / "000000.png").write_bytes(b"half")
+    shutil.copytree(recording, tmp_path / ".rec.replaced-0a1b2c3d")  # the old one set aside, never removed
+    for mine in (".rec.replaced-backup", ".other.replaced-0a1b2c3d", "rec.replaced-0a1b2c3d", ".rec.replaced-fedcba98"):
+        shutil.copytree(recording, tmp_path / mine)
+    (tmp_path / ".rec.replaced-fedcba98" / "notes.txt").write_text("keep me")
+    code, _, err = run(capsys, "record", "--camera", "sim", "--frames", "1", "--out", out, "--overwrite")
+    assert code == 0, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".other.replaced-0a1b2c3d", ".rec.replaced-backup",
+                                                          ".rec.replaced-fedcba98", "rec", "rec.replaced-0a1b2c3d"]
+    assert len(FramesRecording(out)) == 1 and not list(out.glob(".*"))
+    for stranger in (".mask-0123abcd.partial/notes.txt", ".mask-notes.partial", ".mask-0123abcd.partial.txt",
+                     ".notes.replaced-0a1b2c3d.bak"):
+        (out / stranger).parent.mkdir(exist_ok=True)
+        (out / stranger).write_text("keep me")
+        before = _files(out)
+        code, _, err = run(capsys, "record", "--camera", "sim", "--frames", "1", "--out", out, "--overwrite")
+        assert code == 2 and f"holds {stranger}, which deploy never writes there" in one_line(err), stranger
+        assert _files(out) == before
+        shutil.rmtree(out / stranger.split("/")[0]) if "/" in stranger else (out / stranger).unlink()
+
 def test_export_overwrite_keeps_a_dataset_with_files_of_its_own(capsys, tmp_path, recording):
     out = tmp_path / "tum"
     assert run(capsys, "export", recording, "--format", "tum", "--out", out)[0] == 0
@@ -156,16 +182,20 @@ def test_a_failed_track_leaves_no_mask_folder(capsys, tmp_path, recording):
     assert len(list((rec / "mask").iterdir())) == 6 and FramesRecording(rec).has_masks
 
 
-def test_a_tracked_copy_keeps_the_first_marks(capsys, tmp_path, recording):
+def test_a_tracked_copy_keeps_the_first_and_grasped_marks(capsys, tmp_path, recording):
     rec = tmp_path / "rec"
     shutil.copytree(recording, rec)
     lines = [json.loads(line) for line in (rec / "frames.jsonl").read_text().splitlines()]
     for i in (0, 3):  # a run that looked again from the start on frame 3
         lines[i]["first"] = True
+    for i, held in enumerate((False, None, True, True, False, True)):  # the gripper held; unmarked on frame 1
+        if held is not None:
+            lines[i]["grasped"] = held
     (rec / "frames.jsonl").write_text("".join(json.dumps(line) + "\n" for line in lines))
     assert run(capsys, "track", rec, *BOX, "--out", tmp_path / "copy")[0] == 0
-    assert [r.get("first") for r in FramesRecording(tmp_path / "copy").records] == [True, None, None, True, None,
-                                                                                      None]
+    copied = FramesRecording(tmp_path / "copy").records
+    assert [r.get("first") for r in copied] == [True, None, None, True, None, None]
+    assert [r.get("grasped", "absent") for r in copied] == [False, "absent", True, True, False, True]
 
 
 def test_sim_show_checks_its_out_before_rendering_and_replaces_only_with_overwrite(capsys, tmp_path):

@@ -23,9 +23,12 @@ app = typer.Typer(help="RealSense cameras: discovery and snapshots.", no_args_is
 top_level = typer.Typer()  # its commands sit directly under `deploy`
 
 CameraSpecOpt = kind_option(CAMERAS, "--camera", " sim: a simulated drawer, seed 0.")
-WidthOpt = Annotated[int, typer.Option(min=1, max=8192, help="Image width (d415: 640, 848 or 1280; sim: any).")]
-HeightOpt = Annotated[int, typer.Option(min=1, max=8192, help="Image height (d415: 480 or 720).")]
-FpsOpt = Annotated[int, typer.Option(min=1, max=1000, help="Frames per second (d415: 6, 15, 30 or 60).")]
+WidthOpt = Annotated[int | None, typer.Option(min=1, max=8192, show_default=False, help=(
+    "Image width (d415: 640, 848 or 1280; sim: any) \\[default: 640; a replay: the recording's, which it keeps]."))]
+HeightOpt = Annotated[int | None, typer.Option(min=1, max=8192, show_default=False, help=(
+    "Image height (d415: 480 or 720; sim: any) \\[default: 480; a replay: the recording's, which it keeps]."))]
+FpsOpt = Annotated[int, typer.Option(min=1, max=1000, help="Frames per second (d415: 6, 15, 30 or 60; sim: up to "
+                                     "240, its physics rate; a replay keeps the recording's times).")]
 OverwriteOpt = overwrite_option("recording at --out")
 ArmRecordOpt = kind_option(ARMS, "--arm", " Recorded with every frame: joint positions and tool pose (the arm is "
                            "read, never enabled; --robot names its config).", optional=True)
@@ -33,13 +36,15 @@ ViewOpt = view_option("the frames, the camera and the tool pose")
 
 
 @contextmanager
-def open_any_camera(spec: str, width: int = 640, height: int = 480, fps: int = 30) -> Iterator[Camera]:
-    """The camera `spec` names, connected, from the rig builder (`sim`: the simulated drawer scene of seed 0)."""
+def open_any_camera(spec: str, width: int | None = None, height: int | None = None, fps: int = 30) -> Iterator[Camera]:
+    """The camera `spec` names, connected, from the rig builder (`sim`: the simulated drawer scene of seed 0); width
+    and height None: the kind's default (a replay's: the recording's; CameraError when asked for another)."""
     from deploy.rig import RigSpec, open_rig
-    from drivers.camera.registry import stream_options
+    from drivers.camera.registry import check_stream_size, stream_options
 
-    options = stream_options(spec, {"width": width, "height": height, "fps": fps})
-    with open_rig(RigSpec(camera=spec, arm=None, camera_options=options)) as rig:
+    asked = {"width": width, "height": height, "fps": fps}
+    with open_rig(RigSpec(camera=spec, arm=None, camera_options=stream_options(spec, asked))) as rig:
+        check_stream_size(spec, asked, rig.camera)
         yield rig.camera
 
 
@@ -68,8 +73,8 @@ def snapshot(
     out: Annotated[Path, typer.Option(help="Directory to write color.png, depth.png, depth_color.png, "
                                            "intrinsics.json.")],
     camera: CameraSpecOpt = "d415",
-    width: WidthOpt = 640,
-    height: HeightOpt = 480,
+    width: WidthOpt = None,
+    height: HeightOpt = None,
     fps: FpsOpt = 30,
     json_out: JsonOpt = False,
 ) -> None:
@@ -99,8 +104,8 @@ def record_cmd(
         "\\[default: the one saved for this camera and robot].")] = None,
     seconds: Annotated[float | None, typer.Option(callback=above(0.0), help="Camera seconds to record.")] = None,
     frames: Annotated[int | None, typer.Option(min=1, help="Frames to record.")] = None,
-    width: WidthOpt = 640,
-    height: HeightOpt = 480,
+    width: WidthOpt = None,
+    height: HeightOpt = None,
     fps: FpsOpt = 30,
     view: ViewOpt = False,
     overwrite: OverwriteOpt = False,

@@ -31,9 +31,26 @@ def open_camera(spec: str, **options: object) -> Camera:
 
 
 def stream_options(spec: str, options: dict[str, object]) -> dict[str, object]:
-    """Those of `options` (width, height, fps) that camera `spec`'s kind takes; a recording takes none."""
+    """Those of `options` (width, height, fps) that camera `spec`'s kind takes, None ones left out (the kind's
+    default); a recording takes none: `check_stream_size` refuses a size it cannot give."""
     entry, _ = CAMERAS.entry(spec)
-    return {k: v for k, v in options.items() if k in entry.stream_options}
+    return {k: v for k, v in options.items() if k in entry.stream_options and v is not None}
+
+
+def check_stream_size(spec: str, options: dict[str, object], camera: Camera) -> None:
+    """A camera whose kind takes no size (a recording: it plays at the size it was recorded, never resized) must
+    not be asked for another: CameraError naming both sizes when `options`' width or height (None: not asked)
+    differ from `camera`'s (connected)."""
+    entry, _ = CAMERAS.entry(spec)
+    asked = {k: options.get(k) for k in ("width", "height") if options.get(k) is not None}
+    if not asked or "width" in entry.stream_options:
+        return
+    intrinsics = camera.intrinsics
+    if asked.get("width", intrinsics.width) != intrinsics.width or \
+            asked.get("height", intrinsics.height) != intrinsics.height:
+        given = " ".join(f"--{k} {v}" for k, v in asked.items())
+        raise CameraError(f"camera {spec} plays its recording at {intrinsics.width}x{intrinsics.height}, not {given} "
+                          "(a replay is never resized): drop --width and --height")
 
 
 def simulated_source(spec: str) -> bool:
