@@ -8,21 +8,31 @@ from typing import Any
 
 import numpy as np
 
-from deploy.axis_pipeline import AxisPipeline
+from deploy.axis_pipeline import AxisPipeline, StepResult
 from deploy.config import Config
 from deploy.errors import RecordingError
-from deploy.geometry.types import Axis
+from deploy.geometry.types import Axis, NoAxis
 from drivers.camera.frames_dir import FramesRecording
+
+APPROACH = ("the gripper does not hold the handle yet (frames.jsonl grasped false): the approach is left out, "
+            "nothing has moved the part")
 
 
 def estimate_recording(path: Path, config: Config, progress: Callable[[float, float], None] | None = None,
                        viewer: Any = None) -> dict:
-    """Every frame through the pipeline, in order; returns the last axis a frame gave (`from_frame`: that frame;
+    """The frames through the pipeline, in order; returns the last axis a frame gave (`from_frame`: that frame;
     with none, the last frame's reason), the estimate per step and the filter used (`filter`: radius_m, eps).
+    RecordingError for a recording without frames or with a frame without its mask. A frame marked `first` (a run
+    that looked again from the start) starts the pipeline over, as the run did: its body box is fixed there.
+
     The gripper's path (frames.jsonl `ee_pose`, e.g. from `deploy record --arm`) goes in with the frames where
-    recorded (`gripper_path`: the estimator used it). RecordingError for a recording without frames or with a
-    frame without its mask. A frame marked `first` (a run that looked again from the start)
-    starts the pipeline over, as the run did: its body box is fixed there.
+    recorded (`gripper_path`: the estimator used it; `gripper_frames`: the frames whose pose went in). A recording
+    that says when the gripper held the handle (`grasped` on any frame: `deploy sim record`, run folders) gives it
+    only on the frames marked true, and leaves the approach out (the frames before the first one marked true, but
+    the one that fixes the body box), as a run does: nothing held the part, so nothing moved it, and what the
+    estimator made of those frames is noise (a bar handle's roll about itself, which registration cannot see,
+    reads as a turn). Their steps give the reason `APPROACH`; each step's `grasped` is its frame's mark (null
+    without one).
 
     Axes are in the base frame when the recording has `T_base_camera`, else in the camera frame. progress(done,
     total) follows the frames; `viewer` (deploy.control.viewer.RerunViewer) is shown every frame, its mask and
@@ -30,21 +40,26 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
     """
     recording = _masked_recording(path)
     pipe = AxisPipeline(config)
-    steps, final, last = [], None, None
+    steps, final, last, gripper_frames = [], None, None, 0
+    approach = recording.marks_grasp  # until the first frame marked grasped
     try:
         for i in range(len(recording)):
             frame = recording.frame(i)
-            pose = recording.records[i].get("ee_pose")
-            pose = None if pose is None else np.asarray(pose)
+            pose = recording.held_pose(i)
+            gripper_frames += pose is not None
+            approach = approach and recording.records[i].get("grasped") is not True
             if i > 0 and recording.records[i].get("first"):
                 pipe = AxisPipeline(config)
-            step = pipe.update_frame(frame, frame.mask, pose)
+            if approach and pipe.body_box is not None:
+                step = StepResult(frame.index, frame.t, NoAxis(APPROACH), 0, 0)
+            else:
+                step = pipe.update_frame(frame, frame.mask, pose)
             last = frame.index, step.result
             if isinstance(step.result, Axis):
                 final = last
-            steps.append(_entry(frame.index, step))
+            steps.append({**_entry(frame.index, step), "grasped": recording.records[i].get("grasped")})
             if viewer is not None:
-                viewer.frame(frame.t, frame, frame.mask, pose)
+                viewer.frame(frame.t, frame, frame.mask, _pose(recording.records[i]))
                 if isinstance(step.result, Axis):
                     viewer.axis(frame.t, step.result, None, "vision", i)
             if progress is not None:
@@ -56,7 +71,8 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
         "estimator": config.estimator.name, "joint_type": None, "origin": None, "direction": None,
         "radius_m": None, "residual_m": None, "n_samples": len(recording),
         "frame": "base" if recording.T_base_camera is not None else "camera",
-        "gripper_path": pipe.estimator.use_gripper and any("ee_pose" in r for r in recording.records),
+        "gripper_path": pipe.estimator.use_gripper and gripper_frames > 0,
+        "gripper_frames": gripper_frames if pipe.estimator.use_gripper else 0,
         "filter": config.filter.used(), "steps": steps,
     }
     out["from_frame"], result = final or last
@@ -65,6 +81,11 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
     else:
         out["reason"] = result.reason
     return out
+
+
+def _pose(record: dict) -> np.ndarray | None:
+    pose = record.get("ee_pose")
+    return None if pose is None else np.asarray(pose)
 
 
 def _masked_recording(path: Path) -> FramesRecording:

@@ -4,7 +4,8 @@
   metre), `rgb.txt` and `depth.txt` (`timestamp filename`, seconds since the recording started),
   `associations.txt` (colour and depth of one frame on one line), `groundtruth.txt` (`timestamp tx ty tz qx qy
   qz qw`, the camera pose in the robot base frame) when the recording has T_base_camera, and `tool.txt` (the
-  gripper's poses, same format; `deploy axis fit-trajectory` reads it) when it has ee_pose.
+  gripper's poses, same format; `deploy axis fit-trajectory` reads it) when it has ee_pose: the held handle's
+  path, so only the frames marked `grasped` when the recording marks any (the approach is not the part's path).
 - `open3d`: the layout of Open3D's reconstruction system: `color/NNNNNN.png`, `depth/NNNNNN.png` (mm),
   `camera_intrinsic.json` (`open3d.io.read_pinhole_camera_intrinsic` reads it), `config.json` pointing at them,
   and `trajectory.log` (camera poses, `open3d.io.read_pinhole_camera_trajectory`) with T_base_camera.
@@ -127,7 +128,7 @@ def _tum(rec: FramesRecording, out: Path, progress: Progress | None) -> list[str
     for sub in ("rgb", "depth"):
         (out / sub).mkdir(parents=True, exist_ok=True)
     header = f"# file: '{rec.path.name}' (axisloop export)\n# timestamp filename\n"
-    rgb, depth, pairs, camera, tool = [], [], [], [], []
+    rgb, depth, pairs, camera, tool, approach = [], [], [], [], [], 0
     for i, frame in _frames(rec, progress):
         stamp = f"{frame.t:.6f}"
         _png(out / "rgb" / f"{stamp}.png", cv2.cvtColor(frame.color, cv2.COLOR_RGB2BGR))
@@ -137,16 +138,20 @@ def _tum(rec: FramesRecording, out: Path, progress: Progress | None) -> list[str
         pairs.append(f"{stamp} rgb/{stamp}.png {stamp} depth/{stamp}.png")
         if frame.T_base_camera is not None:
             camera.append(_tum_pose(frame.t, frame.T_base_camera))
-        pose = rec.records[i].get("ee_pose")
+        pose = rec.held_pose(i)
         if pose is not None:
-            tool.append(_tum_pose(frame.t, np.asarray(pose)))
+            tool.append(_tum_pose(frame.t, pose))
+        approach += pose is None and "ee_pose" in rec.records[i]
     files = {"rgb.txt": ("# color images\n" + header, rgb), "depth.txt": ("# depth maps\n" + header, depth),
              "associations.txt": ("", pairs)}
     if camera:
         files["groundtruth.txt"] = ("# camera pose in the robot base frame\n# timestamp tx ty tz qx qy qz qw\n",
                                     camera)
     if tool:
-        files["tool.txt"] = ("# gripper pose in the robot base frame\n# timestamp tx ty tz qx qy qz qw\n", tool)
+        held = f"# only the {len(tool)} frames marked grasped: {approach} not holding the handle left out\n" \
+            if rec.marks_grasp else ""
+        files["tool.txt"] = ("# gripper pose in the robot base frame\n" + held + "# timestamp tx ty tz qx qy qz qw\n",
+                             tool)
     for name, (head, lines) in files.items():
         (out / name).write_text(head + "\n".join(lines) + "\n", encoding="utf-8")
     return list(files)

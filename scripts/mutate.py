@@ -99,6 +99,10 @@ RECORD = """
             record["joint_positions"] = [float(v) for v in np.ravel(joint_positions)]
         if ee_pose is not None:
             record["ee_pose"] = _pose_list(ee_pose, "ee_pose")
+        if first:
+            record["first"] = True
+        if grasped is not None:
+            record["grasped"] = bool(grasped)
         pose = frame.T_base_camera  # a camera that moves (eye-in-hand): its pose per frame, where not meta.json's
         if pose is not None and not (self._pose is not None and np.allclose(pose, self._pose, rtol=0, atol=1e-9)):
             record["T_base_camera"] = _pose_list(pose, "T_base_camera")
@@ -221,7 +225,7 @@ MUTANTS = [
     _episode("context", "min-grasp-zero", "any width above 0 counts as holding", "MIN_GRASP_WIDTH_M = 0.003",
              "MIN_GRASP_WIDTH_M = 0.0"),
     _episode("context", "pull-ignores-slip", "a pull goes on after the handle slipped out",
-             "return state.gripper_width_m > MIN_GRASP_WIDTH_M", "return True"),
+             "return held and self.now()", "return True and self.now()"),
     _episode("observer", "mask-check-dropped", "a lost object not ending the episode",
              "if np.count_nonzero(mask) < self.config.opening.min_mask_fraction * self.mask_pixels:",
              "if False:"),

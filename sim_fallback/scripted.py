@@ -147,7 +147,8 @@ def record_scripted(
     """Record a scripted opening driven by GROUND TRUTH (a data generator, not the policy).
 
     Writes the frames-directory format at `out_dir` (colour, noisy depth, object mask including the
-    handle, T_base_camera, joint positions, tool pose per frame) plus truth.json with the true
+    handle, T_base_camera, joint positions, tool pose and `grasped` per frame: false over the approach until the
+    gripper has closed on the handle, true from then on) plus truth.json with the true
     joint type, axis (base frame; positive opens) and the joint value at every frame. `target`: opening in
     m (drawer, default 0.2) or rad (door, default 30 deg). progress(phase, frames) follows every frame written
     (phase: "grasp", "open" or "hold").
@@ -172,7 +173,8 @@ def record_scripted(
                     return
                 frame = camera.read()
                 mask = (frame.segmentation == SegLabel.OBJECT) | (frame.segmentation == SegLabel.HANDLE)
-                writer.write(frame, mask=mask, joint_positions=state.q, ee_pose=arm.kin.fk(state.q))
+                writer.write(frame, mask=mask, joint_positions=state.q, ee_pose=arm.kin.fk(state.q),
+                             grasped=phase != "grasp")
                 joint_values.append(world.joint_value())
                 next_t = (frame.index + 1) / fps
                 if progress is not None:
@@ -180,7 +182,7 @@ def record_scripted(
 
             capture(arm.state())
             grasp_handle(world, arm, limits, target, capture)
-            phase = "open"
+            phase = "open"  # the gripper has closed on the handle: it holds from here on
             open_along_truth(world, arm, target, OPEN_LIMITS[task], capture)
             phase = "hold"
             wait(arm, 0.5, capture)

@@ -11,6 +11,7 @@ import pytest
 from deploy.bench.open import bench_open, simulate_episode
 from deploy.config import Config
 from deploy.control import run_episode
+from deploy.control.run_folder import RunFolder
 from deploy.control.session import OpenRequest, open_object
 from deploy.estimate_recording import estimate_recording
 from deploy.perception.oracle import OracleSegmenter
@@ -33,11 +34,16 @@ def test_drawer_closed_loop_opens_and_its_run_folder_replays(tmp_path):
     run = tmp_path / "run"
     steps = json.loads((run / "steps.json").read_text())
     assert len(steps["steps"]) == result["steps"] + 1 and steps["motions"][0]["label"] == "first pull"
+    for before, motion in zip(steps["motions"], steps["motions"][1:], strict=False):  # one episode clock
+        assert motion["start_s"] >= before["start_s"] + before["t"][-1]
     assert all(s["axis_position_error_m"] is None for s in steps["steps"])  # a drawer's axis is a direction
     assert any(s["axis_angle_error_deg"] is not None for s in steps["steps"])
     assert (run / "report.png").stat().st_size > 10_000
     replay = estimate_recording(run / "frames", Config())
     assert replay["n_samples"] >= 5 and replay["joint_type"] == "prismatic"
+    records = [json.loads(line) for line in (run / "frames" / "frames.jsonl").read_text().splitlines()]
+    assert [r["grasped"] for r in records] == [not r.get("first") for r in records]  # first frames, then pulls'
+    assert records[0]["grasped"] is False and replay["gripper_frames"] == sum(r["grasped"] for r in records)
 
 
 def test_a_run_that_looked_again_replays_from_where_it_looked(tmp_path):
@@ -82,15 +88,17 @@ class _LosingSegmenter(OracleSegmenter):
         return np.zeros_like(super().track(frame))
 
 
-def _episode(setup, target=0.15, segmenter=None, scenario=None):
-    """run_episode on `scenario` (default drawer seed 0) after `setup(world, arm)`; returns the result and
-    whether the arm stays still afterwards."""
+def _episode(setup, target=0.15, segmenter=None, scenario=None, folder=None):
+    """run_episode on `scenario` (default drawer seed 0) after `setup(world, arm)`, recording into the run
+    `folder` if given; returns the result and whether the arm stays still afterwards."""
     with SimWorld(scenario or Scenario.make("drawer", 0, "train")) as world:
         arm = SimArm(world)
         camera = SimCamera(world, intrinsics=d415_intrinsics(320, 240), fps=5.0, labels=True, posed=True)
         setup(world, arm)
         config = Config().replace(opening={"task": "drawer", "target_distance_m": target})
-        result = run_episode(camera, arm, arm.kin, segmenter or OracleSegmenter(), config)
+        result = run_episode(camera, arm, arm.kin, segmenter or OracleSegmenter(), config, folder=folder)
+        if folder is not None:
+            folder.finish(result)
         q0 = arm.state().q
         world.clock.step(120)
         still = float(np.abs(arm.state().q - q0).max()) < 0.01
@@ -108,17 +116,20 @@ def test_locked_drawer_ends_blocked_and_safe():
     assert not result.success and still
 
 
-def test_slipping_grasp_regrasps_once_then_fails_clearly():
+def test_slipping_grasp_regrasps_once_then_fails_clearly(tmp_path):
     def weaken(world, arm):  # a weak weld and a frictionless handle: the fingers slide off
         arm.grasp_force_limit_n = 0.5
         pb.changeDynamics(world.cabinet_id, world.handle_link, lateralFriction=0.0, physicsClientId=world.client)
 
-    result, still = _episode(weaken)
+    result, still = _episode(weaken, folder=RunFolder(tmp_path / "run"))
     assert result.stop_reason == "grasp lost" and result.regrasped  # held at first, slipped, re-grasped once
     assert result.message.startswith("the handle slipped out of the gripper again during ")
     assert "after one re-grasp: the pull needs more force than the grasp holds" in result.message
     assert not result.success and still
     assert json.loads(json.dumps(result.to_dict()))["stop_reason"] == result.stop_reason
+    records = [json.loads(line) for line in (tmp_path / "run" / "frames" / "frames.jsonl").read_text().splitlines()]
+    held = [r["grasped"] for r in records]  # the first frame; each pull's while held and, after each slip, not
+    assert held[0] is False and held[1] is True and held.count(False) >= 3 and held[-1] is False
 
 
 def test_a_slip_is_recovered_by_finding_the_handle_again():

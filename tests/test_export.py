@@ -1,7 +1,9 @@
 """`deploy export REC --format tum|open3d|rrd` on a synthetic drawer recording (masks, camera pose, gripper
-path): the files other tools read, read back with those tools' conventions (Open3D's own readers)."""
+path): the files other tools read, read back with those tools' conventions (Open3D's own readers); a recording
+marking when the gripper held exports only the held handle's path."""
 
 import json
+import shutil
 
 import cv2
 import numpy as np
@@ -10,6 +12,7 @@ import pytest
 from rerun_files import entities
 
 from deploy.cli import main
+from deploy.geometry.metrics import axis_angle_error_deg
 from deploy.synthetic.sequence import synthetic_sequence, write_sequence
 from drivers.camera.depth_noise import DepthNoise
 from drivers.camera.frames_dir import FramesRecording
@@ -89,3 +92,31 @@ def test_rrd_export_and_a_folder_that_is_not_an_export(capsys, recording, tmp_pa
     assert code == 2 and "is not a tum export" in err and (tmp_path / "mine" / "notes.txt").exists()
     code, _, err = run(capsys, "export", recording, "--format", "rrd", "--out", tmp_path / "x.txt")
     assert code == 2 and "give --out NAME.rrd" in err
+
+
+def test_tum_tool_txt_holds_only_the_held_handles_path(capsys, recording, tmp_path):
+    """A recording that says when the gripper held the handle (`grasped`) exports only those frames' gripper poses
+    to tool.txt: `axis fit-trajectory` reads the handle's path there, not the approach to it."""
+    rec = tmp_path / "marked"
+    shutil.copytree(recording, rec)
+    lines = [json.loads(line) for line in (rec / "frames.jsonl").read_text().splitlines()]
+    direction = np.array(json.loads((rec / "truth.json").read_text())["direction"])
+    side = np.cross(direction, [0.0, 0.0, 1.0])
+    for i, line in enumerate(lines):
+        line["grasped"] = i >= 2
+        if i < 2:  # the approach: from the side, toward where the grasp is
+            pose = np.array(lines[2]["ee_pose"])
+            pose[:3, 3] += (2 - i) * 0.08 * side / np.linalg.norm(side)
+            line["ee_pose"] = pose.tolist()
+    (rec / "frames.jsonl").write_text("".join(json.dumps(line) + "\n" for line in lines))
+    out = tmp_path / "tum"
+    code, _, err = run(capsys, "export", rec, "--format", "tum", "--out", out)
+    assert code == 0, err
+    text = (out / "tool.txt").read_text()
+    assert "# only the 4 frames marked grasped: 2 not holding the handle left out" in text
+    tool = np.loadtxt(out / "tool.txt")
+    np.testing.assert_allclose(tool[:, 0], [line["t"] for line in lines[2:]], atol=1e-6)
+    code, printed, _ = run(capsys, "axis", "fit-trajectory", out / "tool.txt", "--json")
+    fitted = json.loads(printed)
+    assert code == 0 and fitted["joint_type"] == "prismatic"
+    assert axis_angle_error_deg(direction, fitted["direction"]) < 5.0

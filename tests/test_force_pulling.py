@@ -7,7 +7,7 @@ import pybullet as pb
 import pytest
 from scipy.spatial.transform import Rotation
 
-from deploy.bench.open import bench_open, simulate_episode
+from deploy.bench.open import _pull_forces, bench_open, simulate_episode
 from deploy.config import OpeningConfig
 from deploy.control.policy import choose_axis
 from deploy.geometry.types import Axis, JointType, NoAxis
@@ -131,8 +131,16 @@ def test_bench_open_reports_the_condition_the_peak_force_and_the_axis_cues():
     assert data["condition"] == "locked" and data["failures"] == {"blocked": 1}
     assert data["failed_seeds"] == {"blocked": [0]} and data["first_seed"] == 0 and data["joint"] == "told"
     assert 30.0 < data["peak_pull_force_n_median"] == data["peak_pull_force_n_max"] <= 60.0
+    assert data["peak_pull_force_episodes"] == 1
     assert {"axis_error_episodes_compared", "acted_on_axis_angle_error_deg_median",
             "vision_alone_axis_angle_error_deg_p90"} <= set(data)
+
+
+def test_the_peak_force_median_leaves_out_episodes_that_never_pulled():
+    results = [{"peak_pull_force_n": f} for f in (0.0, 0.0, 0.0, 20.0, 30.0, 40.0)]
+    assert _pull_forces(results) == {"peak_pull_force_episodes": 3, "peak_pull_force_n_median": 30.0,
+                                     "peak_pull_force_n_max": 40.0}
+    assert _pull_forces([{"peak_pull_force_n": 0.0}])["peak_pull_force_n_median"] is None
 
 
 def test_a_stiff_door_still_opens():

@@ -6,6 +6,7 @@ import time
 import cv2
 import numpy as np
 import pytest
+from cli_run import one_line, run
 
 from drivers.camera.base import Frame, Intrinsics
 from drivers.camera.frames_dir import FramesRecording, FramesReplayCamera, FramesWriter
@@ -182,6 +183,39 @@ def test_corrupt_middle_jsonl_line(tmp_path):
     jsonl.write_text("\n".join(lines) + "\n")
     with pytest.raises(RecordingError, match="line 2"):
         len(FramesRecording(tmp_path / "rec"))
+
+
+def test_grasped_is_written_only_when_given_and_gates_the_gripper_pose(tmp_path):
+    """A writer that knows when the gripper held the handle marks the frames; a reader then takes the gripper's
+    pose as the handle's only on the frames marked true (a frame without the mark in such a recording too)."""
+    frames = make_frames(4)
+    with FramesWriter(tmp_path / "rec", INTR) as writer:
+        for i, grasped in enumerate((None, False, True, True)):
+            writer.write(frames[i], ee_pose=ee(i), grasped=grasped)
+    rec = FramesRecording(tmp_path / "rec")
+    assert [r.get("grasped", "absent") for r in rec.records] == ["absent", False, True, True]
+    assert rec.marks_grasp and rec.held_pose(0) is None and rec.held_pose(1) is None
+    np.testing.assert_array_equal(rec.held_pose(2), ee(2))
+    record(tmp_path / "unmarked", n=3)  # no writer said: every pose is the handle's, as before
+    unmarked = FramesRecording(tmp_path / "unmarked")
+    assert not unmarked.marks_grasp and "grasped" not in unmarked.records[0]
+    np.testing.assert_array_equal(unmarked.held_pose(0), ee(0))
+
+
+@pytest.mark.parametrize(("value", "shown"), [(1, "1"), ("yes", '"yes"'), (None, "null"), ([True], "[true]")])
+def test_a_grasped_that_is_not_true_or_false_is_one_line_naming_file_line_cause_and_fix(capsys, tmp_path, value,
+                                                                                         shown):
+    record(tmp_path / "rec", n=3)
+    jsonl = tmp_path / "rec" / "frames.jsonl"
+    lines = [json.loads(line) for line in jsonl.read_text().splitlines()]
+    lines[1]["grasped"] = value
+    jsonl.write_text("".join(json.dumps(line) + "\n" for line in lines))
+    with pytest.raises(RecordingError) as caught:
+        len(FramesRecording(tmp_path / "rec"))
+    assert str(caught.value) == (f"{jsonl}, line 2: not a frame record (grasped is {shown}, not true or false); "
+                                 "write grasped as the JSON boolean true or false, or remove the key")
+    code, _, err = run(capsys, "axis", "estimate", tmp_path / "rec")
+    assert code == 2 and one_line(err) == f"error: {caught.value}"
 
 
 def test_missing_directory(tmp_path):

@@ -107,7 +107,7 @@ def test_frames_jsonl_of_random_bytes_reads_or_is_a_recording_error(tmp_path_fac
 
 @FUZZ
 @given(record=JSON_VALUES | st.fixed_dictionaries({"index": JSON_VALUES, "t": JSON_VALUES}),
-       extra=st.sampled_from(["index", "t", "joint_positions", "ee_pose"]), value=JSON_VALUES)
+       extra=st.sampled_from(["index", "t", "joint_positions", "ee_pose", "grasped"]), value=JSON_VALUES)
 def test_frames_jsonl_with_random_records_reads_or_is_a_recording_error(tmp_path_factory, record, extra, value):
     path = _recording(tmp_path_factory.mktemp("rec"))
     good = json.loads((path / "frames.jsonl").read_text().splitlines()[0])
@@ -122,6 +122,7 @@ def test_frames_jsonl_with_random_records_reads_or_is_a_recording_error(tmp_path
     for r in records:  # what the reader lets through is what consumers rely on
         assert isinstance(r["index"], int) and r["index"] >= 0 and math.isfinite(float(r["t"]))
         assert r.get("ee_pose") is None or np.isfinite(np.asarray(r["ee_pose"], float)).all()
+        assert isinstance(r.get("grasped"), bool | None)
 
 
 def test_a_damaged_png_in_a_replay_names_the_frame(tmp_path):

@@ -85,8 +85,9 @@ def bench_open(
     per episode and failure causes {stop_reason: count}. Realistic by default: the machine's default
     segmenter and a calibrated camera pose off by `calibration_error` (mm, deg); the JSON states both.
     `condition`: every object's joint "normal", "locked" or "stiff" (3x the friction); the largest force any
-    pull applied is `peak_pull_force_n_max` (N). Episodes run in `workers` local processes, or on a Ray cluster
-    at `ray_address` (deploy/bench/executors.py). `policy` None: the config's default."""
+    pull applied is `peak_pull_force_n_max` (N), over the `peak_pull_force_episodes` that pulled (`_pull_forces`).
+    Episodes run in `workers` local processes, or on a Ray cluster at `ray_address` (deploy/bench/executors.py).
+    `policy` None: the config's default."""
     segmenter = segmenter or default_segmenter()
     policy = policy or OpeningConfig().policy
     unit = "m" if task == "drawer" else "deg"
@@ -101,7 +102,6 @@ def bench_open(
                 progress(result)
     angles = [r["axis_angle_error_deg"] for r in results if r["axis_angle_error_deg"] is not None]
     positions = [r["axis_position_error_m"] for r in results if r["axis_position_error_m"] is not None]
-    forces = [r["peak_pull_force_n"] for r in results]
     failed = _failed_seeds(results)
     frame_ms = [r["timings"]["frame_ms_median"] for r in results if "frame_ms_median" in r["timings"]]
     frame_p90 = [r["timings"]["frame_ms_p90"] for r in results if "frame_ms_p90" in r["timings"]]
@@ -122,12 +122,20 @@ def bench_open(
         "frame_cpu_ms_median": float(np.median(frame_cpu)) if frame_cpu else None,
         "frame_cpu_ms_median_max": float(np.max(frame_cpu)) if frame_cpu else None,
         "regrasps": int(sum(r["regrasped"] for r in results)),
-        "peak_pull_force_n_median": float(np.median(forces)) if forces else 0.0,
-        "peak_pull_force_n_max": float(np.max(forces)) if forces else 0.0,
+        **_pull_forces(results),
         "seconds_per_episode": float(np.mean([r["seconds"] for r in results])) if results else 0.0,
         "failures": {cause: len(seeds) for cause, seeds in failed.items()},
         "failed_seeds": failed,
     }
+
+
+def _pull_forces(results: list[dict]) -> dict:
+    """The peak pull force's median and max (N) over the episodes that pulled (`peak_pull_force_episodes`): one
+    that stopped before its first pull has no pull force, and counting it as 0 N would pull the median down."""
+    forces = [r["peak_pull_force_n"] for r in results if r["peak_pull_force_n"] > 0.0]
+    return {"peak_pull_force_episodes": len(forces),
+            "peak_pull_force_n_median": float(np.median(forces)) if forces else None,
+            "peak_pull_force_n_max": float(np.max(forces)) if forces else None}
 
 
 def _failed_seeds(results: list[dict]) -> dict[str, list[int]]:

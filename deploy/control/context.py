@@ -73,11 +73,12 @@ class Episode:
         once it has moved), then the frames processed. The path yields to the object and the force is bounded
         by `[opening] pull_force_limit_n` (`Compliance`); the caller decides what a slip or a block means. The
         motion stops early when the gripper loses the handle or the episode's arm time (`timeout_s`) runs out."""
-        clock = time.perf_counter()
+        clock, start_s = time.perf_counter(), self.now()
 
         def on_tick(state: ArmState, _t: float) -> bool:
-            self.observer.capture(state)
-            return state.gripper_width_m > MIN_GRASP_WIDTH_M and self.now() <= self.config.opening.timeout_s
+            held = state.gripper_width_m > MIN_GRASP_WIDTH_M  # a slip ends the pull; its frames are not held
+            self.observer.capture(state, held)
+            return held and self.now() <= self.config.opening.timeout_s
 
         self.arm.set_compliance(True)
         try:
@@ -88,7 +89,7 @@ class Episode:
         finally:
             self.arm.set_compliance(False)
         self.observer.next_frame_t = 0.0
-        self.observer.capture(self.arm.state())  # the settled end of the motion
+        self.observer.capture(self.arm.state(), self.gripping())  # the settled end of the motion
         self.state.timings["motion_s"] += time.perf_counter() - clock
         self.state.steps += step
         self.state.peak_pull_force_n = max(self.state.peak_pull_force_n, result.peak_force_n)
@@ -96,6 +97,6 @@ class Episode:
         self.state.commanded.extend(result.planned)
         self.state.measured.extend(result.measured)
         if self.folder is not None:
-            self.folder.add_motion(label, result)
+            self.folder.add_motion(label, result, start_s)
         self.observer.process()
         return result

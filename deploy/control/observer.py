@@ -1,6 +1,7 @@
 """The episode's eyes: frames grabbed during motions (every 1/camera_hz of arm time), then, between motions,
-segmented and fed to the axis pipeline; the first frame fixes the body box. The self-filter removes the arm's
-own pixels (depth and mask) before anything else sees a frame; the run folder keeps what the camera saw."""
+segmented and fed to the axis pipeline (the gripper's pose with them only where it held the handle); the first
+frame fixes the body box. The self-filter removes the arm's own pixels (depth and mask) before anything else sees
+a frame; the run folder keeps what the camera saw, marking whether the gripper held the handle."""
 
 from __future__ import annotations
 
@@ -44,7 +45,7 @@ class Observer:
         self.last_seen: tuple[Frame, np.ndarray] | None = None
         self.mask_pixels = 0
         self.vision: AxisResult = NoAxis("no frames yet")
-        self.pending: list[tuple[Frame, ArmState]] = []
+        self.pending: list[tuple[Frame, ArmState, bool]] = []  # frame, arm state, whether the gripper held
         self.next_frame_t = 0.0
         self.t0 = t0  # arm-clock start of the episode (viewer timeline)
         self.seconds = 0.0  # spent segmenting and estimating
@@ -64,9 +65,8 @@ class Observer:
         if self.mask_pixels == 0:
             raise EpisodeStop(StopReason.NO_OBJECT,
                               "the segmenter found no object on the first frame: point the camera at it")
-        pose = self.kin.fk(state.q)
-        self.pipeline.update_frame(frame, mask, pose)
-        self._log(raw, mask, state, first=True)
+        self.pipeline.update_frame(frame, mask, None)  # before any grasp: the gripper's pose is not the part's
+        self._log(raw, mask, state, first=True, grasped=False)
         self.first_points = frame_points(frame, mask, self.pipeline.config)
         log.info("first frame %d: segmenter %s found the object (prompt %r): %d pixels in box %s px, %d points",
                  frame.index, getattr(self.segmenter, "name", "?"), self.config.perception.object_prompt,
@@ -76,26 +76,27 @@ class Observer:
         self.next_frame_t = state.t
         return frame, mask
 
-    def capture(self, state: ArmState) -> None:
-        """During a motion: grab a frame when its slot has come (frames are processed after the motion)."""
+    def capture(self, state: ArmState, grasped: bool) -> None:
+        """During a motion: grab a frame when its slot has come (frames are processed after the motion);
+        `grasped`: the gripper holds the handle at `state`."""
         if state.t + 1e-9 >= self.next_frame_t:
-            self.pending.append((self.camera.read(), state))
+            self.pending.append((self.camera.read(), state, grasped))
             self.next_frame_t = state.t + 1.0 / self.config.opening.camera_hz
 
     def process(self) -> None:
         """Segment the frames grabbed during the last motion and feed them to the pipeline, in order."""
         clock = time.perf_counter()
         pending, self.pending = self.pending, []
-        for raw, state in pending:
+        for raw, state, grasped in pending:
             start, cpu = time.perf_counter(), time.thread_time()
             frame, robot = self._without_robot(raw, state)
             mask = self.segmenter.track(frame) & ~robot
-            self._log(raw, mask, state)
+            self._log(raw, mask, state, grasped=grasped)
             if np.count_nonzero(mask) < self.config.opening.min_mask_fraction * self.mask_pixels:
                 raise EpisodeStop(StopReason.TRACKING_LOST, f"the object's mask shrank to {np.count_nonzero(mask)} "
                                   f"pixels of {self.mask_pixels} at frame {frame.index}: the object left the view "
                                   "or is occluded")
-            pose = self.kin.fk(state.q)
+            pose = self.kin.fk(state.q) if grasped else None  # a slipped grip's path is not the part's
             self.vision = self.pipeline.update_frame(frame, mask, pose).result
             if log.isEnabledFor(logging.INFO):  # every frame: no text built unless --verbose shows it
                 log.info("frame %d (t %.2f s): %s", frame.index, state.t - self.t0, _estimate_text(self.vision))
@@ -115,11 +116,13 @@ class Observer:
             return frame, np.zeros(frame.depth_m.shape, bool)
         return self.self_filter.apply(frame, state.q, state.gripper_width_m)
 
-    def _log(self, frame: Frame, mask: np.ndarray, state: ArmState, first: bool = False) -> None:
-        """Record the frame (marked `first` where the pipeline starts over on it) and show it."""
+    def _log(self, frame: Frame, mask: np.ndarray, state: ArmState, first: bool = False,
+             grasped: bool = False) -> None:
+        """Record the frame (marked `first` where the pipeline starts over on it, and whether the gripper held the
+        handle) and show it."""
         pose = self.kin.fk(state.q)
         if self.folder is not None:
-            self.folder.write_frame(frame, mask, state.q, pose, first=first)
+            self.folder.write_frame(frame, mask, state.q, pose, first=first, grasped=grasped)
         if self.viewer is not None:
             self.viewer.frame(state.t - self.t0, frame, mask, pose)
 

@@ -1,11 +1,13 @@
 """The run folder of one episode: what the camera saw (frames directory), steps.json and report.png.
 
-    RUN/frames/      frames-directory recording (colour, depth, segmenter mask, ee_pose, joint_positions);
-                     replays through `deploy axis estimate RUN/frames`
+    RUN/frames/      frames-directory recording (colour, depth, segmenter mask, ee_pose, joint_positions, and
+                     `grasped`: false on the first frames, true on the pulls' while the gripper holds); replays
+                     through `deploy axis estimate RUN/frames`
     RUN/config.json  the resolved run config the episode used (every section, the filter profile the camera
                      chose, `filter_used`: the radius in metres and eps, and `acted_with`: the estimator and
                      fusion the policy acted with), written with the first frame
-    RUN/steps.json   result, axis estimate per step, commanded and measured gripper poses per motion, and a CAN
+    RUN/steps.json   result, axis estimate per step, commanded and measured gripper poses per motion (`t` from the
+                     motion's start, `start_s` on the episode's arm clock, as report.png's opening curve), and a CAN
                      arm's final motor states (`motors`: name, CAN id, enabled, status)
     RUN/report.png   axis estimates over the first colour frame, opening vs time, axis error per step
 """
@@ -56,16 +58,19 @@ class RunFolder:
         self._config = None
 
     def write_frame(self, frame: Frame, mask: np.ndarray, q: np.ndarray, ee_pose: np.ndarray,
-                    first: bool = False) -> None:
+                    first: bool = False, grasped: bool | None = None) -> None:
+        """Append one frame to RUN/frames (`first`: the body box was fixed on it; `grasped`: the gripper held the
+        handle, written when given)."""
         if self._config is not None:
             self.write_config(self._config)
         if self._writer is None:
             self._writer = FramesWriter(self.path / "frames", frame.intrinsics, T_base_camera=frame.T_base_camera,
                                         camera=self.camera, simulated=self.simulated)
-        self._writer.write(frame, mask=mask, joint_positions=q, ee_pose=ee_pose, first=first)
+        self._writer.write(frame, mask=mask, joint_positions=q, ee_pose=ee_pose, first=first, grasped=grasped)
 
-    def add_motion(self, label: str, result: PathResult) -> None:
-        self.motions.append({"label": label, "reason": result.reason, "t": result.t.tolist(),
+    def add_motion(self, label: str, result: PathResult, start_s: float) -> None:
+        """Keep one motion for steps.json: `start_s` is the episode's arm time at its start, `t` its own clock."""
+        self.motions.append({"label": label, "reason": result.reason, "start_s": start_s, "t": result.t.tolist(),
                              "commanded": result.planned.tolist(), "measured": result.measured.tolist()})
 
     def finish(self, result: EpisodeResult, axis_error: Callable[[Axis], tuple[float, float]] | None = None,
@@ -108,22 +113,24 @@ def write_report(path: Path, result: EpisodeResult, errors: list[tuple[float, fl
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     first_frame = result.first_frame
     fig, (ax_img, ax_open, ax_err) = plt.subplots(1, 3, figsize=(15, 4.2))
     axes = [(e["step"], e["axis"]) for e in result.estimates if e["axis"] is not None]
     if first_frame is not None:
         ax_img.imshow(first_frame.color)
-        colours = plt.cm.viridis(np.linspace(0, 1, max(len(axes), 1)))
-        for (step, axis), colour in zip(axes, colours, strict=False):
+        norm = plt.Normalize(axes[0][0], max(axes[-1][0], axes[0][0] + 1)) if axes else None
+        for step, axis in axes:
             o, d = np.array(axis["origin"]), np.array(axis["direction"])
             uv = project(np.array([o - AXIS_HALF_LENGTH_M * d, o + AXIS_HALF_LENGTH_M * d]), first_frame)
-            ax_img.plot(uv[:, 0], uv[:, 1], color=colour, lw=1.5, label=f"step {step}")
+            ax_img.plot(uv[:, 0], uv[:, 1], color=plt.cm.viridis(norm(step)), lw=1.5)
         h, w = first_frame.color.shape[:2]
         ax_img.set_xlim(0, w)
         ax_img.set_ylim(h, 0)
-        if axes:
-            ax_img.legend(fontsize=6, loc="lower right")
+        if axes:  # a colour bar reads at any step count, where a legend of every step did not
+            bar = fig.colorbar(plt.cm.ScalarMappable(norm, "viridis"), ax=ax_img, label="step", fraction=0.05)
+            bar.ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax_img.set_title(f"axis estimates ({result.stop_reason.value})")
     ax_img.axis("off")
     if result.opening_curve:
@@ -139,6 +146,7 @@ def write_report(path: Path, result: EpisodeResult, errors: list[tuple[float, fl
         if result.joint_type == "revolute":  # a line's position along itself means nothing for a drawer
             ax_err.plot(steps, [err[1] * 100 for _, err in rows], "s-", label="position (cm)")
         ax_err.legend()
+        ax_err.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax_err.set(xlabel="step", title="axis error per step" if rows else
                "axis error (no axis estimated)" if truth else "axis error (no truth)")
     fig.tight_layout()

@@ -42,13 +42,13 @@ def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | N
                     progress: Callable[[float, float], None] | None = None, viewer: Any = None) -> dict:
     """Segment every frame of the recording at `path` in order (start on the first, track on the rest).
 
-    With `out`, a copy of the recording with the new masks is written there (truth.json and the `first` marks
-    copied too; a recording already at `out` is refused: `deploy.output_folder.new_output` replaces it when the
-    user asks); without, the masks go into the recording's own mask/ folder, which must not exist yet: they are
-    written to a hidden folder beside it and renamed to mask/ once every frame has one (a failure leaves none). An
-    PNG strip of a few evenly spaced frames is written beside. Returns a summary (timings in ms; IoU
-    against the recording's own masks when it has them). progress(done, total) follows the frames;
-    `viewer` (deploy.control.viewer.RerunViewer) is shown every frame with its mask and is closed at the end.
+    With `out`, a copy of the recording with the new masks is written there (truth.json and the `first` and
+    `grasped` marks copied too; a recording already at `out` is refused: `deploy.output_folder.new_output`
+    replaces it when the user asks); without, the masks go into the recording's own mask/ folder, which must not
+    exist yet: they are written to a hidden folder beside it and renamed to mask/ once every frame has one (a
+    failure leaves none). An PNG strip of a few evenly spaced frames is written beside. Returns a summary
+    (timings in ms; IoU against the recording's own masks when it has them). progress(done, total) follows the
+    frames; `viewer` (deploy.control.viewer.RerunViewer) is shown every frame with its mask and is closed at the end.
     """
     recording = FramesRecording(path)
     n = len(recording)
@@ -83,7 +83,8 @@ def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | N
                 record = recording.records[i]
                 pose = record.get("ee_pose")
                 writer.write(frame, mask=mask, joint_positions=record.get("joint_positions"),
-                             ee_pose=None if pose is None else np.asarray(pose), first=bool(record.get("first")))
+                             ee_pose=None if pose is None else np.asarray(pose), first=bool(record.get("first")),
+                             grasped=record.get("grasped"))
             else:
                 _write_mask(masks, frame.index, mask)
             if i in tiles_at:

@@ -6,6 +6,7 @@ Layout (see docs/recording-format.md): `meta.json`, `frames.jsonl` (one JSON obj
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -107,9 +108,12 @@ class FramesWriter:
         joint_positions: np.ndarray | list[float] | None = None,
         ee_pose: np.ndarray | None = None,
         first: bool = False,
+        grasped: bool | None = None,
     ) -> None:
         """Append one frame (`mask` defaults to `frame.mask`); its PNGs first, then its frames.jsonl line.
-        `first`: the object's body box was fixed on this frame (a run that looked again from the start)."""
+        `first`: the object's body box was fixed on this frame (a run that looked again from the start).
+        `grasped`: whether the gripper held the handle at this frame, written only when given (a writer that
+        knows it: `deploy sim record`, run folders); `deploy axis estimate` then fits `ee_pose` only where true."""
         if self._jsonl.closed:
             raise RecordingError(f"cannot write to {self.path}: the writer is closed")
         h, w = self.intrinsics.height, self.intrinsics.width
@@ -148,6 +152,8 @@ class FramesWriter:
             record["ee_pose"] = _pose_list(ee_pose, "ee_pose")
         if first:
             record["first"] = True
+        if grasped is not None:
+            record["grasped"] = bool(grasped)
         pose = frame.T_base_camera  # a camera that moves (eye-in-hand): its pose per frame, where not meta.json's
         if pose is not None and not (self._pose is not None and np.allclose(pose, self._pose, rtol=0, atol=1e-9)):
             record["T_base_camera"] = _pose_list(pose, "T_base_camera")
@@ -207,9 +213,17 @@ def _is_frames_recording(path: Path) -> bool:
     return isinstance(meta, dict) and meta.get("format") == FORMAT
 
 
+class _FieldError(ValueError):
+    """A frames.jsonl field of the wrong kind, with the fix to name (the generic one speaks of index and t)."""
+
+    def __init__(self, cause: str, fix: str) -> None:
+        super().__init__(cause)
+        self.fix = fix
+
+
 def _check_record(record: object) -> None:
     """ValueError unless `record` is a frames.jsonl object: index an integer >= 0, t finite, joint_positions
-    finite numbers and ee_pose and T_base_camera finite 4x4 matrices where given."""
+    finite numbers, ee_pose and T_base_camera finite 4x4 matrices and grasped true or false where given."""
     if not isinstance(record, dict):
         raise ValueError("not a JSON object")
     index, t = record["index"], float(record["t"])
@@ -225,6 +239,9 @@ def _check_record(record: object) -> None:
         pose = record.get(name)
         if pose is not None and (np.shape(pose) != (4, 4) or not np.all(np.isfinite(np.asarray(pose, np.float64)))):
             raise ValueError(f"{name} is not a finite 4x4 matrix")
+    if "grasped" in record and not isinstance(record["grasped"], bool):
+        raise _FieldError(f"grasped is {json.dumps(record['grasped'])[:40]}, not true or false",
+                          "write grasped as the JSON boolean true or false, or remove the key")
 
 
 class FramesRecording:
@@ -324,10 +341,8 @@ class FramesRecording:
             except (ValueError, KeyError, TypeError, RecursionError) as e:
                 if number == len(lines) or (number == last and not parsed):  # interrupted mid-line
                     break
-                raise RecordingError(
-                    f"{file}, line {number}: not a frame record ({e}); each line must be a JSON object "
-                    "with 'index' and 't'; remove or fix the line"
-                ) from None
+                fix = getattr(e, "fix", "each line must be a JSON object with 'index' and 't'; remove or fix the line")
+                raise RecordingError(f"{file}, line {number}: not a frame record ({e}); {fix}") from None
             if previous is not None and float(record["t"]) <= previous[1]:
                 raise RecordingError(
                     f"{file}, line {number}: t {record['t']} does not come after line {previous[0]}'s t "
@@ -344,6 +359,21 @@ class FramesRecording:
 
     def __len__(self) -> int:
         return len(self.records)
+
+    @functools.cached_property
+    def marks_grasp(self) -> bool:
+        """Whether the recording says when the gripper held the handle (`grasped` on any frame)."""
+        return any("grasped" in r for r in self.records)
+
+    def held_pose(self, i: int) -> np.ndarray | None:
+        """Frame `i`'s gripper pose (`ee_pose`, 0-based position) where it is the held handle's: every recorded
+        pose when the recording does not say when the gripper held (`marks_grasp`), else only those of the frames
+        marked `grasped` true (the approach, and a grip that slipped, move the gripper and not the part)."""
+        record = self.records[i]
+        pose = record.get("ee_pose")
+        if pose is None or (self.marks_grasp and record.get("grasped") is not True):
+            return None
+        return np.asarray(pose, np.float64)
 
     @property
     def has_masks(self) -> bool:
