@@ -150,8 +150,8 @@ def _tum(rec: FramesRecording, out: Path, progress: Progress | None) -> list[str
     if tool:
         held = f"# only the {len(tool)} frames marked grasped: {approach} not holding the handle left out\n" \
             if rec.marks_grasp else ""
-        files["tool.txt"] = ("# gripper pose in the robot base frame\n" + held + "# timestamp tx ty tz qx qy qz qw\n",
-                             tool)
+        files["tool.txt"] = ("# gripper pose in the robot base frame (fit: deploy axis fit-trajectory tool.txt "
+                             "--no-orientations)\n" + held + "# timestamp tx ty tz qx qy qz qw\n", tool)
     for name, (head, lines) in files.items():
         (out / name).write_text(head + "\n".join(lines) + "\n", encoding="utf-8")
     return list(files)

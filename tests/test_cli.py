@@ -6,6 +6,7 @@ import re
 import numpy as np
 import pytest
 from rerun_files import entities
+from scipy.spatial.transform import Rotation
 
 from deploy.cli import main
 from deploy.geometry.metrics import axis_angle_error_deg, axis_position_error_m
@@ -188,3 +189,27 @@ def test_bench_open_json_keys(capsys):
                          "axis_angle_error_deg_median", "seconds_per_episode", "failures"}
     assert data["target_m"] == 0.1
     assert data["episodes"] == 1 and 0.0 <= data["success_rate"] <= 1.0
+
+
+def test_fit_trajectory_without_orientations_hinges_a_gripper_whose_fingers_let_the_handle_turn(capsys, tmp_path):
+    """A gripper's path (a recording's tool.txt): its grip point swings about the hinge, but the handle turns in
+    the fingers, so the gripper turns only 0.95x the door's angle. Fitted with that turn the hinge lands 21 mm off;
+    `--no-orientations` fits the grip point's circle (0.01 mm)."""
+    rng = np.random.default_rng(1)
+    angles = np.radians(np.linspace(0, 60, 120))
+    pts = np.c_[0.5 + 0.4 * np.cos(angles), 0.1 + 0.4 * np.sin(angles), np.full_like(angles, 0.7)]
+    pts += rng.normal(0, 1e-4, pts.shape)
+    quats = Rotation.from_euler("z", 0.95 * angles[:, None]).as_quat()
+    path = tmp_path / "tool.txt"
+    path.write_text("\n".join(" ".join(f"{v:.6f}" for v in (*p, *q)) for p, q in zip(pts, quats, strict=True)) + "\n")
+
+    def hinge_error(*options):
+        code, out, _ = run(capsys, "axis", "fit-trajectory", str(path), "--joint", "revolute", "--json", *options)
+        assert code == 0
+        data = json.loads(out)
+        return axis_position_error_m([0.5, 0.1, 0.7], [0, 0, 1], data["origin"], data["direction"]), data
+
+    turned, with_turns = hinge_error()
+    kept, without = hinge_error("--no-orientations")
+    assert with_turns["orientations"] and not without["orientations"]
+    assert kept < 1e-3 < turned, (kept, turned)

@@ -57,12 +57,17 @@ def axis_fit_trajectory(
         help="The world's up axis in the file's frame: a hinge found near vertical or horizontal is levelled toward "
              "it by a 1.5 deg prior (furniture is built level); none for an unknown frame or a hinge built at a "
              "slant.")] = UpChoice.z,
+    orientations: Annotated[bool, typer.Option(
+        help="Fit the file's orientations too (the turn about the hinge): right for a handle tracked on the part; "
+             "--no-orientations for a gripper's path (a recording's tool.txt), whose fingers let the handle turn in "
+             "them, so that its turn is not the part's.")] = True,
     json_out: JsonOpt = False,
 ) -> None:
     """Fit a prismatic line or a revolute axis to a gripper (handle) trajectory, with the uncertainty of its direction.
 
     Example: deploy axis fit-trajectory handle.txt --joint auto --json
     Example: deploy axis fit-trajectory handle_tum.txt --up y
+    Example: deploy axis fit-trajectory export/tool.txt --no-orientations
     """
     import numpy as np
 
@@ -85,10 +90,11 @@ def axis_fit_trajectory(
         raise RecordingError(f"trajectory file {file} holds {len(samples.positions)} sample(s) but a fit needs at "
                              "least 3: give one `x y z` per line (or a CSV header and rows) for 3 or more positions")
     world_up = None if up is UpChoice.none else np.eye(3)["xyz".index(up.value)]
-    data = fit_trajectory_report(samples.positions, samples.quaternions,
+    data = fit_trajectory_report(samples.positions, samples.quaternions if orientations else None,
                                  None if joint == JointChoice.auto else JointType(joint.value), times=samples.times,
                                  up=world_up)
-    data.update(n_samples=len(samples.positions), format=samples.format, up=up.value)  # and confidence, noise_m, ...
+    data.update(n_samples=len(samples.positions), format=samples.format, up=up.value,
+                orientations=orientations and samples.quaternions is not None)  # and confidence, noise_m, ...
     if json_out:
         print_json(data)
     else:

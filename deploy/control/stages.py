@@ -242,7 +242,10 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
     else:
         poses = np.array(state.measured)
         joint = state.joint or (vision.joint_type if isinstance(vision, Axis) else None)
-        trajectory = fit_trajectory(poses[:, :3, 3], Rotation.from_matrix(poses[:, :3, :3]).as_quat(), joint)
+        # A parallel gripper's fingers let the handle turn in them, so its own turn is not the door's: a hinge is
+        # fitted to the grip point's path alone (the turn still helps tell a hinge from a slide).
+        turns = None if joint is JointType.REVOLUTE else Rotation.from_matrix(poses[:, :3, :3]).as_quat()
+        trajectory = fit_trajectory(poses[:, :3, 3], turns, joint)
         strained = state.across_force_n >= episode.config.opening.force_cue_n
         result, source = choose_axis(vision, trajectory, state.joint, state.opened, episode.config.opening, strained)
         chosen = orient_axis(result, _measured_pull(episode, pull), state.p_grasp) \
