@@ -50,8 +50,9 @@ def scene(n: int, **kwargs) -> Synthetic:
     return s
 
 
-def write_db3(path: Path, s: Synthetic, color_format: rs.format = rs.format.rgb8) -> Path:
-    """Record `s` to `path` (.db3) through rs.software_device + rs.recorder."""
+def write_db3(path: Path, s: Synthetic, color_format: rs.format = rs.format.rgb8, color_lag: int = 0) -> Path:
+    """Record `s` to `path` (.db3) through rs.software_device + rs.recorder; colour frame k follows depth frame
+    k + `color_lag` in the file; a frame that is None in `s` is not recorded (the camera dropped it)."""
     device = rs.software_device()
     for info, value in ((rs.camera_info.serial_number, SERIAL), (rs.camera_info.name, "Intel RealSense D415"),
                         (rs.camera_info.firmware_version, "5.16.0.1"), (rs.camera_info.usb_type_descriptor, "3.2")):
@@ -74,16 +75,21 @@ def write_db3(path: Path, s: Synthetic, color_format: rs.format = rs.format.rgb8
     for sensor, profile in zip((depth_sensor, color_sensor), profiles, strict=True):
         sensor.open(profile)
         sensor.start(lambda _frame: None)
-    for k, (depth, color) in enumerate(zip(s.depth, s.color, strict=True)):
-        if color_format == rs.format.bgr8:
-            color = color[..., ::-1]
-        for sensor, profile, image, bpp in ((depth_sensor, profiles[0], depth, 2),
-                                            (color_sensor, profiles[1], color, 3)):
-            frame = rs.software_video_frame()
-            frame.pixels, frame.bpp, frame.stride = np.ascontiguousarray(image), bpp, s.width * bpp
-            frame.timestamp, frame.frame_number = s.t0_ms + k * s.period_ms, 100 + k
-            frame.domain, frame.profile = rs.timestamp_domain.hardware_clock, profile.as_video_stream_profile()
-            sensor.on_video_frame(frame)
+    # colour frame k follows depth frame k + color_lag in the file (a colour stream that arrives later)
+    order = sorted([(k, 0) for k in range(len(s.depth))] + [(k, 1) for k in range(len(s.color))],
+                   key=lambda e: (e[0] + color_lag * e[1], e[1]))
+    for k, which in order:
+        sensor, profile, bpp = ((depth_sensor, profiles[0], 2), (color_sensor, profiles[1], 3))[which]
+        image = (s.depth, s.color)[which][k]
+        if image is None:  # a frame the camera dropped
+            continue
+        if which == 1 and color_format == rs.format.bgr8:
+            image = image[..., ::-1]
+        frame = rs.software_video_frame()
+        frame.pixels, frame.bpp, frame.stride = np.ascontiguousarray(image), bpp, s.width * bpp
+        frame.timestamp, frame.frame_number = s.t0_ms + k * s.period_ms, 100 + k
+        frame.domain, frame.profile = rs.timestamp_domain.hardware_clock, profile.as_video_stream_profile()
+        sensor.on_video_frame(frame)
     for sensor in (depth_sensor, color_sensor):
         sensor.stop()
         sensor.close()

@@ -50,12 +50,22 @@ def convert_recording(
     """Every frame of `src`, depth aligned to colour, raw (no post-processing), with the colour stream's
     intrinsics, written to the frames directory `out`. Depth beyond the 16-bit range of `depth_scale` is stored
     as 0, no depth (`depth_units`). Returns {"out", "frames", "seconds", "source", "source_depth_scale",
-    "depth_out_of_range_px"} (source: "realsense" or "ros2"; source_depth_scale: metres per unit of the
-    source's depth; depth_out_of_range_px: the depth pixels stored as 0 for being beyond the range)."""
+    "depth_out_of_range_px", "source_frames", "unpaired_frames"} (source: "realsense" or "ros2";
+    source_depth_scale: metres per unit of the source's depth; depth_out_of_range_px: the depth pixels stored as 0
+    for being beyond the range; source_frames: {"depth", "color"} frames the recording's index lists and
+    unpaired_frames: {"depth", "color"} frames without a partner in the other stream, both for a RealSense
+    recording, else None). RecordingError when librealsense played fewer frames than the recording holds (the
+    frames written stay in `out`)."""
     src = Path(src)
     camera = open_recording(src)
     camera.connect()
     source_depth_scale = camera.depth_scale
     summary = record(camera, out, depth_scale=depth_scale, progress=progress,  # disconnects the camera
                      source=f"replay:{src}")
-    return {**summary, "source": recording_kind(src), "source_depth_scale": source_depth_scale}
+    lost = camera.lost_frames() if hasattr(camera, "lost_frames") else None
+    if lost:
+        raise RecordingError(f"converted only {summary['frames']} frames of {src}: {lost}; convert it again "
+                             f"(--overwrite replaces {out}), and if frames stay missing the file holds unreadable "
+                             "frames: record it again")
+    return {**summary, "source": recording_kind(src), "source_depth_scale": source_depth_scale,
+            "source_frames": getattr(camera, "recorded", None), "unpaired_frames": getattr(camera, "unpaired", None)}

@@ -1,5 +1,6 @@
-"""The librealsense pipeline shared by the live D415 and .bag/.db3 playback: start, depth scale,
-post-processing, alignment of depth to colour, and framesets as `Frame`s.
+"""The librealsense pipeline of the live D415 (also of a recording played as a camera, as the tests do): start,
+depth scale, post-processing, alignment of depth to colour, and framesets as `Frame`s. `RealSenseReplayCamera`
+plays recordings without it (see realsense_playback.py) but shares the filters and colour conversion here.
 
 Recordings (playback, not real time) align depth to colour with `DepthAligner`: no rounding holes, and
 co-registered streams pass through unchanged. The live camera, and a stream with lens distortion, use
@@ -80,7 +81,7 @@ class RealSenseStream:
             self.pipeline.stop()
             raise
         self._color_profile = color
-        self._distorted = _distorted(color)
+        self._distorted = is_distorted(color)
         self._align = rs.align(rs.stream.color)
         self._aligners: dict[Intrinsics, DepthAligner] = {}
         self._filters = build_filters(filters)
@@ -115,9 +116,7 @@ class RealSenseStream:
             self._t0_ms, self._n0 = stamp_ms, number
         for f in self._filters:
             frames = f.process(frames).as_frameset()
-        rgb = np.asanyarray(frames.get_color_frame().get_data())
-        conversion = _TO_RGB[self.color_format]
-        rgb = rgb.copy() if conversion is None else cv2.cvtColor(rgb, conversion)
+        rgb = to_rgb(frames.get_color_frame(), self.color_format)
         return Frame(index=number - self._n0, t=(stamp_ms - self._t0_ms) / 1000.0, color=rgb,
                      depth_m=self._aligned_depth(frames), intrinsics=self.intrinsics)
 
@@ -125,7 +124,7 @@ class RealSenseStream:
         """The frameset's depth on the colour image's pixel grid, in metres."""
         depth = frames.get_depth_frame()
         profile = depth.get_profile().as_video_stream_profile()
-        if self.playback is None or self._distorted or _distorted(profile):
+        if self.playback is None or self._distorted or is_distorted(profile):
             aligned = self._align.process(frames).get_depth_frame()
             return np.asanyarray(aligned.get_data()).astype(np.float32) * np.float32(self.depth_scale)
         intrinsics = intrinsics_of(profile)
@@ -149,7 +148,14 @@ class RealSenseStream:
             pass
 
 
-def _distorted(profile: rs.video_stream_profile) -> bool:
+def to_rgb(color: rs.frame, color_format: rs.format) -> np.ndarray:
+    """A copy of a colour frame's pixels as (H, W, 3) uint8 RGB (`color_format`: RGB8, BGR8, RGBA8 or BGRA8)."""
+    pixels = np.asanyarray(color.get_data())
+    conversion = _TO_RGB[color_format]
+    return pixels.copy() if conversion is None else cv2.cvtColor(pixels, conversion)
+
+
+def is_distorted(profile: rs.video_stream_profile) -> bool:
     """Whether a stream's lens model has non-zero distortion coefficients."""
     intrinsics = profile.get_intrinsics()
     return intrinsics.model != rs.distortion.none and any(abs(c) > 0 for c in intrinsics.coeffs)
