@@ -35,7 +35,8 @@ RECORDING: Layout = {"meta.json": None, "frames.jsonl": None, "truth.json": None
                      MASKS_PARTIAL: PNGS}
 RUN_FOLDER: Layout = {"frames": RECORDING, "config.json": None, "steps.json": None, "report.png": None,
                       "episode.rrd": None}
-OURS = ((RECORDING, ("meta.json",)), (RUN_FOLDER, ("steps.json", "frames")))  # a layout and what marks it
+OURS = {"recording": (RECORDING, ("meta.json",)), "run folder": (RUN_FOLDER, ("steps.json", "frames"))}
+"""what a command writes -> its layout and the names that mark it"""
 
 
 def stranger(path: Path, layout: Layout) -> Path | None:
@@ -66,12 +67,12 @@ def set_aside(path: Path) -> list[Path]:
     name = re.compile(re.escape(f".{path.name}.replaced-") + "[0-9a-f]{8}")
     found = [p for p in sorted(path.parent.glob(f".{glob.escape(path.name)}.replaced-*"))
              if name.fullmatch(p.name) and p.is_dir() and not p.is_symlink()]
-    return [p for p in found if (layout := _layout(p)) is not None and stranger(p, layout) is None]
+    return [p for p in found if (kind := _kind(p)) is not None and stranger(p, OURS[kind][0]) is None]
 
 
-def _layout(path: Path) -> Layout | None:
-    """The layout of ours that the folder `path` is marked as (None: neither a recording nor a run folder)."""
-    return next((layout for layout, markers in OURS if any((path / marker).exists() for marker in markers)), None)
+def _kind(path: Path) -> str | None:
+    """What of ours the folder `path` is marked as ("recording", "run folder"; None: neither)."""
+    return next((kind for kind, (_, markers) in OURS.items() if any((path / m).exists() for m in markers)), None)
 
 
 def replay_input(camera: str) -> list[Path]:
@@ -104,11 +105,14 @@ def check_output(path: Path, overwrite: bool, what: str, option: str = "--out",
         return False
     if not path.is_dir():
         raise RecordingError(f"{option} {path} is a file, not a {what}: choose another path")
-    layout = _layout(path)
-    if layout is None:
+    kind = _kind(path)
+    if kind is None:
         raise RecordingError(f"{option} {path} is a folder that holds no recording or run folder: refusing to "
                              "write into it; choose a new or empty folder")
-    found = stranger(path, layout)
+    if kind != what:
+        raise RecordingError(f"{option} {path} holds a {kind}, not a {what}: refusing to replace it, even with "
+                             f"--overwrite; choose another {option}")
+    found = stranger(path, OURS[kind][0])
     if found is not None:
         name = found.relative_to(path)
         raise RecordingError(f"{option} {path} holds {name}, which deploy never writes there: refusing to remove the "

@@ -3,6 +3,7 @@
 
 import json
 import logging
+import shutil
 
 import numpy as np
 import pytest
@@ -279,6 +280,14 @@ def test_views_of_a_recording_never_write_into_it(capsys, tmp_path, monkeypatch)
     assert (tmp_path / "runs" / "rec-axis.rrd").is_file() and sorted(p.name for p in rec.iterdir()) == before
     code, out, _ = run(capsys, "axis", "estimate", rec, "--rrd", tmp_path / "elsewhere.rrd", "--json")
     assert json.loads(out)["rrd"] == str(tmp_path / "elsewhere.rrd") and (tmp_path / "elsewhere.rrd").is_file()
+    first = (tmp_path / "runs" / "rec-axis.rrd").read_bytes()  # a second view never replaces the first
+    code, out, _ = run(capsys, "axis", "estimate", rec, "--view", "--json")
+    assert json.loads(out)["rrd"] == str(Path("runs") / "rec-axis-2.rrd")
+    assert (tmp_path / "runs" / "rec-axis.rrd").read_bytes() == first
+    run_frames = tmp_path / "drawer-1" / "frames"  # a run's recording is named by its run folder, not "frames"
+    shutil.copytree(rec, run_frames)
+    (run_frames.parent / "steps.json").write_text("{}")
+    assert view_file(run_frames, None, "axis") == Path("runs") / "drawer-1-axis.rrd"
 
 
 def _eye_in_hand_file(path, T_camera):

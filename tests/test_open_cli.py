@@ -61,9 +61,14 @@ def test_hardware_path_on_a_recording_with_the_kinematic_arm(capsys, tmp_path):
 @pytest.mark.parametrize(("args", "text"), [
     (("--camera", "d415", "--arm", "sim"), "--arm sim needs --camera sim"),
     (("--camera", "sim", "--arm", "can"), "--camera sim needs a simulated arm"),
-    (("--camera", "replay:/nonexistent"), "to replay a recording without hardware: --arm ideal --robot panda_sim"),
+    (("--camera", "replay:/nonexistent"), "is a recording: it cannot show what the arm does, so an opening on it can "
+                                          "only be planned: add --dry-run (without hardware: --arm ideal"),
+    (("--camera", "replay:/nonexistent", "--arm", "can", "--robot", "damiao_6dof"), "add --dry-run"),
+    (("--camera", "replay:/nonexistent", "--arm", "ideal", "--robot", ROBOT), "add --dry-run"),
+    (("--camera", "replay:/nonexistent", "--dry-run"), "to replay a recording without hardware: --arm ideal --robot "
+                                                        "panda_sim"),
     (("--calibration-error", "1000", "0"), "1000 mm 0 deg is outside 0-100 mm and 0-10 deg"),
-    (("--camera", "replay:/nonexistent", "--arm", "can"), "--arm can needs --robot"),
+    (("--camera", "replay:/nonexistent", "--arm", "can", "--dry-run"), "--arm can needs --robot"),
     (("--segmenter", "classical"), "the classical segmenter needs the object's box on the first frame"),
     (("--camera", "webcam", "--arm", "ideal", "--robot", ROBOT), "unknown camera 'webcam'"),
     (("--camera", "d415", "--arm", "ideal", "--robot", ROBOT, "--segmenter", "oracle"),

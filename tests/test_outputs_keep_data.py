@@ -89,11 +89,13 @@ def test_overwrite_removes_only_a_folder_that_holds_nothing_else(capsys, tmp_pat
         (out / "steps.json").write_text("{}")  # a run folder
     (out / stranger).write_text("keep me")
     before = _files(out)
-    code, _, err = run(capsys, "record", "--camera", "sim", "--frames", "1", "--out", out, "--overwrite")
-    assert code == 2 and f"holds {stranger}, which deploy never writes there" in one_line(err)
-    assert _files(out) == before
-    code, _, err = run(capsys, "sim", "record", "--out", out, "--overwrite")
-    assert code == 2 and f"holds {stranger}" in err and _files(out) == before
+    writers = [("open-drawer", "--dry-run", "--run-dir", out, "--overwrite")] if stranger.startswith("frames") else \
+        [("record", "--camera", "sim", "--frames", "1", "--out", out, "--overwrite"),
+         ("sim", "record", "--out", out, "--overwrite")]
+    for writer in writers:
+        code, _, err = run(capsys, *writer)
+        assert code == 2 and f"holds {stranger}, which deploy never writes there" in one_line(err)
+        assert _files(out) == before
 
 
 def test_overwrite_clears_the_leftovers_of_a_killed_command_and_nothing_else(capsys, tmp_path, recording):
@@ -208,3 +210,18 @@ def test_sim_show_checks_its_out_before_rendering_and_replaces_only_with_overwri
     assert code == 2 and "already exists: pass --overwrite" in one_line(err) and png.read_text() == "keep me"
     assert run(capsys, "sim", "show", "--out", png, "--overwrite")[0] == 0
     assert png.read_bytes().startswith(b"\x89PNG")
+
+
+def test_overwrite_never_replaces_another_kind_of_output(capsys, tmp_path, recording, run_dir):
+    """`sim record --out RUN --overwrite` had removed a run folder's steps.json and report.png, saying "a recording
+    is already there"; `open --run-dir REC --overwrite` a recording's masks and truth."""
+    before = _files(run_dir)
+    code, _, err = run(capsys, "sim", "record", "--out", run_dir, "--overwrite", "--fps", "1")
+    assert code == 2 and f"--out {run_dir} holds a run folder, not a recording" in one_line(err)
+    assert _files(run_dir) == before
+    rec = tmp_path / "rec"
+    shutil.copytree(recording, rec)
+    before = _files(rec)
+    code, _, err = run(capsys, "open-door", "--dry-run", "--run-dir", rec, "--overwrite")
+    assert code == 2 and f"--run-dir {rec} holds a recording, not a run folder" in one_line(err)
+    assert _files(rec) == before

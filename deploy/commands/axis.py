@@ -26,7 +26,8 @@ app = typer.Typer(help="Estimate joint axes from recordings, gripper trajectorie
 ViewOpt = view_option("the frames, masks, gripper path and the axis estimated at each frame (saved to --rrd)")
 RrdOpt = Annotated[Path | None, typer.Option(
     "--rrd", metavar="PATH", help="Where --view saves the rerun file (implies --view) \\[default: "
-    "runs/REC-axis.rrd, REC being the recording folder's name; never inside the recording, which may be read-only].")]
+    "runs/REC-axis.rrd (REC-axis-2.rrd, ... when taken), REC being the recording folder's name (a run folder's for "
+    "RUN/frames); never inside the recording, which may be read-only].")]
 
 
 AXIS_FIELDS = ("joint_type", "origin", "direction", "direction_sigma_deg", "radius_m", "residual_m", "n_samples",

@@ -99,7 +99,7 @@ def _open(request_fields: dict, json_out: bool, sim_fault: list[str] | None, ove
     from dataclasses import replace
 
     from deploy.arm_bringup import inject_sim_faults, parse_sim_faults
-    from deploy.control.session import OpenRequest, open_object
+    from deploy.control.session import OpenRequest, check_request, open_object
     from deploy.control.state import StopReason
     from deploy.errors import ConfigError
     from deploy.output_folder import new_output, replay_input
@@ -116,6 +116,7 @@ def _open(request_fields: dict, json_out: bool, sim_fault: list[str] | None, ove
     if request.condition != "normal" and not simulated:
         raise ConfigError(f"--condition {request.condition} is for a simulated object: drop it, or use --camera sim")
     request.config()  # a value the run config refuses (--distance, --angle, --config) fails here, before any folder
+    check_request(request)
     ARMS.entry(request.arm)
     if request.segmenter is not None:
         SEGMENTERS.entry(request.segmenter)

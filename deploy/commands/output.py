@@ -181,13 +181,21 @@ def progress_bar(label: str, total: float | None = None, *columns: str | Progres
 
 def view_file(recording: Path, rrd: Path | None, what: str, overwrite: bool | None = None) -> Path:
     """Where `--view` on a recording saves its rerun file: `rrd` when given, else runs/NAME-WHAT.rrd (NAME: the
-    recording folder's), never inside the recording (it may be read-only, or a shared data set). An existing
-    `rrd` is replaced only with `overwrite` (None: the command has no --overwrite); RecordingError otherwise."""
+    recording folder's, a run folder's for its RUN/frames; NAME-WHAT-2.rrd, -3, ... when taken), never inside the
+    recording (it may be read-only, or a shared data set). An existing `rrd` is replaced only with `overwrite`
+    (None: the command has no --overwrite); RecordingError otherwise."""
     from deploy.errors import RecordingError
     from deploy.output_folder import check_apart
 
     if rrd is None:
-        return Path("runs") / f"{Path(recording).resolve().name}-{what}.rrd"
+        source = Path(recording).resolve()
+        name = source.parent.name if source.name == "frames" and (source.parent / "steps.json").exists() \
+            else source.name
+        path, k = Path("runs") / f"{name}-{what}.rrd", 1
+        while path.exists():
+            k += 1
+            path = path.with_name(f"{name}-{what}-{k}.rrd")
+        return path
     check_apart(rrd, [recording], "--rrd")
     if rrd.is_dir():
         raise RecordingError(f"--rrd {rrd} is a folder: give a file path, e.g. {rrd / (what + '.rrd')}")

@@ -45,7 +45,8 @@ def track(
     view: ViewOpt = False,
     rrd: Annotated[Path | None, typer.Option(
         "--rrd", metavar="PATH", help="Where --view saves the rerun file (implies --view) \\[default: OUT/track.rrd "
-        "with --out, else runs/REC-track.rrd: never inside the input recording].")] = None,
+        "with --out, else runs/REC-track.rrd (REC-track-2.rrd, ... when taken): never inside the input "
+        "recording].")] = None,
     overwrite: TrackOverwriteOpt = False,
     json_out: JsonOpt = False,
 ) -> None:

@@ -20,6 +20,7 @@ from deploy.config import CALIBRATION_ERROR, Config, load_config
 from deploy.control.episode import run_episode
 from deploy.control.run_folder import RunFolder
 from deploy.control.viewer import EpisodeView
+from deploy.errors import ConfigError
 from deploy.perception.registry import default_segmenter
 from deploy.rig import Rig, RigSpec, SimScene, open_rig
 from drivers.camera.registry import CAMERAS
@@ -96,6 +97,15 @@ class OpenRequest:
                 path = stem.with_name(f"{stem.name}-{k}")
 
 
+def check_request(request: OpenRequest) -> None:
+    """ConfigError for an opening that cannot be carried out: one on a recording, which cannot show what the arm
+    does (its episode would judge the recorded object by an arm that never held it), unless it is a dry run."""
+    if not request.dry_run and not CAMERAS.entry(request.camera)[0].live:
+        raise ConfigError(f"--camera {request.camera} is a recording: it cannot show what the arm does, so an "
+                          "opening on it can only be planned: add --dry-run (without hardware: --arm ideal --robot "
+                          "panda_sim --dry-run)")
+
+
 def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = None,
                 setup: Setup | None = None, keep_run_dir: bool = True) -> dict:
     """Run the request; the episode's JSON result (simulation adds the truth-based fields).
@@ -103,6 +113,7 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
     confirm(question) is asked before a real arm's first motion (it aborts by raising); setup(world, arm)
     changes a simulated world before the episode; keep_run_dir False: no run folder (benchmarks)."""
     wall = time.perf_counter()
+    check_request(request)
     config = request.config()
     run_dir = request.folder() if keep_run_dir else None
     _log_config(config)
