@@ -261,7 +261,8 @@ class _reader:
         return value
 
     def mat(self, key: str, shape: tuple[int, ...]) -> np.ndarray:
-        value = self._node(key).mat()
+        node = self._node(key)
+        value = node.mat() if node.isMap() else None  # an OpenCV matrix is a map (rows, cols, dt, data)
         wrong_shape = value is None or (value.shape != shape if len(shape) == 2 else value.size != shape[0])
         if wrong_shape or not np.all(np.isfinite(value)):
             raise self._bad(f"has a malformed {key!r} (expected {shape} finite numbers)")

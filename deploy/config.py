@@ -21,6 +21,7 @@ A file holds any subset of the sections below; everything has a default, so no f
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Iterator
 from pathlib import Path
@@ -277,7 +278,7 @@ def load_config(path: Path | None = None, overrides: dict[str, Any] | None = Non
                               "--config to use defaults")
         if not path.is_file():
             raise ConfigError(f"config file {path} not found: check the path or omit --config to use defaults")
-        data = read_toml(path, "config file", ConfigError, "docs/quickstart.md#configuration shows the sections")
+        data = _read_run_config(path)
     for dotted, value in (overrides or {}).items():
         if value is not None:
             _set_dotted(data, dotted, value)
@@ -297,9 +298,38 @@ def load_config(path: Path | None = None, overrides: dict[str, Any] | None = Non
         raise ConfigError(f"invalid configuration in {source}: {'; '.join(text for _, text in problems)}") from exc
 
 
+def _read_run_config(path: Path) -> dict[str, Any]:
+    """The tables of the TOML run config `path`; ConfigError naming the fix when it cannot be read, and saying so
+    when it is JSON (by its suffix, or text TOML refuses and JSON reads): most likely a run's config.json."""
+    example = "docs/quickstart.md#configuration shows the sections"
+    if path.suffix.lower() != ".json":
+        try:
+            return read_toml(path, "config file", ConfigError, example)
+        except ConfigError:
+            if not _reads_as_json(path):
+                raise
+    raise ConfigError(f"config file {path} is JSON, not TOML: --config takes a TOML run config, not a run's record "
+                      f"of the settings it used (RUN/config.json); write the settings to change in a .toml file "
+                      f"({example}), or omit --config for the defaults")
+
+
+def _reads_as_json(path: Path) -> bool:
+    try:
+        json.loads(path.read_text(encoding="utf-8-sig"))
+    except (OSError, ValueError, RecursionError):
+        return False
+    return True
+
+
+_OWN_FIX = {"unknown_estimator"}
+"""Errors whose message already names the fix (the registry's "choose one of ...")."""
+
+
 def _problem(err: Any, named: dict[str, str]) -> tuple[str, str]:
     """(dotted field, what is wrong with it): a field a command-line option set is named by the option."""
     dotted = ".".join(str(p) for p in err["loc"])
+    if dotted in named and err["type"] in _OWN_FIX:
+        return dotted, f"invalid value for {named[dotted]} ({dotted}): {err['msg']}"
     if dotted in named:
         return dotted, (f"invalid value for {named[dotted]}: {err['input']!r}: {err['msg'][0].lower()}"
                         f"{err['msg'][1:]} ({dotted}): give a value in that range")

@@ -86,13 +86,14 @@ def _check(out: Path, fmt: Format, overwrite: bool) -> None:
     else:
         layout, marker = LAYOUTS[fmt]
         found = stranger(out, layout) if (out / marker).is_file() else out
+    article = "a" if fmt == "tum" else "an"  # an open3d, an rrd
     if found is not None:
         held = "" if found == out else f" (it holds {found.relative_to(out)}, which deploy export does not write)"
-        raise RecordingError(f"--out {out} exists and is not a {fmt} export{held}: refusing to write there; choose "
-                             "a new path")
+        raise RecordingError(f"--out {out} exists and is not {article} {fmt} export{held}: refusing to write "
+                             "there; choose a new path")
     if not overwrite:
-        raise RecordingError(f"--out {out}: a {fmt} export is already there: pass --overwrite to replace it, or "
-                             "choose another --out")
+        raise RecordingError(f"--out {out}: {article} {fmt} export is already there: pass --overwrite to replace it, "
+                             "or choose another --out")
 
 
 def _replace(out: Path, new: Path) -> None:

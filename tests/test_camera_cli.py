@@ -120,6 +120,33 @@ def test_snapshot(capsys, db3, tmp_path):
     assert coloured.shape == (48, 64, 3) and (coloured[0, 0] == 0).all() and coloured[23, 29].any()
 
 
+def test_snapshot_never_replaces_unasked_nor_writes_among_other_files(capsys, db3, tmp_path):
+    """A second snapshot to the same --out is refused without --overwrite (before: its 4 files silently
+    replaced), and a folder holding anything else is refused even with it (before: written into)."""
+    snap = tmp_path / "snap"
+    args = ("cameras", "snapshot", "--camera", f"replay:{db3}")
+    assert run(capsys, *args, "--out", snap)[0] == 0
+    (snap / "color.png").write_bytes(b"earlier")  # to see it kept
+    code, _, err = run(capsys, *args, "--out", snap)
+    assert code == 2 and one_line(err) == (f"error: --out {snap}: a snapshot is already there: pass --overwrite to "
+                                           "replace it, or choose another --out")
+    assert (snap / "color.png").read_bytes() == b"earlier"
+    assert run(capsys, *args, "--out", snap, "--overwrite")[0] == 0
+    assert cv2.imread(str(snap / "color.png")).shape == (48, 64, 3)
+    junk = tmp_path / "junk"
+    junk.mkdir()
+    (junk / "notes.txt").write_text("mine")
+    for extra in ((), ("--overwrite",)):
+        code, _, err = run(capsys, *args, "--out", junk, *extra)
+        assert code == 2 and one_line(err) == (
+            f"error: --out {junk} holds notes.txt, which deploy cameras snapshot never writes there: refusing to "
+            "write into the folder, even with --overwrite; move notes.txt out, or choose another --out")
+        assert [p.name for p in junk.iterdir()] == ["notes.txt"] and (junk / "notes.txt").read_text() == "mine"
+    (tmp_path / "file").write_text("mine")
+    code, _, err = run(capsys, *args, "--out", tmp_path / "file")
+    assert code == 2 and "is a file, not a snapshot folder" in one_line(err)
+
+
 @pytest.mark.parametrize("args, message", [
     (("record", "--camera", "kinect", "--out", "x", "--frames", 1), "unknown camera 'kinect'"),
     (("record", "--camera", "sim", "--out", "x"), "--seconds S or --frames N"),

@@ -82,3 +82,36 @@ def test_a_field_set_by_an_option_is_named_by_the_option_and_a_file_field_by_the
     path.write_text("[opening]\ntarget_distance_m = -0.3\n")
     with pytest.raises(ConfigError, match=r"^invalid configuration in .*run\.toml: opening\.target_distance_m"):
         load_config(path, {"opening.target_distance_m": None}, {"opening.target_distance_m": "--distance"})
+
+
+def test_a_runs_config_json_given_to_config_is_named_json_not_a_toml_syntax_error(capsys, tmp_path, monkeypatch):
+    """`--config RUN/config.json` (the run's record of its settings): say it is JSON and what --config takes,
+    whatever the file is called; not "is not valid TOML (Invalid statement ...): fix the syntax"."""
+    from cli_run import one_line, run
+
+    from deploy.control.run_folder import RunFolder
+
+    RunFolder(tmp_path / "run").write_config(Config())
+    record = tmp_path / "run" / "config.json"
+    renamed = tmp_path / "settings.toml"
+    renamed.write_text(record.read_text())
+    for path in (record, renamed):
+        with pytest.raises(ConfigError) as info:
+            load_config(path)
+        assert str(info.value) == (
+            f"config file {path} is JSON, not TOML: --config takes a TOML run config, not a run's record of the "
+            "settings it used (RUN/config.json); write the settings to change in a .toml file "
+            "(docs/quickstart.md#configuration shows the sections), or omit --config for the defaults")
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run(capsys, "open-drawer", "--config", record)
+    assert code == 2 and "is JSON, not TOML: --config takes a TOML run config" in one_line(err)
+    (tmp_path / "bad.toml").write_text("[filter\n")  # TOML that is not JSON either: the syntax error, as before
+    with pytest.raises(ConfigError, match="is not valid TOML"):
+        load_config(tmp_path / "bad.toml")
+
+
+def test_an_unknown_estimator_lists_the_valid_names_and_no_range():
+    with pytest.raises(ConfigError) as info:
+        load_config(None, {"estimator.name": "bogus"}, {"estimator.name": "--estimator"})
+    assert str(info.value) == ("invalid value for --estimator (estimator.name): unknown estimator 'bogus': choose "
+                               "one of screw-grip, screw, trajectory, paper-obb")

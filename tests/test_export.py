@@ -120,3 +120,15 @@ def test_tum_tool_txt_holds_only_the_held_handles_path(capsys, recording, tmp_pa
     fitted = json.loads(printed)
     assert code == 0 and fitted["joint_type"] == "prismatic"
     assert axis_angle_error_deg(direction, fitted["direction"]) < 5.0
+
+
+def test_a_refused_export_names_its_format_with_the_right_article(capsys, recording, tmp_path):
+    """"an open3d export", not "a open3d export"."""
+    out = tmp_path / "o3d"
+    assert run(capsys, "export", recording, "--format", "open3d", "--out", out)[0] == 0
+    code, _, err = run(capsys, "export", recording, "--format", "open3d", "--out", out)
+    assert code == 2 and f"--out {out}: an open3d export is already there: pass --overwrite" in " ".join(err.split())
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("keep")
+    code, _, err = run(capsys, "export", recording, "--format", "open3d", "--out", tmp_path / "mine")
+    assert code == 2 and "is not an open3d export" in " ".join(err.split())

@@ -223,6 +223,19 @@ def test_missing_directory(tmp_path):
         FramesRecording(tmp_path / "nope")
 
 
+def test_a_run_folder_given_for_its_recording_names_the_recording(capsys, tmp_path):
+    """`axis estimate RUN` or `--camera replay:RUN` where RUN is a run folder: say where its recording is (not
+    that meta.json is missing, with a fix to re-record)."""
+    run_dir = tmp_path / "run"
+    record(run_dir / "frames", n=2)
+    (run_dir / "steps.json").write_text("[]")
+    expected = f"error: {run_dir} is a run folder: its recording is {run_dir / 'frames'}; give that"
+    code, _, err = run(capsys, "axis", "estimate", run_dir)
+    assert code == 2 and one_line(err) == expected
+    code, _, err = run(capsys, "record", "--camera", f"replay:{run_dir}", "--frames", 1, "--out", tmp_path / "x")
+    assert code == 2 and one_line(err) == expected and not (tmp_path / "x").exists()
+
+
 def test_writer_refuses_foreign_directory_and_replaces_a_recording(tmp_path):
     (tmp_path / "stuff").mkdir()
     (tmp_path / "stuff" / "notes.txt").write_text("keep me")

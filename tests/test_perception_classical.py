@@ -117,6 +117,24 @@ def test_track_cli_writes_into_a_recording_without_masks(sim_recording, tmp_path
     assert FramesRecording(copy).has_masks and (copy / "overlay.png").exists()
 
 
+def test_track_out_the_recording_read_says_so_not_pass_out(sim_recording, capsys):
+    """`track REC --out REC [--overwrite]` on a recording with masks: --out was given, and it is the recording
+    being read; before: "already has a mask/ folder: pass --out DIR"."""
+    from cli_run import one_line
+
+    box = box_of(FramesRecording(sim_recording).frame(0).mask)
+    args = ["track", str(sim_recording), "--segmenter", "classical", "--box", *map(str, box), "--out",
+            str(sim_recording)]
+    for extra in ([], ["--overwrite"]):
+        assert main([*args, *extra]) == 2
+        assert one_line(capsys.readouterr().err) == (
+            f"error: --out {sim_recording} is the recording being read, which already has a mask/ folder: give "
+            "--out another folder to write a copy with the new masks (the recorded masks are kept for comparison)")
+    assert main(["track", str(sim_recording), "--out", str(sim_recording)]) == 2  # before any model loads
+    assert "is the recording being read" in one_line(capsys.readouterr().err)
+    assert FramesRecording(sim_recording).has_masks and len(FramesRecording(sim_recording)) == 14
+
+
 def test_bench_perception_reports_every_backend():
     data = bench_perception(seeds=1, fps=2.0, backends=["classical", "gdino-sam2"])
     assert data["device"] in ("cpu", "cuda", "mps") and data["recordings"] == 2

@@ -68,14 +68,44 @@ def list_cameras(json_out: JsonOpt = False) -> None:
                  for cam in cameras])
 
 
+SNAPSHOT = {"color.png": None, "depth.png": None, "depth_color.png": None, "intrinsics.json": None}
+"""What `deploy cameras snapshot` writes into its folder (a deploy.output_folder layout)."""
+
+
+def check_snapshot_folder(out: Path, overwrite: bool, camera: str) -> None:
+    """RecordingError unless `out` may take a snapshot of `camera`: apart from the recording a replay reads, and
+    new, an empty folder, or an earlier snapshot (nothing but SNAPSHOT's files) with `overwrite`."""
+    from deploy.errors import RecordingError
+    from deploy.output_folder import check_apart, replay_input, stranger
+
+    check_apart(out, replay_input(camera))
+    if not out.exists() or (out.is_dir() and not any(out.iterdir())):
+        return
+    if not out.is_dir():
+        raise RecordingError(f"--out {out} is a file, not a snapshot folder: choose another path")
+    found = stranger(out, SNAPSHOT)
+    if found is not None:
+        name = found.relative_to(out)
+        raise RecordingError(f"--out {out} holds {name}, which deploy cameras snapshot never writes there: refusing "
+                             f"to write into the folder, even with --overwrite; move {name} out, or choose another "
+                             "--out")
+    if not overwrite:
+        raise RecordingError(f"--out {out}: a snapshot is already there: pass --overwrite to replace it, or choose "
+                             "another --out")
+
+
 @app.command("snapshot")
 def snapshot(
     out: Annotated[Path, typer.Option(help="Directory to write color.png, depth.png, depth_color.png, "
-                                           "intrinsics.json.")],
+                                           "intrinsics.json: new or empty, or an earlier snapshot with "
+                                           "--overwrite.")],
     camera: CameraSpecOpt = "d415",
     width: WidthOpt = None,
     height: HeightOpt = None,
     fps: FpsOpt = 30,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an earlier snapshot at --out (its four "
+                                            "files are written anew); without it an existing one is refused, and "
+                                            "a folder holding any other file is refused even with it.")] = False,
     json_out: JsonOpt = False,
 ) -> None:
     """Save one aligned colour/depth pair, a coloured depth PNG and the intrinsics.
@@ -84,6 +114,7 @@ def snapshot(
     """
     from drivers.camera.snapshot import save_snapshot
 
+    check_snapshot_folder(out, overwrite, camera)  # before the camera opens
     with open_any_camera(camera, width, height, fps) as cam, cam:
         frame = cam.read()
         files = save_snapshot(frame, out, getattr(cam, "depth_scale", 0.001))

@@ -61,10 +61,10 @@ def track(
     from deploy.output_folder import new_output
     from deploy.perception.config import perception_config
     from deploy.perception.registry import make_segmenter
-    from deploy.perception.track_recording import track_recording
+    from deploy.perception.track_recording import copy_target, track_recording
     from drivers.camera.frames_dir import FramesRecording
 
-    FramesRecording(recording)  # a wrong path fails here, before any model loads
+    copy_target(recording, out, FramesRecording(recording))  # a wrong path or --out fails here, before any model loads
     copy = out is not None and out.resolve() != recording.resolve()
     viewer, rrd_path = None, None
     if view or rrd is not None:  # checked now, opened once the output folder is the new one

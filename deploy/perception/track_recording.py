@@ -38,6 +38,21 @@ def _write_mask(directory: Path, index: int, mask: np.ndarray) -> None:
         raise PerceptionError(f"could not write {directory}/{index:06d}.png: check the disk and permissions")
 
 
+def copy_target(path: Path, out: Path | None, recording: FramesRecording) -> Path | None:
+    """Where `track_recording` writes a copy: `out`, or None for the recording's own mask/ folder (`out` the
+    recording itself counts as none); PerceptionError when that folder is there already."""
+    if out is not None and out.resolve() == Path(path).resolve():
+        if recording.has_masks:
+            raise PerceptionError(f"--out {out} is the recording being read, which already has a mask/ folder: "
+                                  "give --out another folder to write a copy with the new masks (the recorded "
+                                  "masks are kept for comparison)")
+        out = None  # the masks go into the recording itself, as without --out
+    if out is None and recording.has_masks:
+        raise PerceptionError(f"recording {path} already has a mask/ folder: pass --out DIR to write the new "
+                              "masks into a copy (the recorded masks are kept for comparison)")
+    return out
+
+
 def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | None = None,
                     progress: Callable[[float, float], None] | None = None, viewer: Any = None) -> dict:
     """Segment every frame of the recording at `path` in order (start on the first, track on the rest).
@@ -46,19 +61,16 @@ def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | N
     `grasped` marks copied too; a recording already at `out` is refused: `deploy.output_folder.new_output`
     replaces it when the user asks); without, the masks go into the recording's own mask/ folder, which must not
     exist yet: they are written to a hidden folder beside it and renamed to mask/ once every frame has one (a
-    failure leaves none). An PNG strip of a few evenly spaced frames is written beside. Returns a summary
-    (timings in ms; IoU against the recording's own masks when it has them). progress(done, total) follows the
-    frames; `viewer` (deploy.control.viewer.RerunViewer) is shown every frame with its mask and is closed at the end.
+    failure leaves none); `out` the recording itself counts as none. A PNG strip of a few evenly spaced frames is
+    written beside. Returns a summary (timings in ms; IoU against the recording's own masks when it has them).
+    progress(done, total) follows the frames; `viewer` (deploy.control.viewer.RerunViewer) is shown every frame
+    with its mask and is closed at the end.
     """
     recording = FramesRecording(path)
     n = len(recording)
     if n == 0:
         raise PerceptionError(f"recording {path} has no frames: record again")
-    if out is not None and out.resolve() == Path(path).resolve():
-        out = None
-    if out is None and recording.has_masks:
-        raise PerceptionError(f"recording {path} already has a mask/ folder: pass --out DIR to write the new "
-                              "masks into a copy (the recorded masks are kept for comparison)")
+    out = copy_target(path, out, recording)
     target = out or Path(path)
     writer, masks = None, None
     if out is not None:

@@ -272,6 +272,9 @@ class FramesRecording:
         try:
             meta = json.loads(file.read_text(encoding="utf-8"))
         except FileNotFoundError:
+            if _is_frames_recording(self.path / "frames"):  # a run folder (docs/recording-format.md)
+                raise RecordingError(f"{self.path} is a run folder: its recording is {self.path / 'frames'}; "
+                                     "give that") from None
             raise RecordingError(f"{file} is missing: {self.path} is not a frames recording; {fix}") from None
         except (OSError, ValueError, RecursionError) as e:
             raise RecordingError(f"{file} is not valid JSON ({e}); {fix}") from None
