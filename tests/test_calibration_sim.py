@@ -11,7 +11,7 @@ from calibration.hand_eye import SETUPS, check_pose_set
 from calibration.poses import PoseConfig, plan_stations
 from calibration.routine import RoutineConfig, point_at_board, run_check, run_hand_eye, run_intrinsics
 from calibration.store import HandEyeRecord
-from deploy.bench.calibration import limits, routine_config, sim_rig, simulated_hand_eye
+from deploy.bench.calibration import limits, routine_config, sim_rig, simulated_hand_eye, worst_at_15_poses
 from deploy.cli import main
 from drivers.errors import CalibrationError
 from sim_fallback.board import RigCamera
@@ -141,3 +141,16 @@ def test_cli(tmp_path, monkeypatch, capsys):
 def test_every_command_has_help_with_an_example(capsys, command):
     assert main([*command, "--help"]) == 0
     assert "Example" in capsys.readouterr().out
+
+
+def test_worst_setup_at_15_poses_is_one_row():
+    """Both numbers from the same setup (the one furthest towards the 3 mm / 0.3 deg target), not the largest
+    translation of one setup with the largest rotation of another."""
+    def row(setup, mm, deg, poses=15, method="auto", noise="d415"):
+        return {"setup": setup, "noise": noise, "method": method, "poses": poses, "translation_mm": mm,
+                "rotation_deg": deg}
+
+    rows = [row("eye-to-hand", 0.9, 0.03), row("eye-in-hand", 0.6, 0.2), row("eye-to-hand", 9.0, 2.0, poses=5),
+            row("eye-in-hand", 5.0, 1.0, method="tsai"), row("eye-to-hand", 4.0, 1.0, noise="none")]
+    assert worst_at_15_poses(rows) == {"setup": "eye-in-hand", "translation_mm": 0.6, "rotation_deg": 0.2}
+    assert worst_at_15_poses(rows[2:]) is None

@@ -191,6 +191,48 @@ def test_bench_open_json_keys(capsys):
     assert data["episodes"] == 1 and 0.0 <= data["success_rate"] <= 1.0
 
 
+class _NoEpisodes:
+    """An executor that runs nothing (bench_open's bookkeeping without the episodes' cost)."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info):
+        pass
+
+    def map(self, fn, jobs):
+        return iter(())
+
+
+@pytest.mark.parametrize(("workers", "episodes", "warned"), [(3, 10, True), (2, 10, False), (3, 2, False)])
+def test_bench_open_warns_when_workers_exceed_the_cores(monkeypatch, caplog, workers, episodes, warned):
+    """More worker processes than cores: one warning line (timings include waiting); the JSON states `workers`."""
+    import os
+
+    from deploy.bench import open as bench
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    monkeypatch.setattr(bench, "make_executor", lambda workers, ray_address: _NoEpisodes())
+    data = bench.bench_open("drawer", 0.3, episodes=episodes, workers=workers, segmenter="rgbd")
+    assert data["workers"] == workers
+    lines = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert lines == ([f"--workers {workers} is above this machine's 2 cores: episodes wait for a core, so their "
+                      "seconds and frame times include that waiting; give --workers 2 or fewer for timings"]
+                     if warned else [])
+    assert bench.bench_open("drawer", 0.3, episodes=episodes, workers=workers, segmenter="rgbd",
+                            ray_address="local")["workers"] is None
+
+
+def test_bench_help_offers_only_what_the_command_takes(capsys):
+    """bench open has no --camera and refuses classical; bench arm's motor count follows the robot."""
+    _, out, _ = run(capsys, "bench", "open", "--help")
+    flat = " ".join(re.sub(r"[│╭╮╰╯─]", " ", out).split())
+    assert "--camera sim" not in flat and "classical: no weights" not in flat and "Not classical, which" in flat
+    _, out, _ = run(capsys, "bench", "arm", "--help")
+    flat = " ".join(re.sub(r"[│╭╮╰╯─]", " ", out).split())
+    assert "(8 simulated motors)" not in flat and "8 for panda_sim, 7 for damiao_6dof" in flat
+
+
 def test_fit_trajectory_without_orientations_hinges_a_gripper_whose_fingers_let_the_handle_turn(capsys, tmp_path):
     """A gripper's path (a recording's tool.txt): its grip point swings about the hinge, but the handle turns in
     the fingers, so the gripper turns only 0.95x the door's angle. Fitted with that turn the hinge lands 21 mm off;

@@ -9,7 +9,7 @@ import pytest
 
 from deploy.bench.executors import LocalExecutor, RayExecutor, make_executor
 from deploy.bench.open import simulate_episode
-from deploy.errors import USER_ERRORS, ConfigError, JobError
+from deploy.errors import USER_ERRORS, ConfigError, JobError, ModelError
 
 
 def square(x: int, delay_s: float = 0.0, marker: str | None = None) -> dict:
@@ -20,6 +20,16 @@ def square(x: int, delay_s: float = 0.0, marker: str | None = None) -> dict:
     if marker is not None:
         open(marker, "w").close()
     return {"x": x, "y": x * x, "pid": os.getpid()}
+
+
+def needs_weights(x: int) -> dict:
+    """A picklable job failing as a job without model weights does (a user's one-line error)."""
+    if x == 2:
+        raise ModelError("model facebook/sam2.1-hiera-tiny is not in the Hugging Face cache; fetch it with "
+                         "`hf download facebook/sam2.1-hiera-tiny`")
+    if x == 3:
+        raise ConfigError("invalid configuration: give a value in range")
+    return {"x": x}
 
 
 DESCENDING_DELAYS = [dict(x=x, delay_s=0.1 * (3 - x)) for x in range(4)]  # the first job finishes last
@@ -64,6 +74,15 @@ def test_local_error_names_the_job_after_yielding_the_earlier_ones(workers):
     assert info.value.job == {"x": -3}
     assert isinstance(info.value.__cause__, ValueError)
     assert isinstance(info.value, USER_ERRORS)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+@pytest.mark.parametrize(("x", "error"), [(2, ModelError), (3, ConfigError)])
+def test_a_jobs_model_or_config_error_passes_through_unwrapped(workers, x, error):
+    """Its message already names the thing, the cause and the fix: not buried in a JobError about job N."""
+    with pytest.raises(error) as info:
+        list(LocalExecutor(workers).map(needs_weights, [dict(x=1), dict(x=x)]))
+    assert type(info.value) is error and not str(info.value).startswith("job ")
 
 
 def test_process_pool_cancels_waiting_jobs_after_a_failure(tmp_path):
@@ -124,6 +143,11 @@ def test_ray_error_names_the_job_with_the_original_cause(ray_executor):
             seen.append(result["x"])
     assert seen == [1]
     assert isinstance(info.value.__cause__.cause, ValueError)  # RayTaskError keeps the worker's exception
+
+
+def test_ray_passes_a_jobs_model_error_through(ray_executor):
+    with pytest.raises(ModelError, match="hf download facebook/sam2.1-hiera-tiny"):
+        list(ray_executor.map(needs_weights, [dict(x=1), dict(x=2)]))
 
 
 def test_ray_cancels_unfinished_jobs_after_a_failure(ray_executor, tmp_path):

@@ -177,6 +177,19 @@ def test_step_lines_are_one_line_each_whatever_the_width(capsys):
     configure_logging(False)
 
 
+def test_rows_print_nested_values_readably_and_small_values_with_their_digits(capsys):
+    """A dict as "key value, ...", not a Python repr; a hinge error of 4.2 mm in metres keeps two significant
+    digits (0.0042, not 0.004); None is "-", an empty dict "none"."""
+    from deploy.commands.output import print_rows
+
+    print_rows("t", {"calibration_error": {"translation_mm": 5.0, "rotation_deg": 0.5},
+                     "axis_position_error_m_median": 0.0042, "mean_opened_m": 0.31234, "failures": {},
+                     "failed_seeds": {"blocked": [3, 5]}, "frame_ms_median": None})
+    out = capsys.readouterr().out
+    assert "translation_mm 5.000, rotation_deg 0.500" in out and "{" not in out
+    assert "0.0042" in out and "0.312 " in out and "blocked [3, 5]" in out and "none" in out
+
+
 def test_progress_lines_when_stderr_is_not_a_terminal(capsys):
     from deploy.commands.output import LineBar, progress_bar
 

@@ -196,3 +196,24 @@ def test_rgbd_tracking_follows_a_door_swinging_out_of_its_first_region():
     lost (door 70 deg, test seed 19: "tracking lost" at frame 62 with the other order)."""
     result = simulate_episode("door", 19, "test", target=70.0)
     assert result["stop_reason"] == "target reached", result["message"]
+
+
+def test_bench_perception_measures_rgbd_and_names_missing_weights(monkeypatch):
+    """rgbd (the default without weights) is measured, with the arm's pixels removed as in an episode; a model
+    backend without weights is skipped naming each missing model and its fetch command (no --detector option
+    here, so no "local directory")."""
+    from deploy.errors import ModelError
+    from deploy.perception import models
+    from deploy.perception.bench import bench_perception
+
+    def not_cached(source):
+        raise ModelError(f"model {source} is not in the Hugging Face cache")
+
+    monkeypatch.setattr(models, "resolve_checkpoint", not_cached)
+    data = bench_perception(seeds=1, fps=2.0, backends=["rgbd", "gdino-edgetam"])
+    rgbd = data["backends"]["rgbd"]
+    assert rgbd["frames"] > 20 and rgbd["latency_ms_median"] > 0 and rgbd["iou_median"] > 0.6, rgbd
+    assert data["backends"]["gdino-edgetam"]["skipped"] == (
+        "weights not on this machine: detector IDEA-Research/grounding-dino-tiny (fetch it with `hf download "
+        "IDEA-Research/grounding-dino-tiny`), tracker yonigozlan/EdgeTAM-hf (fetch it with `hf download "
+        "yonigozlan/EdgeTAM-hf`)")

@@ -47,6 +47,10 @@ def recording(tmp_path_factory):
     (("bench", "open", "--distance", "50"), "invalid value for --distance: 50: input should be less than or equal"),
     (("bench", "open", "--task", "door", "--distance", "0.45"), "--distance is for the other task, not --task door"),
     (("bench", "open", "--segmenter", "classical"), "--segmenter classical needs the object's box on each scene's"),
+    (("bench", "open", "--task", "drawer", "--distance", "0.3", "--target", "0.2"),
+     "--target 0.2 with --distance: --target is the old name of --distance and both set the target: give --distance"),
+    (("bench", "open", "--task", "door", "--angle", "45", "--target", "0.3"), "--target 0.3 with --angle: --target is"),
+    (("bench", "axis", "--scenes", "paths", "--sequences", "50"), "--sequences 50 with --scenes paths: the paths set"),
     (("bench", "open", "--episodes", "1000000"), "'--episodes'"),
     (("arm", "jog", "--joint", "panda_joint1", "--delta", "nan", "--yes"), "'--delta': nan is not a finite number"),
     (("arm", "move", "--pose", "0.4", "0", "inf", "0", "0", "0"), "'--pose': inf is not a finite number"),
@@ -280,3 +284,32 @@ def test_every_test_the_fault_matrix_names_exists():
         path = ROOT / "tests" / Path(file).name
         assert path.is_file(), file
         assert re.search(rf"^def {test}\(", path.read_text(), re.M), f"{file}::{test}"
+
+
+def test_bench_open_names_every_missing_model_before_any_episode(capsys, monkeypatch):
+    """No weights: one line listing the detector and the tracker with their fetch commands, before any episode
+    (bench open has no --detector/--tracker, so no "pass a local directory")."""
+    from deploy.errors import ModelError
+    from deploy.perception import models
+
+    def not_cached(source):
+        raise ModelError(f"model {source} is not in the Hugging Face cache")
+
+    monkeypatch.setattr(models, "resolve_checkpoint", not_cached)
+    monkeypatch.setattr("deploy.bench.open.simulate_episode", lambda **job: pytest.fail("an episode ran"))
+    code, _, err = run(capsys, "bench", "open", "--segmenter", "gdino-sam2", "--episodes", "2")
+    assert code == 2 and one_line(err) == (
+        "error: --segmenter gdino-sam2 needs model weights this machine does not have: detector "
+        "IDEA-Research/grounding-dino-tiny (fetch it with `hf download IDEA-Research/grounding-dino-tiny`), tracker "
+        "facebook/sam2.1-hiera-tiny (fetch it with `hf download facebook/sam2.1-hiera-tiny`); fetch them, or use "
+        "--segmenter rgbd (no weights)")
+
+
+def test_bench_open_keeps_the_old_target_option_alone():
+    """--target alone still sets the target (old name of --distance / --angle)."""
+    from deploy.commands.bench import _bench_target
+    from deploy.commands.options import Task
+
+    assert _bench_target(Task.drawer, None, None, 0.2, None) == 0.2
+    assert _bench_target(Task.door, None, None, 30.0, None) == 30.0
+    assert _bench_target(Task.door, None, 50.0, None, None) == 50.0

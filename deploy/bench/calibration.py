@@ -21,6 +21,7 @@ from sim_fallback.board import CalibrationRig
 SPEED_FRACTION = 0.5
 POSE_COUNTS = (5, 10, 15, 20)
 AUTO = "auto"  # the routine's choice: most consistent method, refined on reprojection error
+TARGET_AT_15_POSES = (3.0, 0.3)  # mm, deg: docs/benchmarks.md's target for "auto" at 15 poses
 
 
 @dataclass(frozen=True)
@@ -72,8 +73,9 @@ def bench_calibration(setups: Sequence[str] = SETUPS, pose_counts: Sequence[int]
                       seed: int = 0, progress: Callable[[str], None] | None = None) -> dict:
     """Error against the truth vs number of poses, noise and method, at 640x480. Per setup and noise level the
     routine visits max(pose_counts) stations once; each count uses the first N samples. Rows name the method
-    (or "auto": the routine's pick, refined). best_at_15_poses: "auto" at 15 poses with the nominal D415 noise,
-    the worse of the setups."""
+    (or "auto": the routine's pick, refined). worst_at_15_poses: the row ({setup, translation_mm, rotation_deg})
+    of "auto" at 15 poses with the nominal D415 noise whose error is the largest share of TARGET_AT_15_POSES (both
+    numbers from that one setup; every setup meets the target when it does)."""
     board = board or BoardConfig()
     rows = []
     for setup in setups:
@@ -91,10 +93,18 @@ def bench_calibration(setups: Sequence[str] = SETUPS, pose_counts: Sequence[int]
                         rows.append(_row(setup, noise, method, n, truth_error(rig, solve(samples, setup, method, K))))
                     best, _ = calibrate(samples, setup, K)  # type: ignore[arg-type]
                     rows.append(_row(setup, noise, AUTO, n, truth_error(rig, best)))
+    return {"resolution": [640, 480], "seed": seed, "results": rows, "worst_at_15_poses": worst_at_15_poses(rows)}
+
+
+def worst_at_15_poses(rows: list[dict]) -> dict | None:
+    """The setup whose "auto" row at 15 poses with the nominal noise is furthest towards (or past) the target:
+    {setup, translation_mm, rotation_deg} of that one row; None without such rows."""
     at_15 = [r for r in rows if r["method"] == AUTO and r["poses"] == 15 and r["noise"] == NOMINAL.name]
-    best = ({"translation_mm": max(r["translation_mm"] for r in at_15),
-             "rotation_deg": max(r["rotation_deg"] for r in at_15)} if at_15 else None)
-    return {"resolution": [640, 480], "seed": seed, "results": rows, "best_at_15_poses": best}
+    if not at_15:
+        return None
+    mm, deg = TARGET_AT_15_POSES
+    worst = max(at_15, key=lambda r: max(r["translation_mm"] / mm, r["rotation_deg"] / deg))
+    return {key: worst[key] for key in ("setup", "translation_mm", "rotation_deg")}
 
 
 def _row(setup: str, noise: NoiseLevel, method: str, poses: int, error: tuple[float, float]) -> dict:

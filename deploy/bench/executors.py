@@ -3,7 +3,8 @@
 Every executor has the same `map(fn, jobs)`: `fn(**job)` for each job dict, results yielded **in job order**
 (like the built-in `map`), each as soon as it and every job before it have finished, so a progress callback
 advances steadily while later jobs are still running. A job that raises stops the map with a `JobError` naming
-the job (`fn(**job)`, ready to rerun alone), chained to the original exception; jobs not yet started are
+the job (`fn(**job)`, ready to rerun alone), chained to the original exception, or with the job's own
+`ModelError` / `ConfigError` as it is (one line naming the thing, the cause and the fix); jobs not yet started are
 cancelled. Use an executor as a context manager so a Ray connection is always shut down:
 
     with make_executor(workers=4, ray_address=None) as executor:
@@ -19,9 +20,9 @@ import logging
 import socket
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
-from typing import Any, Protocol, TypeVar
+from typing import Any, NoReturn, Protocol, TypeVar
 
-from deploy.errors import ConfigError, JobError
+from deploy.errors import ConfigError, JobError, ModelError
 
 R = TypeVar("R")
 RAY_INSTALL = "pip install 'axisloop[cluster]'"
@@ -59,7 +60,7 @@ class LocalExecutor:
                 try:
                     yield fn(**job)
                 except Exception as exc:
-                    raise _job_error(fn, index, len(jobs), job, exc) from exc
+                    _raise_job_error(fn, index, len(jobs), job, exc, exc)
             return
         pool = ProcessPoolExecutor(min(self.workers, max(1, len(jobs))))
         try:
@@ -68,7 +69,7 @@ class LocalExecutor:
                 try:
                     result = future.result()
                 except Exception as exc:
-                    raise _job_error(fn, index, len(jobs), job, exc) from exc
+                    _raise_job_error(fn, index, len(jobs), job, exc, exc)
                 yield result
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
@@ -117,9 +118,9 @@ class RayExecutor:
                 try:
                     result = ray.get(ref)
                 except ray.exceptions.RayTaskError as exc:
-                    raise _job_error(fn, index, len(jobs), job, exc.cause or exc) from exc
+                    _raise_job_error(fn, index, len(jobs), job, exc.cause or exc, exc)
                 except ray.exceptions.RayError as exc:  # worker or node died, task cancelled, object lost
-                    raise _job_error(fn, index, len(jobs), job, exc) from exc
+                    _raise_job_error(fn, index, len(jobs), job, exc, exc)
                 done = index + 1
                 yield result
         finally:
@@ -174,8 +175,24 @@ def make_executor(workers: int = 1, ray_address: str | None = None) -> Executor:
     return LocalExecutor(workers) if ray_address is None else RayExecutor(ray_address)
 
 
-def _job_error(fn: Callable[..., Any], index: int, total: int, job: dict[str, Any], exc: BaseException) -> JobError:
-    """A JobError naming job `index` of `total` as a call that reproduces it, the cause and how to debug it."""
+PASSED_THROUGH = (ModelError, ConfigError)  # a user's one-line error, the same in every job: raised as it is
+
+
+def _raise_job_error(fn: Callable[..., Any], index: int, total: int, job: dict[str, Any], exc: BaseException,
+                     caught: BaseException) -> NoReturn:
+    """Raise `_job_error(...)` chained to `caught` (what the executor caught; `exc`: the job's own error)."""
+    error = _job_error(fn, index, total, job, exc)
+    if error is exc:
+        raise exc
+    raise error from caught
+
+
+def _job_error(fn: Callable[..., Any], index: int, total: int, job: dict[str, Any],
+               exc: BaseException) -> BaseException:
+    """A JobError naming job `index` of `total` as a call that reproduces it, the cause and how to debug it; a
+    `ModelError` / `ConfigError` as it is (its message already names the thing, the cause and the fix)."""
+    if isinstance(exc, PASSED_THROUGH):
+        return exc
     call = f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', repr(fn))}"
     arguments = ", ".join(f"{key}={value!r}" for key, value in job.items())
     cause = " ".join(str(exc).split())  # one line, for the CLI's one red line

@@ -3,6 +3,8 @@ target, like the paper), with the failure causes. Each episode is a `deploy open
 
 from __future__ import annotations
 
+import logging
+import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -10,13 +12,17 @@ from typing import Any
 import numpy as np
 
 from deploy.bench.executors import make_executor
-from deploy.config import CALIBRATION_ERROR, OpeningConfig
+from deploy.config import CALIBRATION_ERROR, OpeningConfig, load_config
 from deploy.control.session import OpenRequest, Setup, open_object
 from deploy.control.state import StopReason
+from deploy.errors import ModelError
 from deploy.evaluation import Evaluation
 from deploy.geometry.metrics import axis_angle_error_deg, axis_position_error_m
 from deploy.geometry.types import Axis, JointType
+from deploy.perception.bench import missing_weights
 from deploy.perception.registry import default_segmenter
+
+log = logging.getLogger(__name__)
 
 
 def simulate_episode(task: str, seed: int, split: str = "train", target: float | None = None,
@@ -86,9 +92,17 @@ def bench_open(
     segmenter and a calibrated camera pose off by `calibration_error` (mm, deg); the JSON states both.
     `condition`: every object's joint "normal", "locked" or "stiff" (3x the friction); the largest force any
     pull applied is `peak_pull_force_n_max` (N), over the `peak_pull_force_episodes` that pulled (`_pull_forces`).
-    Episodes run in `workers` local processes, or on a Ray cluster at `ray_address` (deploy/bench/executors.py).
-    `policy` None: the config's default."""
-    segmenter = segmenter or default_segmenter()
+    Episodes run in `workers` local processes (a warning when more than this machine's cores: the timings then
+    include waiting for one), or on a Ray cluster at `ray_address` (deploy/bench/executors.py; `workers` is then
+    None in the JSON). `policy` None: the config's default. A segmenter whose model weights are not on this machine
+    is a ModelError before any episode, naming each missing model and its fetch command."""
+    perception = load_config(None, options.get("overrides")).perception
+    segmenter = segmenter or default_segmenter(perception)
+    if missing := missing_weights(segmenter, perception):
+        raise ModelError(f"--segmenter {segmenter} needs model weights this machine does not have: "
+                         f"{', '.join(missing)}; fetch them, or use --segmenter rgbd (no weights)")
+    if ray_address is None:
+        _warn_above_cores(min(workers, episodes))
     policy = policy or OpeningConfig().policy
     unit = "m" if task == "drawer" else "deg"
     jobs = [dict(task=task, seed=s, split=split, target=target, policy=policy, segmenter=segmenter,
@@ -108,7 +122,8 @@ def bench_open(
     frame_cpu = [r["timings"]["frame_cpu_ms_median"] for r in results if "frame_cpu_ms_median" in r["timings"]]
     return {
         "task": task, f"target_{unit}": target, "split": split, "policy": policy, "episodes": episodes,
-        "first_seed": seed, "joint": "auto" if options.get("auto_joint") else "told",
+        "first_seed": seed, "workers": workers if ray_address is None else None,
+        "joint": "auto" if options.get("auto_joint") else "told",
         "segmenter": segmenter, "condition": condition,
         "calibration_error": {"translation_mm": calibration_error[0], "rotation_deg": calibration_error[1]},
         "success_rate": float(np.mean([r["success"] for r in results])) if results else 0.0,
@@ -127,6 +142,14 @@ def bench_open(
         "failures": {cause: len(seeds) for cause, seeds in failed.items()},
         "failed_seeds": failed,
     }
+
+
+def _warn_above_cores(workers: int) -> None:
+    """One warning line when `workers` processes are more than the cores this process may use."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    if workers > cores:
+        log.warning("--workers %d is above this machine's %d cores: episodes wait for a core, so their seconds and "
+                    "frame times include that waiting; give --workers %d or fewer for timings", workers, cores, cores)
 
 
 def _pull_forces(results: list[dict]) -> dict:

@@ -7,14 +7,13 @@ from typing import Annotated
 
 import typer
 
-from deploy.commands.open import Condition, ConditionOpt
+from deploy.commands.open import Condition
 from deploy.commands.options import (
     CalibrationErrorOpt,
     JsonOpt,
     PolicyChoice,
     PolicyOpt,
     RobotOpt,
-    SegmenterOpt,
     Split,
     StationSeedOpt,
     Task,
@@ -22,12 +21,23 @@ from deploy.commands.options import (
 )
 from deploy.commands.output import console, err_console, fmt, print_json, print_rows, print_table, progress_bar
 from deploy.config import CALIBRATION_ERROR, OpeningConfig
+from deploy.perception.registry import SEGMENTERS
 
 OPENING = OpeningConfig()  # the defaults of the opening targets and policy
 DEFAULT_POLICY = PolicyChoice(OPENING.policy)
 MAX_EPISODES, MAX_WORKERS, MAX_SEQUENCES = 100_000, 64, 100  # every job is built up front; a sequence is ~60 MB
+SEQUENCES = 20  # bench axis's default sequences per object kind
 MAX_ARM_SECONDS = 3600.0
+NEEDS_BOX = "classical"  # needs the object's box on each scene's first frame, which bench open cannot give
 app = typer.Typer(help="Benchmarks: accuracy and speed, results for docs/benchmarks.md.", no_args_is_help=True)
+BenchSegmenterOpt = Annotated[str | None, typer.Option(
+    "--segmenter", autocompletion=lambda: [n for n in SEGMENTERS.names() if n != NEEDS_BOX],
+    help="; ".join(f"{e.usage}: {e.description}" for e in SEGMENTERS.entries() if e.name != NEEDS_BOX)
+    + " \\[default: gdino-sam2 where its weights are on this machine, else rgbd]. Not classical, which needs the "
+    "object's box on each scene's first frame.")]
+BenchConditionOpt = Annotated[Condition, typer.Option(
+    help="Every simulated object's joint (the controller is not told): normal, locked (held fast) or stiff (three "
+    "times the friction).")]
 
 
 class JointTold(str, Enum):
@@ -42,8 +52,9 @@ class Scenes(str, Enum):
 
 @app.command("axis")
 def bench_axis_cmd(
-    sequences: Annotated[int, typer.Option(min=1, max=MAX_SEQUENCES, help="Sequences per object kind (RGB-D scene "
-                                           "sets; about 60 MB each, all held at once).")] = 20,
+    sequences: Annotated[int | None, typer.Option(
+        min=1, max=MAX_SEQUENCES, help="Sequences per object kind (RGB-D scene sets; about 60 MB each, all held at "
+        f"once); not with --scenes paths, a fixed set \\[default: {SEQUENCES}].")] = None,
     seed: Annotated[int, typer.Option(min=0, help="Random seed.")] = 0,
     scenes: Annotated[Scenes, typer.Option(
         help="standard: 10 cm / 20 deg openings seen from above and aside; varied: short, eased openings seen "
@@ -58,12 +69,18 @@ def bench_axis_cmd(
     Example: deploy bench axis --scenes paths --json
     """
     if scenes is Scenes.paths:
+        if sequences is not None:
+            from deploy.errors import ConfigError
+
+            raise ConfigError(f"--sequences {sequences} with --scenes paths: the paths set is fixed (60 handle "
+                              "trajectories drawn with --seed); leave out --sequences, or use --scenes standard or "
+                              "varied")
         _bench_axis_paths(seed, json_out)
         return
     from deploy.bench.axis import bench_axis
 
     with progress_bar("bench axis") as bar:
-        data = bench_axis(sequences, seed, progress=bar.counts, scenes=scenes.value)
+        data = bench_axis(sequences or SEQUENCES, seed, progress=bar.counts, scenes=scenes.value)
     if json_out:
         print_json(data)
         return
@@ -123,7 +140,8 @@ def bench_open_cmd(
     policy: PolicyOpt = DEFAULT_POLICY,
     seed: Annotated[int, typer.Option(min=0, help="First scenario seed.")] = 0,
     workers: Annotated[int, typer.Option(min=1, max=MAX_WORKERS, help="Local worker processes (about 0.5 GB "
-                                         "each).")] = 1,
+                                         "each); more than this machine's cores is warned about (the timings then "
+                                         "include waiting for a core).")] = 1,
     ray: Annotated[str | None, typer.Option(
         "--ray", metavar="ADDRESS", help="Run episodes on a Ray cluster: local, auto, ray://HOST:10001 or "
         "HOST:6379 (needs the cluster extra); --workers is then unused.")] = None,
@@ -131,9 +149,9 @@ def bench_open_cmd(
         help="auto: the policy is not told the joint and classifies it from its probe pull \\[default: told "
         "the task's].")] = None,
     auto_joint: Annotated[bool, typer.Option("--auto-joint", hidden=True, help="Old name of --joint auto.")] = False,
-    segmenter: SegmenterOpt = None,
+    segmenter: BenchSegmenterOpt = None,
     calibration_error: CalibrationErrorOpt = CALIBRATION_ERROR,
-    condition: ConditionOpt = Condition.normal,
+    condition: BenchConditionOpt = Condition.normal,
     json_out: JsonOpt = False,
 ) -> None:
     """Success rate of simulated openings (success = the true joint value exceeds the target, like the paper),
@@ -182,7 +200,9 @@ def bench_perception_cmd(
 ) -> None:
     """Per-frame latency of each segmenter backend and its mask IoU against the simulator's oracle masks.
 
-    gdino-sam2 / gdino-edgetam are measured only where their weights are in the local cache (else skipped).
+    rgbd sees the frames with the arm's pixels removed (the self-filter, as in an episode). gdino-sam2 /
+    gdino-edgetam are measured only where their weights are in the local cache (else skipped, naming each missing
+    model and its fetch command).
     Example: deploy bench perception --seeds 2 --json
     """
     from deploy.perception.bench import bench_perception
@@ -212,7 +232,8 @@ def bench_arm_cmd(
                                            help="Control loop run time (s).")] = 3.0,
     json_out: JsonOpt = False,
 ) -> None:
-    """IK time and success, Ruckig time, and the 500 Hz CAN loop's rate and jitter (8 simulated motors).
+    """IK time and success, Ruckig time, and the 500 Hz CAN loop's rate and jitter (the robot's joints and gripper as
+    simulated motors: 8 for panda_sim, 7 for damiao_6dof; the JSON's `motors`).
 
     Example: deploy bench arm --json
     """
@@ -233,7 +254,7 @@ def bench_calibration_cmd(seed: StationSeedOpt = 0, json_out: JsonOpt = False) -
 
     Example: deploy bench calibration --json
     """
-    from deploy.bench.calibration import bench_calibration
+    from deploy.bench.calibration import NOMINAL, TARGET_AT_15_POSES, bench_calibration
 
     with err_console.status("bench calibration") as status:
         data = bench_calibration(seed=seed, progress=lambda what: status.update(f"bench calibration: {what}"))
@@ -244,25 +265,34 @@ def bench_calibration_cmd(seed: StationSeedOpt = 0, json_out: JsonOpt = False) -
                 ("setup", "noise", "method", "poses", "mm", "deg"),
                 [(r["setup"], r["noise"], r["method"], str(r["poses"]), f"{r['translation_mm']:.2f}",
                   f"{r['rotation_deg']:.3f}") for r in data["results"]])
-    console.print(f"worst setup at 15 poses: {data['best_at_15_poses']}")
+    if (worst := data["worst_at_15_poses"]) is not None:
+        mm, deg = TARGET_AT_15_POSES
+        console.print(f"worst setup at 15 poses (auto, {NOMINAL.name} noise): {worst['setup']}, "
+                      f"{worst['translation_mm']:.2f} mm / {worst['rotation_deg']:.3f} deg (target <= {mm:g} mm and "
+                      f"<= {deg:g} deg)")
 
 
 def _bench_target(task: Task, distance: float | None, angle: float | None, target: float | None,
                   segmenter: str | None) -> float:
     """The target of `bench open` (m or deg), checked before any episode starts: ConfigError for the other task's
-    option, a value the run config refuses, or a segmenter the bench cannot feed."""
+    option, the old --target (alone it still sets the target) beside --distance / --angle, a value the run config
+    refuses, or a segmenter the bench cannot feed."""
     from pydantic import ValidationError
 
     from deploy.errors import ConfigError
-    from deploy.perception.registry import SEGMENTERS
 
     other = "--angle" if task is Task.drawer and angle is not None else \
         "--distance" if task is Task.door and distance is not None else None
+    own = "--distance" if task is Task.drawer else "--angle"
     if other is not None:
-        own = "--distance" if task is Task.drawer else "--angle"
         raise ConfigError(f"{other} is for the other task, not --task {task.value}: give {own}")
+    if target is not None and (distance is not None or angle is not None):
+        raise ConfigError(f"--target {target:g} with {own}: --target is the old name of {own} and both set the "
+                          f"target: give {own} alone")
     field, option, given = ("target_distance_m", "--distance", distance) if task is Task.drawer else \
         ("target_angle_deg", "--angle", angle)
+    if target is not None:
+        option = "--target"
     goal = target if target is not None else given if given is not None else getattr(OPENING, field)
     try:
         OpeningConfig(**{field: goal})
@@ -271,7 +301,7 @@ def _bench_target(task: Task, distance: float | None, angle: float | None, targe
                           "in that range") from None
     if segmenter is not None:
         SEGMENTERS.entry(segmenter)
-        if segmenter == "classical":
+        if segmenter == NEEDS_BOX:
             raise ConfigError("--segmenter classical needs the object's box on each scene's first frame, which bench "
                               "open cannot give: use rgbd (the default), gdino-sam2 or oracle")
     return goal

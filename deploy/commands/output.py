@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -72,13 +73,28 @@ def print_json(data: dict) -> None:
 
 
 def print_rows(title: str, rows: dict, digits: int | None = 3) -> None:
-    """`rows` as a two-column table: floats with `digits` decimals (None: as they are), None as "-"."""
+    """`rows` as a two-column table: floats with `digits` decimals but at least two significant digits (0.0012,
+    not 0.001; None: as they are), None as "-", a dict as "key value, key value" ("none" when empty), a list as
+    "[a, b]"."""
     table = Table(title=title, show_header=False)
     for key, value in rows.items():
-        text = "-" if value is None else f"{value:.{digits}f}" if isinstance(value, float) and digits is not None \
-            else str(value)
-        table.add_row(key, text)
+        table.add_row(key, _cell(value, digits))
     console.print(table)
+
+
+def _cell(value: Any, digits: int | None) -> str:
+    """One value of `print_rows` as text (dicts and lists element by element)."""
+    if value is None:
+        return "-"
+    if isinstance(value, dict):
+        return ", ".join(f"{key} {_cell(item, digits)}" for key, item in value.items()) or "none"
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_cell(item, digits) for item in value) + "]"
+    if isinstance(value, float) and digits is not None:
+        if value == 0 or not math.isfinite(value):
+            return f"{value:.{digits}f}"
+        return f"{value:.{max(digits, 1 - math.floor(math.log10(abs(value))))}f}"  # two significant digits or more
+    return str(value)
 
 
 def print_table(title: str, columns: Iterable[str], rows: Iterable[Sequence[str]], **column: Any) -> None:

@@ -1,8 +1,11 @@
 """`deploy bench perception`: per-frame latency and mask IoU of each backend against the simulator's oracle masks.
 
 Simulated recordings (scripted drawer and door openings) are made in a temporary directory; each backend
-starts from the box around the first oracle mask (as a user would draw it) for `classical`, and from
-detection (as on hardware) for `gdino-sam2`, whose figures need the real weights in the local cache.
+starts from the box around the first oracle mask (as a user would draw it) for `classical`, from its own
+depth-based detection for `rgbd` (which, as in an episode, gets the frames with the arm's pixels removed by the
+self-filter from the recorded joints, its mask minus them), and from detection (as on hardware) for `gdino-sam2`,
+whose figures need the real weights in the local cache (a backend without them is skipped, naming each missing
+model and its `hf download` command).
 """
 
 from __future__ import annotations
@@ -11,6 +14,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,12 +23,39 @@ from deploy.perception.config import DEFAULT_TRACKER, EDGETAM_TRACKER, Perceptio
 from deploy.perception.track_health import box_of, mask_iou
 from drivers.camera.frames_dir import FramesRecording
 
+if TYPE_CHECKING:
+    from deploy.perception.self_filter import SelfFilter
+
 BACKENDS: dict[str, tuple[str, dict]] = {
+    "rgbd": ("rgbd", {}),
     "classical": ("classical", {}),
     "gdino-sam2": ("gdino-sam2", {"tracker": DEFAULT_TRACKER}),
     "gdino-sam2-small": ("gdino-sam2", {"tracker": "facebook/sam2.1-hiera-small"}),
     "gdino-edgetam": ("gdino-sam2", {"tracker": EDGETAM_TRACKER}),
 }
+SELF_FILTERED = ("rgbd",)  # backends that see the arm's pixels removed, as in an episode (they look at all depth)
+
+
+def missing_weights(segmenter: str, config: PerceptionConfig) -> list[str]:
+    """The models segmenter `segmenter` with `config` needs that are not on this machine, each as "ROLE SOURCE
+    (fetch it with `hf download SOURCE`)" (a local directory: "ROLE SOURCE (no such model directory)"); empty for a
+    segmenter without weights. Looks the models up only (`deploy models check` also loads them)."""
+    from deploy.perception.models import fetch_command, resolve_checkpoint
+
+    if segmenter != "gdino-sam2":
+        return []
+    needed = [("tracker", config.tracker)]
+    if config.box is None or config.handle_prompt:  # as GdinoSam2Segmenter.from_config
+        needed.insert(0, ("detector", config.detector))
+    missing = []
+    for role, source in needed:
+        try:
+            resolve_checkpoint(source)
+        except ModelError:
+            local = Path(source).expanduser().is_absolute() or source.startswith(".") or source.count("/") != 1
+            fix = "no such model directory" if local else f"fetch it with `{fetch_command(source)}`"
+            missing.append(f"{role} {source} ({fix})")
+    return missing
 
 
 def _run(name: str, overrides: dict, recordings: list[Path]) -> dict:
@@ -32,17 +63,23 @@ def _run(name: str, overrides: dict, recordings: list[Path]) -> dict:
     from deploy.perception.registry import make_segmenter
 
     start_ms, track_ms, ious, frames = [], [], [], 0
+    self_filter, open_width_m = _self_filter() if name in SELF_FILTERED else (None, 0.0)
     for path in recordings:
         recording = FramesRecording(path)
         first = recording.frame(0)
         box = box_of(first.mask) if name == "classical" else None
         segmenter = make_segmenter(name, PerceptionConfig(box=box, **overrides))
         for i in range(len(recording)):
-            frame = recording.frame(i)
+            frame = seen = recording.frame(i)
+            robot = None
+            if self_filter is not None:
+                record = recording.records[i]
+                width_m = 0.0 if record.get("grasped") else open_width_m  # closed on the handle, else open
+                seen, robot = self_filter.apply(frame, np.asarray(record["joint_positions"]), width_m)
             clock = time.perf_counter()
-            mask = segmenter.start(frame) if i == 0 else segmenter.track(frame)
+            mask = segmenter.start(seen) if i == 0 else segmenter.track(seen)
             (start_ms if i == 0 else track_ms).append((time.perf_counter() - clock) * 1e3)
-            ious.append(mask_iou(mask, frame.mask))
+            ious.append(mask_iou(mask if robot is None else mask & ~robot, frame.mask))
             frames += 1
     return {
         "latency_ms_median": round(float(np.median(track_ms)), 2),
@@ -52,6 +89,16 @@ def _run(name: str, overrides: dict, recordings: list[Path]) -> dict:
         "iou_min": round(float(np.min(ious)), 4),
         "frames": frames,
     }
+
+
+def _self_filter() -> tuple[SelfFilter, float]:
+    """The self-filter of the recordings' robot (the simulator's Panda) and its gripper's open width (m)."""
+    from deploy.perception.self_filter import SelfFilter
+    from drivers.arm.body import RobotBody
+    from drivers.arm.robot_config import PANDA_SIM_CONFIG, load_robot_config
+
+    robot = load_robot_config(PANDA_SIM_CONFIG)
+    return SelfFilter(RobotBody.from_robot(robot)), robot.gripper.max_width_m if robot.gripper else 0.0
 
 
 def bench_perception(seeds: int = 1, fps: float = 10.0, backends: list[str] | None = None,
@@ -78,6 +125,10 @@ def bench_perception(seeds: int = 1, fps: float = 10.0, backends: list[str] | No
             name, overrides = BACKENDS[label]
             if progress:
                 progress(f"running {label}")
+            if missing := missing_weights(name, PerceptionConfig(**overrides)):
+                results[label] = {"latency_ms_median": None, "iou_median": None, "frames": 0,
+                                  "skipped": f"weights not on this machine: {', '.join(missing)}"}
+                continue
             try:
                 results[label] = _run(name, overrides, recordings)
             except ModelError as e:
