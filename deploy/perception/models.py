@@ -29,10 +29,14 @@ def fetch_command(source: str) -> str:
     return f"hf download {source}"
 
 
+WHERE = "--detector/--tracker (deploy track, models check) or [perception] detector/tracker (a --config file)"
+"""Where a user names the models."""
+
+
 def _fix(source: str) -> str:
     if Path(source).expanduser().is_absolute() or source.startswith("."):
-        return "point --detector/--tracker at a directory written by save_pretrained, or a cached repo id"
-    return f"fetch it with `{fetch_command(source)}` (or pass a local directory)"
+        return f"point {WHERE} at a directory written by save_pretrained, or a cached repo id"
+    return f"fetch it with `{fetch_command(source)}` (or point {WHERE} at a local directory)"
 
 
 def resolve_checkpoint(source: str) -> Path:
@@ -41,7 +45,7 @@ def resolve_checkpoint(source: str) -> Path:
     if path.is_dir():
         return path
     if path.is_file():
-        raise ModelError(f"model {source} is a file, not a model directory; point --detector/--tracker at the "
+        raise ModelError(f"model {source} is a file, not a model directory; point {WHERE} at the "
                          "directory that holds it (config.json and the weights, as save_pretrained writes them)")
     if path.is_absolute() or source.startswith(".") or source.count("/") != 1:
         raise ModelError(f"model {source}: no such directory; {_fix(source)}")
