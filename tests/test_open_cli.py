@@ -2,6 +2,7 @@
 recording with the kinematic arm; bad combinations are one clear error."""
 
 import json
+import re
 
 import pytest
 from rerun_files import entities
@@ -19,10 +20,11 @@ def run(capsys, *args):
 
 @pytest.mark.parametrize(("scene", "joint"), [("door", "revolute"), ("drawer", "prismatic")])
 def test_open_auto_classifies_and_opens(capsys, tmp_path, scene, joint):
-    code, out, _ = run(capsys, "open", "--joint", "auto", "--task", scene, "--split", "test", "--seed", "1",
-                       "--distance", "0.12", "--angle", "20", "--run-dir", tmp_path / "run", "--json")
+    code, out, err = run(capsys, "open", "--joint", "auto", "--task", scene, "--split", "test", "--seed", "1",
+                         "--distance", "0.12", "--angle", "20", "--run-dir", tmp_path / "run", "--json")
     data = json.loads(out)
     assert code == 0 and data["success"] and data["axis"]["joint_type"] == joint
+    assert re.search(rf"probe pull: the front turned -?[\d.]+ deg and moved -?[\d.]+ m out: a {scene} \({joint}\)", err)
     steps = json.loads((tmp_path / "run" / "steps.json").read_text())
     probe = [s for s in steps["steps"] if s["source"] == "probe pull"]
     assert probe[0]["classified"] == joint

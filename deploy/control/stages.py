@@ -27,6 +27,7 @@ from deploy.control.grasp import (
 )
 from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
 from deploy.control.state import EpisodeStop, StopReason, display_scale, opening_unit
+from deploy.control.viewer import step_log
 from deploy.geometry.estimators.trajectory import fit_trajectory
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 from drivers.arm.motion import (
@@ -206,6 +207,8 @@ def probe_and_classify(episode: Episode, handle: Handle) -> None:
         state.p_grasp, state.opened_before = episode.tool()[:3, 3], float(np.radians(turn))
     state.estimates.append({"step": 0, "t": episode.now(), "source": "probe pull", "axis": None,
                             "classified": state.joint.value, "front_turn_deg": turn, "front_shift_m": shift})
+    step_log.info("probe pull: the front turned %.1f deg and moved %.3f m out: a %s (%s)", turn, shift,
+                  "door" if state.joint is JointType.REVOLUTE else "drawer", state.joint.value)
 
 
 def first_pull(episode: Episode, handle: Handle) -> None:
