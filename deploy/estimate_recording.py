@@ -110,11 +110,12 @@ def _masked_recording(path: Path) -> FramesRecording:
 
 
 def _entry(index: int, step) -> dict:
-    """One frame's estimate for the JSON."""
-    entry = {"frame": index, "joint_type": None, "origin": None, "direction": None,
-             "moving_points": step.moving_points}
+    """One frame's estimate for the JSON, with its confidence and direction sigma (deg) to tell a firm one from
+    an early guess."""
+    kept = ("joint_type", "origin", "direction", "confidence", "direction_sigma_deg")
+    entry = {"frame": index, **dict.fromkeys(kept), "moving_points": step.moving_points}
     if isinstance(step.result, Axis):
-        entry.update({k: v for k, v in step.result.to_dict().items() if k in ("joint_type", "origin", "direction")})
+        entry.update({k: v for k, v in step.result.to_dict().items() if k in kept})
     else:
         entry["reason"] = step.result.reason
     return entry

@@ -30,13 +30,15 @@ from scipy.spatial.transform import Rotation
 from deploy.errors import RecordingError
 from deploy.output_folder import PNGS, Layout, check_apart, stranger
 from drivers.camera.base import Frame
-from drivers.camera.frames_dir import FramesRecording
+from drivers.camera.frames_dir import FramesRecording, depth_units
 
 Format = Literal["tum", "open3d", "rrd"]
 TUM_DEPTH_PER_M = 5000.0  # the TUM RGB-D benchmark's depth PNG scale
 OPEN3D_DEPTH_PER_M = 1000.0
 Progress = Callable[[float, float], None]
 
+
+RRD_MAGIC = b"RRF2"  # how a rerun file starts: only such a file is an earlier rrd export
 
 # what an earlier export of ours holds, and the file that marks it
 LAYOUTS: dict[str, tuple[Layout, str]] = {
@@ -50,9 +52,10 @@ LAYOUTS: dict[str, tuple[Layout, str]] = {
 def export_recording(recording: Path, out: Path, fmt: Format, progress: Progress | None = None,
                      overwrite: bool = False) -> dict:
     """Write the frames recording at `recording` to `out` in layout `fmt`; a summary {"format", "out", "frames",
-    "files"} (files: the index files written, relative to `out`). An earlier export at `out` is replaced only
-    with `overwrite`; anything else there is refused. The export is written to a hidden sibling of `out` and
-    moved into place when complete: a failed one leaves nothing."""
+    "files", "depth_out_of_range_px"} (files: the index files written, relative to `out`; depth_out_of_range_px:
+    depth beyond the format's 16-bit range, written as 0, no depth; None for rrd). An earlier export at `out` is
+    replaced only with `overwrite`; anything else there is refused. The export is written to a hidden sibling of
+    `out` and moved into place when complete: a failed one leaves nothing."""
     out = Path(out)
     rec = FramesRecording(recording)
     if len(rec) == 0:
@@ -64,17 +67,19 @@ def export_recording(recording: Path, out: Path, fmt: Format, progress: Progress
     out.parent.mkdir(parents=True, exist_ok=True)
     work = out.with_name(f".{out.name}.{uuid.uuid4().hex[:8]}.partial")
     work.mkdir()
+    beyond = [0]  # depth pixels beyond the format's 16-bit range, written as 0 (no depth)
     try:
         if fmt == "rrd":
             files = _rrd(rec, work / out.name, progress)
             _replace(out, work / out.name)
         else:
-            files = {"tum": _tum, "open3d": partial(_open3d, final=out)}[fmt](rec, work, progress)
+            files = {"tum": _tum, "open3d": partial(_open3d, final=out)}[fmt](rec, work, progress, beyond)
             _replace(out, work)
     finally:
         if work.exists():
             shutil.rmtree(work)
-    return {"format": fmt, "out": str(out), "frames": len(rec), "files": files}
+    return {"format": fmt, "out": str(out), "frames": len(rec), "files": files,
+            "depth_out_of_range_px": None if fmt == "rrd" else beyond[0]}
 
 
 def _check(out: Path, fmt: Format, overwrite: bool) -> None:
@@ -82,7 +87,7 @@ def _check(out: Path, fmt: Format, overwrite: bool) -> None:
     if not out.exists() or (fmt != "rrd" and out.is_dir() and not any(out.iterdir())):
         return
     if fmt == "rrd":
-        found = None if out.is_file() else out
+        found = None if out.is_file() and _starts_with(out, RRD_MAGIC) else out
     else:
         layout, marker = LAYOUTS[fmt]
         found = stranger(out, layout) if (out / marker).is_file() else out
@@ -94,6 +99,11 @@ def _check(out: Path, fmt: Format, overwrite: bool) -> None:
     if not overwrite:
         raise RecordingError(f"--out {out}: {article} {fmt} export is already there: pass --overwrite to replace it, "
                              "or choose another --out")
+
+
+def _starts_with(path: Path, magic: bytes) -> bool:
+    with open(path, "rb") as f:
+        return f.read(len(magic)) == magic
 
 
 def _replace(out: Path, new: Path) -> None:
@@ -115,8 +125,12 @@ def _png(path: Path, image: np.ndarray) -> None:
         raise RecordingError(f"could not write {path}: check the disk space and permissions")
 
 
-def _depth_units(frame: Frame, per_m: float) -> np.ndarray:
-    return np.clip(np.round(np.nan_to_num(frame.depth_m) * per_m), 0, 65535).astype(np.uint16)
+def _depth_png(path: Path, frame: Frame, per_m: float, beyond: list[int]) -> None:
+    """The frame's depth as a 16-bit PNG of `per_m` units per metre; depth beyond its range is 0, no depth (never
+    a wrong depth), counted in beyond[0]."""
+    units, n = depth_units(frame.depth_m, 1.0 / per_m)
+    beyond[0] += n
+    _png(path, units)
 
 
 def _tum_pose(t: float, T: np.ndarray) -> str:
@@ -125,7 +139,7 @@ def _tum_pose(t: float, T: np.ndarray) -> str:
     return f"{t:.6f} {x:.6f} {y:.6f} {z:.6f} {qx:.6f} {qy:.6f} {qz:.6f} {qw:.6f}"
 
 
-def _tum(rec: FramesRecording, out: Path, progress: Progress | None) -> list[str]:
+def _tum(rec: FramesRecording, out: Path, progress: Progress | None, beyond: list[int]) -> list[str]:
     for sub in ("rgb", "depth"):
         (out / sub).mkdir(parents=True, exist_ok=True)
     header = f"# file: '{rec.path.name}' (axisloop export)\n# timestamp filename\n"
@@ -133,7 +147,7 @@ def _tum(rec: FramesRecording, out: Path, progress: Progress | None) -> list[str
     for i, frame in _frames(rec, progress):
         stamp = f"{frame.t:.6f}"
         _png(out / "rgb" / f"{stamp}.png", cv2.cvtColor(frame.color, cv2.COLOR_RGB2BGR))
-        _png(out / "depth" / f"{stamp}.png", _depth_units(frame, TUM_DEPTH_PER_M))
+        _depth_png(out / "depth" / f"{stamp}.png", frame, TUM_DEPTH_PER_M, beyond)
         rgb.append(f"{stamp} rgb/{stamp}.png")
         depth.append(f"{stamp} depth/{stamp}.png")
         pairs.append(f"{stamp} rgb/{stamp}.png {stamp} depth/{stamp}.png")
@@ -158,14 +172,14 @@ def _tum(rec: FramesRecording, out: Path, progress: Progress | None) -> list[str
     return list(files)
 
 
-def _open3d(rec: FramesRecording, out: Path, progress: Progress | None, final: Path) -> list[str]:
+def _open3d(rec: FramesRecording, out: Path, progress: Progress | None, beyond: list[int], final: Path) -> list[str]:
     """Write the export to `out`, naming the files by where it ends up, `final`."""
     for sub in ("color", "depth"):
         (out / sub).mkdir(parents=True, exist_ok=True)
     poses = []
     for i, frame in _frames(rec, progress):
         _png(out / "color" / f"{i:06d}.png", cv2.cvtColor(frame.color, cv2.COLOR_RGB2BGR))
-        _png(out / "depth" / f"{i:06d}.png", _depth_units(frame, OPEN3D_DEPTH_PER_M))
+        _depth_png(out / "depth" / f"{i:06d}.png", frame, OPEN3D_DEPTH_PER_M, beyond)
         if frame.T_base_camera is not None:
             poses.append(frame.T_base_camera)
     intr = rec.intrinsics

@@ -90,6 +90,11 @@ def test_rrd_export_and_a_folder_that_is_not_an_export(capsys, recording, tmp_pa
     (tmp_path / "mine" / "notes.txt").write_text("keep")
     code, _, err = run(capsys, "export", recording, "--out", tmp_path / "mine", "--overwrite")
     assert code == 2 and "is not a tum export" in err and (tmp_path / "mine" / "notes.txt").exists()
+    notes = tmp_path / "notes.rrd"  # not a rerun file: never replaced, even with --overwrite
+    notes.write_text("my notes")
+    code, _, err = run(capsys, "export", recording, "--format", "rrd", "--out", notes, "--overwrite")
+    assert code == 2 and "is not an rrd export" in err and notes.read_text() == "my notes"
+    assert run(capsys, "export", recording, "--format", "rrd", "--out", tmp_path / "drawer.rrd", "--overwrite")[0] == 0
     code, _, err = run(capsys, "export", recording, "--format", "rrd", "--out", tmp_path / "x.txt")
     assert code == 2 and "give --out NAME.rrd" in err
 
@@ -132,3 +137,23 @@ def test_a_refused_export_names_its_format_with_the_right_article(capsys, record
     (tmp_path / "mine" / "notes.txt").write_text("keep")
     code, _, err = run(capsys, "export", recording, "--format", "open3d", "--out", tmp_path / "mine")
     assert code == 2 and "is not an open3d export" in " ".join(err.split())
+
+
+def test_depth_beyond_a_formats_range_is_no_depth_not_a_wrong_depth(capsys, recording, tmp_path):
+    """A 20 m plane is 100000 TUM units: written as 65535 it read back as 13.1 m; now 0 (no depth), counted."""
+    far = tmp_path / "far"
+    shutil.copytree(recording, far)
+    depth = far / "depth" / "000001.png"
+    units = cv2.imread(str(depth), cv2.IMREAD_UNCHANGED)
+    units[:2, :3] = 20000  # 20 m at the recording's 1 mm per unit
+    cv2.imwrite(str(depth), units)
+    for fmt, per_m in (("tum", 5000.0), ("open3d", 1000.0)):
+        code, printed, err = run(capsys, "export", far, "--format", fmt, "--out", tmp_path / fmt, "--json")
+        assert code == 0, err
+        data = json.loads(printed)
+        name = sorted((tmp_path / fmt / "depth").iterdir())[1]
+        image = cv2.imread(str(name), cv2.IMREAD_UNCHANGED)
+        if fmt == "tum":
+            assert data["depth_out_of_range_px"] == 6 and (image[:2, :3] == 0).all()
+        else:  # 20 m fits Open3D's millimetres
+            assert data["depth_out_of_range_px"] == 0 and np.allclose(image[:2, :3] / per_m, 20.0)

@@ -167,7 +167,7 @@ def test_model_found_in_the_hugging_face_cache(checkpoints, tmp_path, monkeypatc
         load_detector("acme/absent")
 
 
-def test_models_check_reports_presence_and_fetch_command(checkpoints, tmp_path, capsys):
+def test_models_check_reports_presence_and_fetch_command(checkpoints, tmp_path, capsys, monkeypatch):
     statuses = check_models([("detector", str(checkpoints[0])), ("tracker", "acme/absent")])
     assert statuses[0].loads and statuses[0].location == str(checkpoints[0])
     assert not statuses[1].loads and statuses[1].fetch == "hf download acme/absent"
@@ -176,6 +176,13 @@ def test_models_check_reports_presence_and_fetch_command(checkpoints, tmp_path, 
     data = json.loads(capsys.readouterr().out)
     assert [m["loads"] for m in data["models"] if m["required"]] == [True, True]
     assert main(["models", "check", "--tracker", str(tmp_path / "nowhere"), "--json"]) == 1
+    capsys.readouterr()
+    (tmp_path / "half").mkdir()  # a local folder given without ./, whose config.json lacks model_type
+    (tmp_path / "half" / "config.json").write_text("{}")
+    monkeypatch.chdir(tmp_path)
+    assert main(["models", "check", "--tracker", "half", "--json"]) == 1
+    message = next(m["message"] for m in json.loads(capsys.readouterr().out)["models"] if m["role"] == "tracker")
+    assert "half/config.json names no model_type" in message and "hf download" not in message
 
 
 def test_track_cli_writes_masks_and_overlay(checkpoints, sequence, tmp_path, capsys):

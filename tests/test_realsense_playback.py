@@ -7,6 +7,7 @@ import time
 import numpy as np
 import pyrealsense2 as rs
 import pytest
+from cli_run import run
 from realsense_recordings import scene, write_db3
 
 from drivers.camera import realsense_playback
@@ -132,7 +133,7 @@ def test_colour_arriving_later_in_the_file_keeps_every_frame(tmp_path, lag):
     assert summary["frames"] == N and summary["source_frames"] == {"depth": N, "color": N}
 
 
-def test_frames_without_a_partner_are_skipped_and_counted(tmp_path):
+def test_frames_without_a_partner_are_skipped_and_counted(tmp_path, capsys):
     s = scene(N)
     s.color[2] = s.depth[5] = None  # frames the camera dropped while recording
     path = write_db3(tmp_path / "drops.db3", s, color_lag=2)
@@ -142,6 +143,9 @@ def test_frames_without_a_partner_are_skipped_and_counted(tmp_path):
     summary = convert_recording(path, tmp_path / "frames")
     assert summary["frames"] == 6 and summary["source_frames"] == {"depth": N - 1, "color": N - 1}
     assert summary["unpaired_frames"] == {"depth": 1, "color": 1}
+    code, out, _ = run(capsys, "convert", path, "--out", tmp_path / "frames-cli")  # the text summary says so too
+    assert code == 0 and "1 colour and 1 depth frames had no partner in the other stream and were left out (the file " \
+        f"holds {N - 1} colour and {N - 1} depth frames)" in " ".join(out.split())
 
 
 def test_a_slow_reader_loses_no_frame(tmp_path):

@@ -55,3 +55,6 @@ def test_the_approach_gives_no_axis_once_the_recording_says_when_the_gripper_hel
     for step in estimate["steps"][:first]:
         assert step["direction"] is None or axis_angle_error_deg(truth["direction"], step["direction"]) <= 15.0, step
     assert estimate["direction"] is None or axis_angle_error_deg(truth["direction"], estimate["direction"]) <= 15.0
+    firm = [step for step in estimate["steps"] if step["direction"] is not None]
+    assert all(step["confidence"] is not None and 0.0 <= step["confidence"] <= 1.0 for step in firm)
+    assert all(step["confidence"] is None for step in estimate["steps"] if step["direction"] is None)

@@ -203,6 +203,12 @@ def convert(
             console.print(f"{summary['depth_out_of_range_px']} depth pixels lay beyond what 16 bits of "
                           f"{depth_scale:g} m hold and were stored as no depth: pass a larger --depth-scale to "
                           "keep them")
+        unpaired, listed = summary.get("unpaired_frames") or {}, summary.get("source_frames") or {}
+        if any(unpaired.values()):
+            known = None not in (listed.get("color"), listed.get("depth"))
+            console.print(f"{unpaired['color']} colour and {unpaired['depth']} depth frames had no partner in the "
+                          "other stream and were left out" + (f" (the file holds {listed['color']} colour and "
+                                                              f"{listed['depth']} depth frames)" if known else ""))
 
 
 class ExportFormat(str, Enum):
@@ -236,3 +242,6 @@ def export_cmd(
         print_json(summary)
     else:
         console.print(f"wrote {summary['frames']} frames to {out} ({fmt.value}: {', '.join(summary['files'])})")
+        if summary["depth_out_of_range_px"]:
+            console.print(f"{summary['depth_out_of_range_px']} depth pixels lay beyond the 16 bits of the {fmt.value} "
+                          "format and were written as no depth (0)")

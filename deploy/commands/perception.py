@@ -92,7 +92,7 @@ def track(
 def models_check(
     detector: DetectorOpt = None,
     tracker: TrackerOpt = None,
-    device: DeviceOpt = "cpu",
+    device: DeviceOpt = "auto",
     json_out: JsonOpt = False,
 ) -> None:
     """List each model (detector, tracker, EdgeTAM option), where it was looked for, whether it loads, and

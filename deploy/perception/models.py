@@ -34,7 +34,8 @@ WHERE = "--detector/--tracker (deploy track, models check) or [perception] detec
 
 
 def _fix(source: str) -> str:
-    if Path(source).expanduser().is_absolute() or source.startswith("."):
+    path = Path(source).expanduser()
+    if path.is_absolute() or source.startswith(".") or path.is_dir():  # a local directory, not a repo id
         return f"point {WHERE} at a directory written by save_pretrained, or a cached repo id"
     return f"fetch it with `{fetch_command(source)}` (or point {WHERE} at a local directory)"
 
@@ -62,10 +63,14 @@ def _model_type(directory: Path, source: str) -> str:
     import json
 
     try:
-        return str(json.loads((directory / "config.json").read_text())["model_type"])
-    except (OSError, ValueError, KeyError, TypeError) as e:
+        config = json.loads((directory / "config.json").read_text())
+    except (OSError, ValueError) as e:
         raise ModelError(f"model {source}: {directory}/config.json is missing or unreadable ({e}); "
                          f"the checkpoint is incomplete: {_fix(source)}") from None
+    if not isinstance(config, dict) or not isinstance(config.get("model_type"), str):
+        raise ModelError(f"model {source}: {directory}/config.json names no model_type; the checkpoint is "
+                         f"incomplete: {_fix(source)}")
+    return config["model_type"]
 
 
 def _load(source: str, role: Role, device: str, dtype: Any) -> tuple[Any, Any]:
