@@ -10,7 +10,8 @@ output is never the recording it reads, nor inside it, nor around it.
 A command killed outright (kill -9, power loss) leaves its hidden work behind: the old output an overwrite set
 aside (`.NAME.replaced-XXXXXXXX`, beside it) and a track's half-written masks (`.mask-XXXXXXXX.partial`, inside the
 recording; XXXXXXXX: 8 hex digits). These exact names count as this project's: the masks go with the recording
-they lie in, and an output's set-aside old ones go when it is next overwritten. Any other name stays a stranger.
+they lie in, and an output's set-aside old ones of its kind go when it is next overwritten. Any other name stays a
+stranger.
 """
 
 from __future__ import annotations
@@ -61,13 +62,13 @@ def _lookup(layout: dict, name: str) -> tuple[bool, Layout | None]:
     return False, None
 
 
-def set_aside(path: Path) -> list[Path]:
+def set_aside(path: Path, what: str) -> list[Path]:
     """The old outputs `new_output` set aside beside `path` and never removed (it was killed): folders named
-    exactly `.NAME.replaced-XXXXXXXX` that hold a recording or run folder and nothing else."""
+    exactly `.NAME.replaced-XXXXXXXX` that hold a `what` ("recording", "run folder") and nothing else."""
     name = re.compile(re.escape(f".{path.name}.replaced-") + "[0-9a-f]{8}")
     found = [p for p in sorted(path.parent.glob(f".{glob.escape(path.name)}.replaced-*"))
              if name.fullmatch(p.name) and p.is_dir() and not p.is_symlink()]
-    return [p for p in found if (kind := _kind(p)) is not None and stranger(p, OURS[kind][0]) is None]
+    return [p for p in found if _kind(p) == what and stranger(p, OURS[what][0]) is None]
 
 
 def _kind(path: Path) -> str | None:
@@ -138,7 +139,7 @@ def new_output(path: Path, overwrite: bool, what: str, option: str = "--out", in
         if claimed:
             path.rmdir()
         raise
-    leftovers = set_aside(path) if overwrite else []
+    leftovers = set_aside(path, what) if replacing else []  # only along with an old one of the same kind
     old = path.with_name(f".{path.name}.replaced-{uuid.uuid4().hex[:8]}") if replacing else None
     if old is not None:
         path.rename(old)

@@ -225,3 +225,24 @@ def test_overwrite_never_replaces_another_kind_of_output(capsys, tmp_path, recor
     code, _, err = run(capsys, "open-door", "--dry-run", "--run-dir", rec, "--overwrite")
     assert code == 2 and f"--run-dir {rec} holds a recording, not a run folder" in one_line(err)
     assert _files(rec) == before
+
+
+def test_a_set_aside_output_of_another_kind_or_with_nothing_replaced_stays(tmp_path, recording):
+    """A killed overwrite's old run folder beside NAME is not removed by a recording written to NAME: not of that
+    kind, and with nothing at NAME being replaced it may be the only copy."""
+    from deploy.output_folder import new_output
+
+    aside = tmp_path / ".x.replaced-0123abcd"
+    aside.mkdir()
+    (aside / "steps.json").write_text("{}")
+    (aside / "report.png").write_bytes(b"png")
+    with new_output(tmp_path / "x", True, "recording") as out:
+        out.mkdir(exist_ok=True)
+        (out / "meta.json").write_text("{}")
+    assert (aside / "steps.json").is_file()
+    shutil.rmtree(tmp_path / "x")
+    shutil.copytree(recording, tmp_path / "x")
+    with new_output(tmp_path / "x", True, "recording") as out:  # replacing a recording: a run folder still stays
+        out.mkdir(exist_ok=True)
+        (out / "meta.json").write_text("{}")
+    assert (aside / "steps.json").is_file()

@@ -207,3 +207,26 @@ def test_missing_or_misnamed_recording(tmp_path):
         RealSenseReplayCamera(tmp_path / "x.mp4")
     with pytest.raises(RecordingError, match="expected a RealSense .bag or .db3"):
         convert_recording(tmp_path / "x.mp4", tmp_path / "out")
+
+
+def test_a_replay_dropped_unclosed_or_refused_leaves_no_player_that_hangs_the_process(tmp_path):
+    """Players left started (a camera dropped after one frame of many, or one whose set-up failed) blocked
+    librealsense's device destructor, so the process never exited. Each case runs in a process of its own."""
+    import subprocess
+    import sys
+
+    write_db3(tmp_path / "long.db3", scene(30))
+    write_db3(tmp_path / "fps0.db3", scene(4, period_ms=5000.0))  # its colour stream claims 0 fps
+    code = (
+        "import gc, sys\n"
+        "from drivers.camera.realsense_playback import RealSenseReplayCamera\n"
+        "from drivers.errors import RecordingError\n"
+        f"cam = RealSenseReplayCamera({str(tmp_path / 'long.db3')!r}); cam.read(); del cam; gc.collect()\n"
+        "try:\n"
+        f"    RealSenseReplayCamera({str(tmp_path / 'fps0.db3')!r}).connect()\n"
+        "except RecordingError as e:\n"
+        "    print(e)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "its colour stream has no frame rate" in done.stdout

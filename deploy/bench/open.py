@@ -94,11 +94,12 @@ def bench_open(
     pull applied is `peak_pull_force_n_max` (N), over the `peak_pull_force_episodes` that pulled (`_pull_forces`).
     Episodes run in `workers` local processes (a warning when more than this machine's cores: the timings then
     include waiting for one), or on a Ray cluster at `ray_address` (deploy/bench/executors.py; `workers` is then
-    None in the JSON). `policy` None: the config's default. A segmenter whose model weights are not on this machine
-    is a ModelError before any episode, naming each missing model and its fetch command."""
+    None in the JSON). `policy` None: the config's default. Run locally, a segmenter whose model weights are not on
+    this machine is a ModelError before any episode, naming each missing model and its fetch command (a cluster's
+    workers look on their own disks)."""
     perception = load_config(None, options.get("overrides")).perception
     segmenter = segmenter or default_segmenter(perception)
-    if missing := missing_weights(segmenter, perception):
+    if ray_address is None and (missing := missing_weights(segmenter, perception)):  # a cluster has its own disks
         raise ModelError(f"--segmenter {segmenter} needs model weights this machine does not have: "
                          f"{', '.join(missing)}; fetch them, or use --segmenter rgbd (no weights)")
     if ray_address is None:

@@ -93,6 +93,8 @@ def _cell(value: Any, digits: int | None) -> str:
     if isinstance(value, float) and digits is not None:
         if value == 0 or not math.isfinite(value):
             return f"{value:.{digits}f}"
+        if abs(value) < 1e-6:
+            return f"{value:.2g}"
         return f"{value:.{max(digits, 1 - math.floor(math.log10(abs(value))))}f}"  # two significant digits or more
     return str(value)
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import re
 import time
+import weakref
 from collections import deque
 from pathlib import Path
 
@@ -161,11 +162,16 @@ class _StreamPlayer:
                 while (self.playback.current_status() == rs.playback_status.playing
                        and time.monotonic() < deadline):
                     self._empty()
-            self.sensor.stop()
-            self.sensor.close()
         except RuntimeError:
             pass
-        self._ahead.clear()
+        finally:  # a sensor left started blocks librealsense's device destructor, and with it the process
+            self._empty()
+            for step in (self.sensor.stop, self.sensor.close):
+                try:
+                    step()
+                except RuntimeError:
+                    pass
+            self._ahead.clear()
 
     def _empty(self) -> None:
         while self._queue.poll_for_frames():
@@ -219,6 +225,11 @@ class RealSenseReplayCamera(Camera):
                 f"cannot play RealSense recording {self.path}: {exc}; the file is truncated, corrupt or lacks a "
                 "colour and a depth stream: record it again (RealSense Viewer or `deploy record`)"
             ) from None
+        except BaseException:  # whatever it is (Ctrl-C too), no player is left started
+            self.disconnect()
+            raise
+        # players still started when the camera is dropped unclosed would hang the process at exit
+        self._finalizer = weakref.finalize(self, _close_players, self._depth, self._color)
         self.recorded = {"depth": self._depth.expected, "color": self._color.expected}
         self.delivered = {"depth": 0, "color": 0}
         self.unpaired = {"depth": 0, "color": 0}
@@ -239,6 +250,8 @@ class RealSenseReplayCamera(Camera):
             raise RuntimeError("no colour stream beside the depth stream")
         self._extrinsics = depth.profile.get_extrinsics_to(color_there)
         self._registered = False  # the extrinsics between the two devices' streams, which rs.align needs
+        if color.profile.fps() <= 0:
+            raise RuntimeError(f"its colour stream has no frame rate ({color.profile.fps()} fps)")
         self._period_ms = 1000.0 / color.profile.fps()
         self._filters = build_filters(self.filters)
         self._align = rs.align(rs.stream.color)
@@ -247,9 +260,7 @@ class RealSenseReplayCamera(Camera):
         self._n0 = 0
 
     def disconnect(self) -> None:
-        for player in (self._depth, self._color):
-            if player is not None:
-                player.close()
+        _close_players(self._depth, self._color)
         if self._depth is not None and self._color is not None:
             self.delivered = {"depth": self._depth.delivered, "color": self._color.delivered}
         self._depth = self._color = None
@@ -333,6 +344,12 @@ class RealSenseReplayCamera(Camera):
                 intrinsics, self._intrinsics, np.reshape(e.rotation, (3, 3)).T, e.translation)
         units = np.asanyarray(depth.get_data())
         return aligner.align(units.astype(np.float32) * np.float32(self._depth_scale))
+
+
+def _close_players(*players: _StreamPlayer | None) -> None:
+    for player in players:
+        if player is not None:
+            player.close()
 
 
 def _frameset(depth: rs.frame, color: rs.frame) -> rs.composite_frame:
