@@ -208,7 +208,7 @@ def run_check(camera: Camera, arm: Arm, kin: Kinematics, record: HandEyeRecord, 
     stations = Stations(camera, arm, kin, limits, record.board, record.intrinsics, record.distortion, cfg.settle_s)
     stations.require_board()
     collection = stations.collect(plan_around_start(kin, arm, cfg), progress)
-    if len(collection.samples) < 2:
+    if len(collection.samples) < MIN_STATIONS["check"][0]:
         raise CalibrationError(f"board detected at only {len(collection.samples)} of {collection.stations} "
                                    "check poses: keep it in view")
     return check_samples(record, collection.samples, camera_serial, max_age_days, camera.intrinsics)

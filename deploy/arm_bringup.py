@@ -159,8 +159,8 @@ def status(arm: Arm) -> dict:
                 "gripper_width_m": round(state.gripper_width_m, 4)}
         if isinstance(arm, CanArm):
             data["motors"] = arm.motor_report()
-    if isinstance(arm, CanArm):
-        data["motors_after_stop"] = arm.motor_states()
+    if after := motor_states(arm):
+        data["motors_after_stop"] = after
     return data
 
 

@@ -68,10 +68,10 @@ def set_aside(path: Path, what: str) -> list[Path]:
     name = re.compile(re.escape(f".{path.name}.replaced-") + "[0-9a-f]{8}")
     found = [p for p in sorted(path.parent.glob(f".{glob.escape(path.name)}.replaced-*"))
              if name.fullmatch(p.name) and p.is_dir() and not p.is_symlink()]
-    return [p for p in found if _kind(p) == what and stranger(p, OURS[what][0]) is None]
+    return [p for p in found if kind_of(p) == what and stranger(p, OURS[what][0]) is None]
 
 
-def _kind(path: Path) -> str | None:
+def kind_of(path: Path) -> str | None:
     """What of ours the folder `path` is marked as ("recording", "run folder"; None: neither)."""
     return next((kind for kind, (_, markers) in OURS.items() if any((path / m).exists() for m in markers)), None)
 
@@ -106,7 +106,7 @@ def check_output(path: Path, overwrite: bool, what: str, option: str = "--out",
         return False
     if not path.is_dir():
         raise RecordingError(f"{option} {path} is a file, not a {what}: choose another path")
-    kind = _kind(path)
+    kind = kind_of(path)
     if kind is None:
         raise RecordingError(f"{option} {path} is a folder that holds no recording or run folder: refusing to "
                              "write into it; choose a new or empty folder")

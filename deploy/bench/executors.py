@@ -180,19 +180,15 @@ PASSED_THROUGH = (ModelError, ConfigError)  # a user's one-line error, the same 
 
 def _raise_job_error(fn: Callable[..., Any], index: int, total: int, job: dict[str, Any], exc: BaseException,
                      caught: BaseException) -> NoReturn:
-    """Raise `_job_error(...)` chained to `caught` (what the executor caught; `exc`: the job's own error)."""
-    error = _job_error(fn, index, total, job, exc)
-    if error is exc:
-        raise exc
-    raise error from caught
-
-
-def _job_error(fn: Callable[..., Any], index: int, total: int, job: dict[str, Any],
-               exc: BaseException) -> BaseException:
-    """A JobError naming job `index` of `total` as a call that reproduces it, the cause and how to debug it; a
-    `ModelError` / `ConfigError` as it is (its message already names the thing, the cause and the fix)."""
+    """Raise the job's own `ModelError` / `ConfigError` as it is (its message already names the thing, the cause
+    and the fix), anything else as `_job_error(...)` chained to `caught` (what the executor caught)."""
     if isinstance(exc, PASSED_THROUGH):
-        return exc
+        raise exc
+    raise _job_error(fn, index, total, job, exc) from caught
+
+
+def _job_error(fn: Callable[..., Any], index: int, total: int, job: dict[str, Any], exc: BaseException) -> JobError:
+    """A JobError naming job `index` of `total` as a call that reproduces it, the cause and how to debug it."""
     call = f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', repr(fn))}"
     arguments = ", ".join(f"{key}={value!r}" for key, value in job.items())
     cause = " ".join(str(exc).split())  # one line, for the CLI's one red line

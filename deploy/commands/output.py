@@ -203,11 +203,11 @@ def view_file(recording: Path, rrd: Path | None, what: str, overwrite: bool | No
     recording (it may be read-only, or a shared data set). An existing `rrd` is replaced only with `overwrite`
     (None: the command has no --overwrite); RecordingError otherwise."""
     from deploy.errors import RecordingError
-    from deploy.output_folder import check_apart
+    from deploy.output_folder import check_apart, kind_of
 
     if rrd is None:
         source = Path(recording).resolve()
-        name = source.parent.name if source.name == "frames" and (source.parent / "steps.json").exists() \
+        name = source.parent.name if source.name == "frames" and kind_of(source.parent) == "run folder" \
             else source.name
         path, k = Path("runs") / f"{name}-{what}.rrd", 1
         while path.exists():

@@ -65,7 +65,7 @@ class Episode:
         return self.config.opening.target_for(self.state.joint_type())
 
     def gripping(self) -> bool:
-        return self.arm.state().gripper_width_m > MIN_GRASP_WIDTH_M
+        return holds(self.arm.state())
 
     def pull(self, path: PathFn, length: float, label: str, limits: MotionLimits | None = None,
              step: bool = False) -> PathResult:
@@ -76,7 +76,7 @@ class Episode:
         clock, start_s = time.perf_counter(), self.now()
 
         def on_tick(state: ArmState, _t: float) -> bool:
-            held = state.gripper_width_m > MIN_GRASP_WIDTH_M  # a slip ends the pull; its frames are not held
+            held = holds(state)  # a slip ends the pull; its frames are not held
             self.observer.capture(state, held)
             return held and self.now() <= self.config.opening.timeout_s
 
@@ -89,7 +89,8 @@ class Episode:
         finally:
             self.arm.set_compliance(False)
         self.observer.next_frame_t = 0.0
-        self.observer.capture(self.arm.state(), self.gripping())  # the settled end of the motion
+        settled = self.arm.state()  # the settled end of the motion
+        self.observer.capture(settled, holds(settled))
         self.state.timings["motion_s"] += time.perf_counter() - clock
         self.state.steps += step
         self.state.peak_pull_force_n = max(self.state.peak_pull_force_n, result.peak_force_n)
@@ -100,3 +101,8 @@ class Episode:
             self.folder.add_motion(label, result, start_s)
         self.observer.process()
         return result
+
+
+def holds(state: ArmState) -> bool:
+    """Whether the gripper holds something at `state`: its fingers stopped short of closing."""
+    return state.gripper_width_m > MIN_GRASP_WIDTH_M

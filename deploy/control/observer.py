@@ -66,7 +66,7 @@ class Observer:
             raise EpisodeStop(StopReason.NO_OBJECT,
                               "the segmenter found no object on the first frame: point the camera at it")
         self.pipeline.update_frame(frame, mask, None)  # before any grasp: the gripper's pose is not the part's
-        self._log(raw, mask, state, first=True, grasped=False)
+        self._log(raw, mask, state, self.kin.fk(state.q), first=True, grasped=False)
         self.first_points = frame_points(frame, mask, self.pipeline.config)
         log.info("first frame %d: segmenter %s found the object (prompt %r): %d pixels in box %s px, %d points",
                  frame.index, getattr(self.segmenter, "name", "?"), self.config.perception.object_prompt,
@@ -91,13 +91,14 @@ class Observer:
             start, cpu = time.perf_counter(), time.thread_time()
             frame, robot = self._without_robot(raw, state)
             mask = self.segmenter.track(frame) & ~robot
-            self._log(raw, mask, state, grasped=grasped)
+            pose = self.kin.fk(state.q)
+            self._log(raw, mask, state, pose, grasped=grasped)
             if np.count_nonzero(mask) < self.config.opening.min_mask_fraction * self.mask_pixels:
                 raise EpisodeStop(StopReason.TRACKING_LOST, f"the object's mask shrank to {np.count_nonzero(mask)} "
                                   f"pixels of {self.mask_pixels} at frame {frame.index}: the object left the view "
                                   "or is occluded")
-            pose = self.kin.fk(state.q) if grasped else None  # a slipped grip's path is not the part's
-            self.vision = self.pipeline.update_frame(frame, mask, pose).result
+            held = pose if grasped else None  # a slipped grip's path is not the part's
+            self.vision = self.pipeline.update_frame(frame, mask, held).result
             if log.isEnabledFor(logging.INFO):  # every frame: no text built unless --verbose shows it
                 log.info("frame %d (t %.2f s): %s", frame.index, state.t - self.t0, _estimate_text(self.vision))
             self.last_seen = frame, mask
@@ -116,11 +117,10 @@ class Observer:
             return frame, np.zeros(frame.depth_m.shape, bool)
         return self.self_filter.apply(frame, state.q, state.gripper_width_m)
 
-    def _log(self, frame: Frame, mask: np.ndarray, state: ArmState, first: bool = False,
+    def _log(self, frame: Frame, mask: np.ndarray, state: ArmState, pose: np.ndarray, first: bool = False,
              grasped: bool = False) -> None:
-        """Record the frame (marked `first` where the pipeline starts over on it, and whether the gripper held the
-        handle) and show it."""
-        pose = self.kin.fk(state.q)
+        """Record the frame with the gripper's `pose` (marked `first` where the pipeline starts over on it, and
+        whether the gripper held the handle) and show it."""
         if self.folder is not None:
             self.folder.write_frame(frame, mask, state.q, pose, first=first, grasped=grasped)
         if self.viewer is not None:

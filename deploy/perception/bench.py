@@ -13,6 +13,7 @@ from __future__ import annotations
 import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -33,7 +34,6 @@ BACKENDS: dict[str, tuple[str, dict]] = {
     "gdino-sam2-small": ("gdino-sam2", {"tracker": "facebook/sam2.1-hiera-small"}),
     "gdino-edgetam": ("gdino-sam2", {"tracker": EDGETAM_TRACKER}),
 }
-SELF_FILTERED = ("rgbd",)  # backends that see the arm's pixels removed, as in an episode (they look at all depth)
 
 
 def missing_weights(segmenter: str, config: PerceptionConfig) -> list[str]:
@@ -59,27 +59,30 @@ def missing_weights(segmenter: str, config: PerceptionConfig) -> list[str]:
 
 
 def _run(name: str, overrides: dict, recordings: list[Path]) -> dict:
-    """Latencies and IoUs of one backend over the recordings."""
+    """Latencies and IoUs of one backend over the recordings. The segmenter sees what it would in an episode: colour,
+    depth and a calibrated camera pose (off by CALIBRATION_ERROR), the arm's pixels removed by the self-filter, no
+    simulator label; the recorded oracle mask only scores it (and gives the classical backend its first box)."""
     from deploy.perception.registry import make_segmenter
 
     start_ms, track_ms, ious, frames = [], [], [], 0
-    self_filter, open_width_m = _self_filter() if name in SELF_FILTERED else (None, 0.0)
-    for path in recordings:
+    self_filter, open_width_m = _self_filter()
+    for k, path in enumerate(recordings):
         recording = FramesRecording(path)
         first = recording.frame(0)
         box = box_of(first.mask) if name == "classical" else None
         segmenter = make_segmenter(name, PerceptionConfig(box=box, **overrides))
+        error = _calibration_error(first.T_base_camera, np.random.default_rng(k))
         for i in range(len(recording)):
-            frame = seen = recording.frame(i)
-            robot = None
-            if self_filter is not None:
-                record = recording.records[i]
-                width_m = 0.0 if record.get("grasped") else open_width_m  # closed on the handle, else open
-                seen, robot = self_filter.apply(frame, np.asarray(record["joint_positions"]), width_m)
+            frame = recording.frame(i)
+            sensed = replace(frame, mask=None, segmentation=None,
+                             T_base_camera=None if frame.T_base_camera is None else error @ frame.T_base_camera)
+            record = recording.records[i]
+            width_m = 0.0 if record.get("grasped") else open_width_m  # closed on the handle, else open
+            seen, robot = self_filter.apply(sensed, np.asarray(record["joint_positions"]), width_m)
             clock = time.perf_counter()
             mask = segmenter.start(seen) if i == 0 else segmenter.track(seen)
             (start_ms if i == 0 else track_ms).append((time.perf_counter() - clock) * 1e3)
-            ious.append(mask_iou(mask if robot is None else mask & ~robot, frame.mask))
+            ious.append(mask_iou(mask & ~robot, frame.mask))
             frames += 1
     return {
         "latency_ms_median": round(float(np.median(track_ms)), 2),
@@ -89,6 +92,16 @@ def _run(name: str, overrides: dict, recordings: list[Path]) -> dict:
         "iou_min": round(float(np.min(ious)), 4),
         "frames": frames,
     }
+
+
+def _calibration_error(T_true: np.ndarray | None, rng: np.random.Generator) -> np.ndarray:
+    """The transform that turns the recording's true camera pose into what a field-grade calibration reports."""
+    from deploy.config import CALIBRATION_ERROR
+    from deploy.rig import simulated_calibration
+
+    if T_true is None:
+        return np.eye(4)
+    return simulated_calibration(T_true, *CALIBRATION_ERROR, rng) @ np.linalg.inv(T_true)
 
 
 def _self_filter() -> tuple[SelfFilter, float]:

@@ -381,7 +381,7 @@ class FramesRecording:
     @property
     def has_masks(self) -> bool:
         """Whether any frame has a mask (`unmasked` lists the frames without one)."""
-        return len(self.unmasked) < len(self.records)
+        return any(self._png(r, "mask").exists() for r in self.records)  # stops at the first
 
     @property
     def unmasked(self) -> list[int]:

@@ -45,7 +45,6 @@ class ScrewEstimator(AxisEstimator):
     """
 
     name = "screw"
-    use_gripper = False
 
     def __init__(self, config: ScrewConfig = _DEFAULT_CONFIG) -> None:
         self.config = config
