@@ -15,7 +15,6 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -33,7 +32,7 @@ from drivers.arm.kinematics import Kinematics
 from drivers.arm.motion import move_to_joints
 from drivers.arm.motor_channels import MotorChannel, request_feedback
 from drivers.arm.registry import ARMS
-from drivers.arm.robot_config import PANDA_SIM_CONFIG, RobotConfig, load_robot_config
+from drivers.arm.robot_config import RobotConfig
 from drivers.arm.trajectory import MotionLimits, joint_trajectory
 from drivers.errors import ArmError, IKError
 
@@ -62,10 +61,6 @@ class Plan:
         return {"what": self.what, "q_start": self.q_start.round(4).tolist(), "q_goal": self.q_goal.round(4).tolist(),
                 "duration_s": round(self.duration_s, 3), "tool_start_m": self.tool_start.round(4).tolist(),
                 "tool_goal_m": self.tool_goal.round(4).tolist()}
-
-
-def load(robot: Path | None) -> RobotConfig:
-    return load_robot_config(robot or PANDA_SIM_CONFIG)
 
 
 def make_arm(kind: str, config: RobotConfig) -> Arm:

@@ -28,7 +28,7 @@ from calibration.routine import RoutineConfig, plan_around_start
 from calibration.store import HandEyeRecord
 from deploy.arm_bringup import released
 from deploy.errors import ConfigError
-from deploy.rig import BoardScene, RigSpec, check_spec, open_rig
+from deploy.rig import BoardScene, RigSpec, check_spec, load_robot, open_rig
 from drivers.arm.base import Arm
 from drivers.arm.can_arm import CanArm
 from drivers.arm.kinematics import Kinematics
@@ -79,7 +79,7 @@ def choose(camera: str, arm: str | None, robot: Path | None, pivot_mm: tuple[flo
     check_spec(RigSpec(camera=camera, arm=arm, robot=robot))
     if arm_entry.hardware and pivot_mm is None and not pivot_from_record:
         raise ConfigError(NO_PIVOT)
-    config = load_robot_config(robot or PANDA_SIM_CONFIG)
+    config = load_robot(arm, robot)
     if arm_entry.simulated and config.joint_names != load_robot_config(PANDA_SIM_CONFIG).joint_names:
         raise ConfigError(f"{config.label} is not the simulated Panda: use --robot panda_sim (or none) "
                           "with the simulation")

@@ -151,8 +151,30 @@ def check_spec(spec: RigSpec) -> None:
         raise ConfigError(f"--camera {spec.camera} needs a simulated arm (--arm {kinds(ARMS, simulated=True)}), not "
                           f"{spec.arm!r}: it cannot see --arm {spec.arm}, only the simulated Panda")
     if arm is not None and not arm.simulated and spec.robot is None:
-        raise ConfigError(f"--arm {spec.arm} needs --robot CONFIG.toml: your arm's config "
-                          "(`--robot damiao_6dof` is the shipped template; docs/arm.md)")
+        raise _needs_robot(spec.arm)
+
+
+def load_robot(arm: str | None, robot: Path | None) -> RobotConfig:
+    """The robot config of arm kind `arm` (a registry spec): `robot`, or for other than a physical arm the simulated
+    Panda's. A physical arm never falls back to a simulation config: without `robot`, or with a config whose CAN bus
+    is virtual, ConfigError naming the fix."""
+    hardware = arm is not None and ARMS.entry(arm)[0].hardware
+    if hardware and robot is None:
+        raise _needs_robot(arm)
+    config = load_robot_config(robot or PANDA_SIM_CONFIG)
+    if hardware:
+        try:
+            config.can.require_hardware(config.label)
+        except ArmError as exc:
+            raise ConfigError(str(exc)) from None
+    return config
+
+
+def _needs_robot(arm: str) -> ConfigError:
+    simulated_motors = " or ".join(e.usage for e in ARMS.entries() if e.simulated and e.bus is not None)
+    return ConfigError(f"--arm {arm} needs --robot CONFIG.toml: your arm's config (`--robot damiao_6dof` is the "
+                       f"shipped template; docs/arm.md); without hardware, simulated motors answer on --arm "
+                       f"{simulated_motors}")
 
 
 def kinds(registry: Registry, simulated: bool) -> str:
@@ -188,7 +210,7 @@ def open_rig(spec: RigSpec) -> Iterator[Rig]:
     """Open what `spec` names (camera connected; arm built but not enabled: `with rig.arm:` or `connect()`);
     on leaving, stop the arm and release everything."""
     check_spec(spec)
-    robot = load_robot_config(spec.robot or PANDA_SIM_CONFIG)
+    robot = load_robot(spec.arm, spec.robot)
     with ExitStack() as stack:
         rig = Rig(spec, robot, robot.kinematics())
         camera_entry = CAMERAS.entry(spec.camera)[0] if spec.camera is not None else None

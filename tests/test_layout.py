@@ -136,8 +136,8 @@ def test_typer_only_in_the_cli():
 
 
 REAL_DEVICE_COMMANDS = {  # each fails fast without the hardware (code 2), after its whole import path has loaded
-    "arm bring-up": ["arm", "status", "--arm", "can", "--robot", "panda_sim"],  # no motor answers on the bus
-    "calibration": ["calibrate", "hand-eye", "--camera", "d415:000000000000", "--arm", "can", "--robot", "panda_sim",
+    "arm bring-up": ["arm", "status", "--arm", "can", "--robot", "damiao_6dof"],  # no CAN adapter can0 here
+    "calibration": ["calibrate", "hand-eye", "--camera", "d415:000000000000", "--arm", "can", "--robot", "damiao_6dof",
                     "--pivot-mm", "0", "0", "30", "--dry-run"],  # no camera has this serial
 }
 

@@ -15,7 +15,7 @@ from deploy.rig import bare_bus
 from drivers.arm.can_arm import CanArm
 from drivers.arm.can_bus import CanBus
 from drivers.arm.registry import ARMS
-from drivers.arm.robot_config import PANDA_SIM_CONFIG, load_robot_config
+from drivers.arm.robot_config import PANDA_SIM_CONFIG, load_robot_config, robot_config_path
 from drivers.camera.registry import CAMERAS, stream_options
 from drivers.errors import ArmError
 from drivers.registry import Entry
@@ -47,7 +47,7 @@ def open_fake_bus(robot):
 
 def test_a_plug_in_camera_calibrates_with_the_hardware_arm(monkeypatch):
     _add(monkeypatch, CAMERAS, "usb3d", hardware=True, argument="[:SERIAL]")
-    choice = choose("usb3d:42", None, PANDA_SIM_CONFIG, (0.0, 0.0, 30.0))
+    choice = choose("usb3d:42", None, robot_config_path("damiao_6dof"), (0.0, 0.0, 30.0))
     assert choice.arm == "can" and choice.real_arm and not choice.simulated  # the first hardware arm by default
 
 

@@ -49,12 +49,13 @@ def scan_cmd(
 
     Example: deploy arm scan --arm can --robot my_arm.toml --json
     """
-    from deploy.arm_bringup import load, parse_sim_faults, scan
+    from deploy.arm_bringup import parse_sim_faults, scan
     from deploy.errors import ConfigError
+    from deploy.rig import load_robot
 
     if last_id < first_id:
         raise ConfigError(f"--last-id {last_id} is below --first-id {first_id}: give a range first .. last")
-    motors = scan(arm, load(robot), range(first_id, last_id + 1), parse_sim_faults(arm, sim_fault))
+    motors = scan(arm, load_robot(arm, robot), range(first_id, last_id + 1), parse_sim_faults(arm, sim_fault))
     if json_out:
         print_json({"motors": motors})
     elif motors:
@@ -73,11 +74,12 @@ def status_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, sim_fault: SimFa
 
     Example: deploy arm status --arm sim-can --json
     """
-    from deploy.arm_bringup import inject_sim_faults, load, make_arm, parse_sim_faults, released, status
+    from deploy.arm_bringup import inject_sim_faults, make_arm, parse_sim_faults, released, status
+    from deploy.rig import load_robot
     from drivers.arm.disable import disable_summary
 
     faults = parse_sim_faults(arm, sim_fault)
-    a = make_arm(arm, load(robot))
+    a = make_arm(arm, load_robot(arm, robot))
     with released(a):
         inject_sim_faults(a, faults)
     data = status(a)
@@ -109,12 +111,13 @@ def enable_cmd(
     """
     import time
 
-    from deploy.arm_bringup import inject_sim_faults, load, make_arm, motor_states, parse_sim_faults, released
+    from deploy.arm_bringup import inject_sim_faults, make_arm, motor_states, parse_sim_faults, released
+    from deploy.rig import load_robot
     from drivers.arm.can_arm import CanArm
     from drivers.arm.disable import disable_summary
 
     faults = parse_sim_faults(arm, sim_fault)
-    a = make_arm(arm, load(robot))
+    a = make_arm(arm, load_robot(arm, robot))
     with released(a):
         inject_sim_faults(a, faults)
         if not yes and not typer.confirm(f"Enable the motors of the {arm} arm and hold position?", err=json_out):
@@ -142,10 +145,11 @@ def disable_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, sim_fault: SimF
 
     Example: deploy arm disable --arm can --robot my_arm.toml
     """
-    from deploy.arm_bringup import disable_all, load, parse_sim_faults
+    from deploy.arm_bringup import disable_all, parse_sim_faults
+    from deploy.rig import load_robot
     from drivers.arm.disable import disable_summary
 
-    states = disable_all(load(robot), arm, parse_sim_faults(arm, sim_fault))
+    states = disable_all(load_robot(arm, robot), arm, parse_sim_faults(arm, sim_fault))
     if json_out:
         print_json({"motors": states})
     else:
@@ -168,12 +172,13 @@ def zero_cmd(
 
     Example: deploy arm zero --joint joint2 --arm can --robot my_arm.toml
     """
-    from deploy.arm_bringup import load, parse_sim_faults, set_zero
+    from deploy.arm_bringup import parse_sim_faults, set_zero
+    from deploy.rig import load_robot
 
-    faults = parse_sim_faults(arm, sim_fault)
+    faults, config = parse_sim_faults(arm, sim_fault), load_robot(arm, robot)
     if not yes and not typer.confirm(f"Set the zero of {joint}'s motor at its current position?", err=json_out):
         raise typer.Exit(1)
-    result = set_zero(load(robot), arm, joint, faults)
+    result = set_zero(config, arm, joint, faults)
     if json_out:
         print_json(result)
     else:
@@ -183,11 +188,12 @@ def zero_cmd(
 def _move(kind: str, robot: Path | None, what: str, dry_run: bool, yes: bool, hold: float, json_out: bool,
           sim_fault: list[str] | None, **target) -> None:
     """Plan `what` (home, jog or move) from the measured joints, show it, ask, then run it."""
-    from deploy.arm_bringup import execute, inject_sim_faults, load, make_arm, parse_sim_faults, plan, released
+    from deploy.arm_bringup import execute, inject_sim_faults, make_arm, parse_sim_faults, plan, released
+    from deploy.rig import load_robot
     from drivers.arm.can_arm import CanArm
 
     faults = parse_sim_faults(kind, sim_fault)
-    config = load(robot)
+    config = load_robot(kind, robot)
     a = make_arm(kind, config)
     with released(a):
         inject_sim_faults(a, faults)

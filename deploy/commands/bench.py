@@ -237,11 +237,11 @@ def bench_arm_cmd(
 
     Example: deploy bench arm --json
     """
-    from deploy.arm_bringup import load
     from deploy.bench.arm import bench_arm
+    from deploy.rig import load_robot
 
     with err_console.status(f"bench arm: {samples} IK and Ruckig samples, {seconds:g} s of the CAN loop"):
-        data = bench_arm(load(robot), samples, seconds)
+        data = bench_arm(load_robot(None, robot), samples, seconds)
     if json_out:
         print_json(data)
     else:

@@ -33,6 +33,7 @@ def open_can(_argument: str, robot: RobotConfig) -> Arm:
     from drivers.arm.can_arm import CanArm
     from drivers.arm.can_bus import CanBus
 
+    robot.can.require_hardware(robot.label)
     return CanArm(robot, CanBus.from_config(robot.can))
 
 
@@ -40,6 +41,7 @@ def open_can_bus(robot: RobotConfig) -> tuple[CanBus, None]:
     """The robot config's CAN bus, no arm on top; no simulated motors behind it."""
     from drivers.arm.can_bus import CanBus
 
+    robot.can.require_hardware(robot.label)
     return CanBus.from_config(robot.can), None
 
 

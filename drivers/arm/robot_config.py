@@ -12,6 +12,7 @@ complete examples; docs/arm.md describes every field.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -51,6 +52,20 @@ class CanConfig(_Strict):
     bitrate: int = Field(1_000_000, gt=0)
     fd: bool = False
     data_bitrate: int = Field(5_000_000, gt=0)
+
+    @property
+    def virtual(self) -> bool:
+        """No hardware is on this bus: python-can's in-process `virtual` interface or a Linux `vcan` link."""
+        return self.interface == "virtual" or (self.interface == "socketcan" and
+                                               re.fullmatch(r"vcan\d*", self.channel) is not None)
+
+    def require_hardware(self, config: str) -> None:
+        """ArmError when this bus is virtual: a real arm's command must reach the real bus or refuse."""
+        if self.virtual:
+            raise ArmError(f"{config} puts its CAN bus on interface {self.interface!r}, channel {self.channel!r}, "
+                           "where no real motor is: --arm can drives a real arm, so give your arm's config (--robot "
+                           "FILE with [can] interface = \"socketcan\" ...; docs/arm.md), or use --arm sim-can for "
+                           "the simulated motors")
 
 
 class MotorConfig(_Strict):
