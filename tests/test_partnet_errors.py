@@ -98,3 +98,11 @@ def test_an_unknown_scale_rule(tmp_path):
     with pytest.raises(PartNetError) as exc:
         load_partnet(write_object(tmp_path / "12"), scale="huge")
     assert "scale 'huge'" in one_line(exc)
+
+
+def test_an_object_whose_textures_are_missing(tmp_path):
+    folder = write_object(tmp_path / "12")
+    (folder / "images" / "texture_0.png").unlink()
+    with pytest.raises(PartNetError) as exc:
+        load_partnet(folder)
+    assert "partnet 12: 1 texture(s) its meshes name are missing (images/texture_0.png)" in one_line(exc)

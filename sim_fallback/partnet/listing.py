@@ -11,8 +11,8 @@ import numpy as np
 from sim_fallback.furniture import Furniture
 from sim_fallback.partnet.errors import PartNetError
 from sim_fallback.partnet.layout import object_folders, read_object_files
-from sim_fallback.partnet.loader import ScaleRule, ignored_links, load_partnet
-from sim_fallback.partnet.urdf import read_mobility_urdf
+from sim_fallback.partnet.loader import ScaleRule, load_partnet
+from sim_fallback.partnet.model import PartNetModel
 
 
 @dataclass(frozen=True)
@@ -54,9 +54,8 @@ def usable(entries: list[ObjectEntry]) -> list[ObjectEntry]:
 def _entry(folder: Path, scale: ScaleRule) -> ObjectEntry:
     category, ignored = "", ()
     try:
-        files = read_object_files(folder)
-        category = files.category
-        ignored = tuple(ignored_links(files, read_mobility_urdf(files.urdf, files.source)))
+        category = read_object_files(folder).category
+        ignored = tuple(PartNetModel(folder).ignored_links())
         return ObjectEntry(folder.name, category, load_partnet(folder, scale=scale), None, ignored)
     except PartNetError as exc:
         return ObjectEntry(folder.name, category, None, str(exc), ignored)

@@ -41,6 +41,23 @@ def read_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return v, t
 
 
+def missing_textures(objs: list[Path]) -> list[Path]:
+    """The texture images (map_Kd) that the materials of the OBJ files `objs` name but that do not exist."""
+    libraries = set()
+    for obj in objs:
+        with open(obj, errors="replace") as lines:
+            libraries |= {(obj.parent / line.split(maxsplit=1)[1].strip()) for line in lines
+                          if line.startswith("mtllib ") and len(line.split()) > 1}
+    missing = set()
+    for library in libraries:
+        if library.is_file():
+            for line in library.read_text(errors="replace").splitlines():
+                words = line.split(maxsplit=1)
+                if len(words) == 2 and words[0] == "map_Kd" and not (library.parent / words[1].strip()).is_file():
+                    missing.add((library.parent / words[1].strip()).resolve())
+    return sorted(missing)
+
+
 def geometry_mesh(geometry: Geometry) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (in the link frame) and triangles of one visual or collision element."""
     if geometry.mesh is not None:

@@ -99,7 +99,7 @@ def read_mobility_urdf(path: Path, name: str) -> MobilityUrdf:
     does not form one tree, or names meshes that are missing."""
     try:
         tree = ET.parse(path)
-    except ET.ParseError as exc:
+    except (ET.ParseError, OSError) as exc:
         raise PartNetError(f"{name}: {path.name} does not parse ({exc}); fix: restore the file from the "
                            f"dataset") from exc
     root_element = tree.getroot()
