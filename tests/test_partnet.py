@@ -95,6 +95,15 @@ def test_drawer_and_door_open_in_pybullet_as_their_joints_say(tmp_path):
                                                                              furniture.scale)[0])
 
 
+def test_a_continuous_hinge_opens_as_far_as_a_cabinet_hinge(tmp_path):
+    folder = write_object(tmp_path / "1")
+    urdf = folder / "mobility.urdf"
+    urdf.write_text(urdf.read_text().replace('type="revolute"', 'type="continuous"'))
+    furniture = load_partnet(folder)
+    assert furniture.part("door").upper == pytest.approx(np.radians(110.0))
+    assert check_part(furniture, furniture.part("door")).ok
+
+
 def test_the_check_fails_for_a_handle_off_its_front_or_without_room_for_the_fingers(tmp_path):
     furniture = load_partnet(write_object(tmp_path / "1"), scale="native")
     drawer = furniture.part("drawer")

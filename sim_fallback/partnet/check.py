@@ -67,7 +67,8 @@ def check_part(furniture: Furniture, part: Part) -> PartCheck:
             pb.stepSimulation(physicsClientId=client)
         reached = pb.getJointState(body, index, physicsClientId=client)[0]
         info = pb.getJointInfo(body, index, physicsClientId=client)
-        expected = _moved(closed, info[2], closed[:3, :3] @ np.asarray(info[13]), reached)
+        axis = closed[:3, :3] @ np.asarray(info[13])
+        expected = _moved(closed, info[2], axis / np.linalg.norm(axis), reached)  # a joint value is m or rad
         actual = _link_pose(body, index, client)
     finally:
         pb.disconnect(client)

@@ -140,7 +140,9 @@ def _check_meshes(model: MobilityUrdf, path: Path, name: str) -> None:
 
 def _geometry(element: ET.Element, folder: Path) -> Geometry:
     shape = element.find("geometry")
-    mesh, box = shape.find("mesh") if shape is not None else None, shape.find("box") if shape is not None else None
+    if shape is None:
+        shape = ET.Element("geometry")
+    mesh, box = shape.find("mesh"), shape.find("box")
     return Geometry(element.get("name", ""),
                     (folder / mesh.get("filename", "")).resolve() if mesh is not None else None,
                     tuple(_floats(box.get("size"), 3)) if box is not None else None,
@@ -163,7 +165,7 @@ def _joint(element: ET.Element) -> Joint:
     axis = axis / np.linalg.norm(axis)
     limit = element.find("limit")
     if kind == "continuous" or limit is None:
-        lower, upper = 0.0, CONTINUOUS_UPPER_RAD if kind != "prismatic" else 0.0
+        lower, upper = 0.0, (0.0 if kind == "prismatic" else CONTINUOUS_UPPER_RAD)
     else:
         lower, upper = float(limit.get("lower", 0.0)), float(limit.get("upper", 0.0))
     if upper < lower:
