@@ -89,6 +89,10 @@ def test_no_part_within_the_arms_reach(tmp_path):
     assert [p.name for p in parts_within_reach(furniture, near, 0.85)] == ["drawer", "door"]
     assert [p.name for p in parts_within_reach(furniture, near, 0.85, kind="door")] == ["door"]
     with pytest.raises(PartNetError) as exc:
+        doors_only = (Front("door", (-0.48, 0.48), (-0.58, 0.58)),)
+        parts_within_reach(load_partnet(write_object(tmp_path / "13", fronts=doors_only)), near, 0.85, kind="drawer")
+    assert "partnet 13: no drawer part (it has door)" in one_line(exc)
+    with pytest.raises(PartNetError) as exc:
         parts_within_reach(furniture, far, 0.85, kind="drawer")
     assert "partnet 12: no drawer within the arm's reach (0.85 m of its base): the nearest, drawer, is 2.8" in (
         one_line(exc))

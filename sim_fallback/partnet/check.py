@@ -121,18 +121,18 @@ def parts_within_reach(furniture: Furniture, T_base_furniture: np.ndarray, reach
     furniture standing at `T_base_furniture` (4x4, furniture frame in the robot base frame); a one-line error
     naming the nearest one when none does."""
     candidates = [p for p in furniture.parts if kind is None or p.kind == kind]
+    if not candidates:
+        raise PartNetError(f"{furniture.source}: no {kind} part (it has {', '.join(p.name for p in furniture.parts)}); "
+                           f"fix: choose another task or object")
     points = grip_points(furniture)
     distance = {p.name: float(np.linalg.norm(T_base_furniture[:3, :3] @ points[p.name] + T_base_furniture[:3, 3]))
                 for p in candidates}
     within = [p for p in candidates if distance[p.name] <= reach_m]
-    if candidates and not within:
+    if not within:
         nearest = min(candidates, key=lambda p: distance[p.name])
         raise PartNetError(f"{furniture.source}: no {kind or 'drawer or door'} within the arm's reach ({reach_m:.2f} "
                            f"m of its base): the nearest, {nearest.name}, is {distance[nearest.name]:.2f} m away; "
                            f"fix: place the object nearer the robot, or choose another part or object")
-    if not candidates:
-        raise PartNetError(f"{furniture.source}: no {kind} part (it has {', '.join(p.name for p in furniture.parts)}); "
-                           f"fix: choose another task or object")
     return within
 
 
