@@ -108,11 +108,11 @@ class HandleSpec:
 
 
 def random_handle(style: str, split: str, vertical: bool, rng: np.random.Generator) -> HandleSpec:
-    """A handle of `style` from the `split` family. Knobs and cups are horizontal whatever `vertical` says."""
+    """A handle of `style` from the `split` family, its bar vertical or not."""
     if style not in STYLES[split]:
         raise ValueError(f"handle style {style!r} is not in the {split} family: use one of {', '.join(STYLES[split])}")
     r = _SIZES[(split, style)]
     length, thickness, standoff = (float(rng.uniform(*r[k])) for k in ("length", "thickness", "standoff"))
     if style == "knob":
         length = thickness
-    return HandleSpec(style, vertical and style not in ("knob", "cup"), length, thickness, standoff)  # type: ignore
+    return HandleSpec(style, vertical, length, thickness, standoff)  # type: ignore[arg-type]

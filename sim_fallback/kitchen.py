@@ -130,8 +130,7 @@ def _base_run(room: Room, target: Furniture | None, run: Carcass, look: Look, sp
               rng: np.random.Generator, source: str) -> float:
     """The run of base units (with the target among them when given) and its countertop; the counter's top height."""
     left, right = int(rng.integers(0, 4)), int(rng.integers(0, 4))
-    if left + right == 0:
-        right = 1
+    right = max(right, (1 if target is not None else 2) - left)  # a run of two units at least
     units: list[tuple[Furniture, bool]] = []
     for k in range(left + right):
         layout = str(rng.choice(LAYOUTS["base"]))
@@ -189,7 +188,7 @@ def _counter_objects(room: Room, counter_top: float, depth: float, ends: tuple[f
         size = (np.repeat(rng.uniform(0.06, 0.16), 2) if cylinder else rng.uniform(0.06, 0.22, 2))
         height = float(rng.uniform(0.08, 0.32))
         y = float(rng.uniform(ends[0] + size[1], ends[1] - size[1]))
-        if any(abs(y - other) < (half + size[1] / 2 + 0.02) for other, half in taken):
+        if ends[1] - ends[0] < 2 * size[1] or any(abs(y - other) < (half + size[1] / 2 + 0.02) for other, half in taken):
             continue
         taken.append((y, size[1] / 2))
         x = float(rng.uniform(0.05 + size[0] / 2, max(depth - 0.15 - size[0] / 2, 0.06 + size[0] / 2)))

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pybullet as pb
 
 from drivers.arm.base import ArmState
 from drivers.arm.grasping import GRASP_DEPTH_M, LIMIT_MARGIN_RAD, pregrasp_pose
@@ -98,7 +99,8 @@ def grasp_handle(
     world: SimWorld, arm: SimArm, limits: MotionLimits, target: float, on_tick: OnTick | None = None
 ) -> None:
     """Move to the pre-grasp pose, approach along the gripper axis and close on the handle (ground truth).
-    `target` is the opening that follows, used to pick an arm configuration that can make it."""
+    `target` is the opening that follows, used to pick an arm configuration that can make it. ArmError when no arm
+    configuration makes it, or when the fingers closed on something else than the handle."""
     T_grasp = grasp_pose(world)
     q_pre = pregrasp_configuration(arm.kin, T_grasp, opening_path(T_grasp, world.truth()), target)
     arm.set_gripper(pregrasp_width(world))
@@ -108,6 +110,18 @@ def grasp_handle(
                           APPROACH_LIMITS, on_tick)
     arm.set_gripper(0.0, GRIPPER_FORCE_N)
     wait(arm, CLOSE_TIME_S, on_tick)
+    if not holds_target(world):
+        style = world.target.part.handle.style if world.target.part.handle is not None else "unmarked"
+        raise ArmError(f"scripted grasp: the fingers did not both close on the {style} handle of the "
+                       f"{world.target.part.name}: the hand met something else first; try another seed or part")
+
+
+def holds_target(world: SimWorld) -> bool:
+    """Whether both fingers touch the target part (its link or its handle's)."""
+    c, links = world.client, world.truth().links
+    fingers = [world.robot_joints[name] for name in world.robot_spec.finger_joints]
+    return all(any(pb.getContactPoints(world.robot_id, world.cabinet_id, f, link, physicsClientId=c) for link in links)
+               for f in fingers)
 
 
 def open_along_truth(

@@ -40,13 +40,14 @@ _DRAWER_PROFILES = {2: (0.5, 0.5), 3: (0.24, 0.33, 0.43), 4: (0.19, 0.23, 0.27, 
 _ORDINALS = ("top", "second", "third", "fourth", "fifth")
 RAIL_M = 0.035  # with edge pulls the fronts stop this far below the top: room to reach over a top edge's pull
 DRAWER_STOP_M = 0.02  # a drawer's end stop: this much of its tray stays inside the carcass
+VERTICAL_ON_DOORS = ("bar", "long-bar", "recessed")
 _FRONT_KINDS: tuple[FinishKind, ...] = ("wood", "laminate", "painted")
 
 
 @dataclass(frozen=True)
 class Look:
-    """What a kitchen's units share: carcass, front and handle finishes, and the handle (horizontal on drawers,
-    vertical on doors when its style can be)."""
+    """What a kitchen's units share: carcass, front and handle finishes, and the handle (horizontal on drawers;
+    on doors a bar or a recessed pull stands vertical, knobs, cups and edge pulls stay as they are)."""
 
     body: Finish
     front: Finish
@@ -54,7 +55,7 @@ class Look:
     handle: HandleSpec
 
     def handle_for(self, kind: PartKind) -> HandleSpec:
-        return replace(self.handle, vertical=kind == "door" and self.handle.style not in ("knob", "cup"))
+        return replace(self.handle, vertical=kind == "door" and self.handle.style in VERTICAL_ON_DOORS)
 
 
 def random_finish(kind: FinishKind, rng: np.random.Generator, light: bool = False) -> Finish:

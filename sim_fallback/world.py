@@ -98,8 +98,9 @@ class SimWorld:
 
     The target part (the scenario's `part` in its target furniture) is `cabinet_id` (its furniture's body),
     `cabinet_joint` (its joint index) and `handle_link` (its handle's link when the handle is a link of its own,
-    else the part's link); `parts` are the target furniture's parts by name; `finishes` the looks of surfaces by
-    (body id, link index; -1 the base) for the renderer. floor: the box world's 4 m floor square (costs render
+    else the part's link); `parts` are the target furniture's parts by name, `all_parts` every furniture's;
+    `furniture_ids` the furniture's bodies in the layout's order, `statics_id` the body of the static shapes;
+    `finishes` the looks of surfaces by (body id, link index; -1 the base) for the renderer. floor: the box world's 4 m floor square (costs render
     time; off by default: background pixels then read depth 0 like out-of-range stereo); kitchens have their own.
     """
 
@@ -109,6 +110,7 @@ class SimWorld:
         self.clock = PhysicsClock(self.client)
         self.finishes: dict[tuple[int, int], Finish] = {}
         self.parts: dict[str, LoadedPart] = {}
+        self.all_parts: list[LoadedPart] = []
         self._tmp = tempfile.TemporaryDirectory(prefix="axisloop_robot_")
         try:
             self._build(scenario.build_layout(floor))
@@ -135,6 +137,7 @@ class SimWorld:
         half_open = self.robot_spec.gripper_max_width_m / 2
         for name in self.robot_spec.finger_joints:
             pb.resetJointState(self.robot_id, self.robot_joints[name], half_open, physicsClientId=c)
+        self.furniture_ids: list[int] = []
         joints = [joint for k, placed in enumerate(layout.furniture)
                   for joint in self._load(placed, k == layout.target, layout.part)]
         self.statics_id = static_body(c, layout.statics)
@@ -150,6 +153,7 @@ class SimWorld:
         scenario's condition. Its joints' mechanisms."""
         c, furniture = self.client, placed.furniture
         body = load_furniture(c, furniture, placed.T, placed.pose[3])
+        self.furniture_ids.append(body)
         links = link_indices(c, body)
         for name, finish in furniture.finishes.items():
             self.finishes[(body, links[name])] = finish
@@ -165,8 +169,9 @@ class SimWorld:
                 friction = self._condition_friction(m)
                 if self.scenario.condition == "stiff":
                     m = replace(m, stiction=STIFF_FRICTION_FACTOR * m.stiction)
+            self.all_parts.append(LoadedPart(body, j, part))
             if target:
-                self.parts[part.name] = LoadedPart(body, j, part)
+                self.parts[part.name] = self.all_parts[-1]
             pb.changeDynamics(body, j, jointDamping=m.damping, linearDamping=0.0, angularDamping=0.0, physicsClientId=c)
             set_friction(c, body, j, friction)  # Coulomb friction
             if target and part.name == part_name and self.scenario.condition == "locked":
@@ -219,7 +224,11 @@ class SimWorld:
     def truth(self, part: str | None = None) -> JointTruth:
         """The joint of the target part (or the target furniture's `part`): type, axis and value in the base frame,
         and its body and links. Evaluation and data generation only."""
-        c, p = self.client, self.parts[part or self.scenario.part]
+        return self.part_truth(self.parts[part or self.scenario.part])
+
+    def part_truth(self, p: LoadedPart) -> JointTruth:
+        """The joint of any loaded part (`all_parts`), as `truth` gives the target's."""
+        c = self.client
         info = pb.getJointInfo(p.body, p.joint, physicsClientId=c)
         T = link_pose(c, p.body, p.joint)
         direction = T[:3, :3] @ np.asarray(info[13], float)

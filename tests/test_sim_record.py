@@ -17,7 +17,7 @@ from sim_fallback.show import render_scene_png
 @pytest.mark.parametrize(("task", "target"), [("drawer", 0.04), ("door", np.radians(8))])
 def test_short_recording_round_trips_with_consistent_truth(task, target, tmp_path):
     out = tmp_path / task
-    summary = record_scripted(task, 1, out, target=target, fps=2.0, resolution=(160, 120))
+    summary = record_scripted(task, 1, out, target=target, fps=2.0, resolution=(160, 120), world="box")
     truth = json.loads((out / "truth.json").read_text())
     values = np.array(truth["joint_values"])
     assert summary.frames == len(values) >= 4
