@@ -188,7 +188,8 @@ def _counter_objects(room: Room, counter_top: float, depth: float, ends: tuple[f
         size = (np.repeat(rng.uniform(0.06, 0.16), 2) if cylinder else rng.uniform(0.06, 0.22, 2))
         height = float(rng.uniform(0.08, 0.32))
         y = float(rng.uniform(ends[0] + size[1], ends[1] - size[1]))
-        if ends[1] - ends[0] < 2 * size[1] or any(abs(y - other) < (half + size[1] / 2 + 0.02) for other, half in taken):
+        crowded = any(abs(y - other) < (half + size[1] / 2 + 0.02) for other, half in taken)
+        if ends[1] - ends[0] < 2 * size[1] or crowded:
             continue
         taken.append((y, size[1] / 2))
         x = float(rng.uniform(0.05 + size[0] / 2, max(depth - 0.15 - size[0] / 2, 0.06 + size[0] / 2)))

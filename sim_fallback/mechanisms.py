@@ -20,6 +20,7 @@ import pybullet as pb
 from sim_fallback.furniture import Mechanism, PartKind
 
 AT_REST_M_S, AT_REST_RAD_S = 0.002, 0.01  # slower than this, a part sticks (stiction applies)
+SHUT = 1e-4  # a joint value (m or rad) this near closed is shut
 
 
 def random_mechanism(kind: PartKind, lever_m: float, rng: np.random.Generator) -> Mechanism:
@@ -80,32 +81,45 @@ def set_friction(client: int, body: int, joint: int, force: float) -> None:
 class MechanismForces:
     """Applies every part's stiction and closing force; call `apply()` before each physics step (it is a
     `PhysicsClock` hook, and the world calls it once before the first step). Parts whose mechanism has neither
-    cost nothing."""
+    cost nothing. A part at rest shut is held by its joint's motor with its friction, stiction and closing force
+    (pulled open, it breaks away past their sum, as a catch does), with no force to apply each step."""
 
     def __init__(self, client: int, joints: list[JointMechanism]) -> None:
         self._client = client
-        self._joints = [j for j in joints if _active(j.mechanism)]
-        self._stuck = [False] * len(self._joints)
+        active = [j for j in joints if _active(j.mechanism)]
+        self._bodies: dict[int, list[JointMechanism]] = {}
+        for j in active:
+            self._bodies.setdefault(j.body, []).append(j)
+        self._hold = {(j.body, j.joint): j.friction for j in active}
 
     def apply(self) -> None:
         c = self._client
-        for k, j in enumerate(self._joints):
-            value, velocity = pb.getJointState(j.body, j.joint, physicsClientId=c)[:2]
-            m = j.mechanism
-            if m.stiction:
-                stuck = abs(velocity) < (AT_REST_M_S if j.prismatic else AT_REST_RAD_S)
-                if stuck != self._stuck[k]:
-                    set_friction(c, j.body, j.joint, j.friction + (m.stiction if stuck else 0.0))
-                    self._stuck[k] = stuck
-            force = closing_force(m, value)
-            if force == 0.0:
-                continue
-            push = (-force * j.axis_world).tolist()
-            if j.prismatic:
-                centre = pb.getLinkState(j.body, j.joint, physicsClientId=c)[0]
-                pb.applyExternalForce(j.body, j.joint, push, centre, pb.WORLD_FRAME, physicsClientId=c)
-            else:
-                pb.applyExternalTorque(j.body, j.joint, push, pb.WORLD_FRAME, physicsClientId=c)
+        for body, joints in self._bodies.items():
+            states = pb.getJointStates(body, [j.joint for j in joints], physicsClientId=c)
+            for j, (value, velocity, *_) in zip(joints, states, strict=True):
+                at_rest = abs(velocity) < (AT_REST_M_S if j.prismatic else AT_REST_RAD_S)
+                shut = at_rest and value <= SHUT
+                self._hold_with(j, j.friction + (j.mechanism.stiction if at_rest else 0.0)
+                                + (closing_force(j.mechanism, 0.0) if shut else 0.0))
+                if not shut:
+                    self._push(j, closing_force(j.mechanism, value))
+
+    def _hold_with(self, j: JointMechanism, force: float) -> None:
+        """The joint's motor resists up to `force` (set only when it changes)."""
+        key = (j.body, j.joint)
+        if force != self._hold[key]:
+            set_friction(self._client, j.body, j.joint, force)
+            self._hold[key] = force
+
+    def _push(self, j: JointMechanism, force: float) -> None:
+        if force == 0.0:
+            return
+        c, push = self._client, (-force * j.axis_world).tolist()
+        if j.prismatic:
+            centre = pb.getLinkState(j.body, j.joint, physicsClientId=c)[0]
+            pb.applyExternalForce(j.body, j.joint, push, centre, pb.WORLD_FRAME, physicsClientId=c)
+        else:
+            pb.applyExternalTorque(j.body, j.joint, push, pb.WORLD_FRAME, physicsClientId=c)
 
 
 def _active(m: Mechanism) -> bool:

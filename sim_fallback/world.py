@@ -35,6 +35,7 @@ PHYSICS_HZ = 240
 VISUAL_TRIANGLE_FRACTION = 0.25  # robot visuals: decimated collision meshes (0.1 drops the IoU to 0.9)
 STIFF_FRICTION_FACTOR = 3.0  # condition "stiff": the joint's Coulomb friction times this
 LOCKED_FORCE = 1e5  # condition "locked": the joint's brake (N or N m), far above anything the arm can pull
+FIXED_GROUP, ALL_GROUPS = 2, 0xFFFF  # collision filter group of fixed links (furniture bodies, static shapes)
 SWEEP_STEP = 0.02  # sweep_hits_robot_base: the joint's steps (m or rad)
 BASE_TURNS, SHOULDER_TILTS = 12, 9  # ... and the postures of the first two robot joints tried
 
@@ -100,8 +101,9 @@ class SimWorld:
     `cabinet_joint` (its joint index) and `handle_link` (its handle's link when the handle is a link of its own,
     else the part's link); `parts` are the target furniture's parts by name, `all_parts` every furniture's;
     `furniture_ids` the furniture's bodies in the layout's order, `statics_id` the body of the static shapes;
-    `finishes` the looks of surfaces by (body id, link index; -1 the base) for the renderer. floor: the box world's 4 m floor square (costs render
-    time; off by default: background pixels then read depth 0 like out-of-range stereo); kitchens have their own.
+    `finishes` the looks of surfaces by (body id, link index; -1 the base) for the renderer. floor: the box world's
+    4 m floor square (costs render time; off by default: background pixels then read depth 0 like out-of-range
+    stereo); kitchens have their own.
     """
 
     def __init__(self, scenario: Scenario | KitchenScenario, floor: bool = False) -> None:
@@ -144,6 +146,10 @@ class SimWorld:
         for k, shape in enumerate(layout.statics):
             if shape.finish is not None:
                 self.finishes[(self.statics_id, k - 1)] = shape.finish
+        fixed = [(self.robot_id, -1), *((body, -1) for body in self.furniture_ids),
+                 *((self.statics_id, k - 1) for k in range(len(layout.statics)))]
+        for body, link in fixed:  # what cannot move never collides with what cannot move: no contacts to solve
+            pb.setCollisionFilterGroupMask(body, link, FIXED_GROUP, ALL_GROUPS ^ FIXED_GROUP, physicsClientId=c)
         self._mechanisms = MechanismForces(c, joints)
         self._mechanisms.apply()
         self.clock.add_hook(self._mechanisms.apply)

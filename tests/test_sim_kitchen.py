@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pybullet as pb
 import pytest
+from sim_scenes import showroom
 
 from sim_fallback.cabinet_urdf import cabinet_urdf
 from sim_fallback.errors import PartError, SceneError
@@ -19,7 +20,6 @@ from sim_fallback.placement import HANDLE_HEIGHT_M
 from sim_fallback.scenario import Scenario, make_scenario
 from sim_fallback.unit_families import LAYOUTS, random_carcass, random_look, random_unit, random_width
 from sim_fallback.world import SimWorld
-from sim_scenes import showroom
 
 # Scenario.make's cabinets, placements, cameras and URDFs for seeds 0-19 as they were before kitchens existed
 BOX_WORLD_SHA1 = {("drawer", "train"): "2a4c330eadf76eafec044e6c5d4add45519937b0",

@@ -6,12 +6,12 @@ from dataclasses import replace
 import numpy as np
 import pybullet as pb
 import pytest
+from sim_scenes import showroom
 
 from sim_fallback.furniture import Mechanism
 from sim_fallback.mechanisms import closing_force, random_mechanism
 from sim_fallback.unit_families import random_carcass, random_look, random_unit
 from sim_fallback.world import SimWorld
-from sim_scenes import showroom
 
 
 def one_part(layout: str, mechanism: Mechanism):
