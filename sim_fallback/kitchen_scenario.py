@@ -18,6 +18,7 @@ from sim_fallback.layout import Layout, Placed, StaticShape
 from sim_fallback.parts import ordered, resolve
 from sim_fallback.placement import (
     BASE_HEIGHT_M,
+    HANDLE_HEIGHT_M,
     STAND_HALF_M,
     CameraMount,
     base_heights,
@@ -118,8 +119,10 @@ def _grip_height(placed: Placed, part: PartGeometry) -> float:
 
 def _reach(placed: Placed, parts: list[PartGeometry], task: str) -> str:
     heights = ", ".join(f"{g.name} {_grip_height(placed, g):.2f} m" for g in parts) or f"it has no {task}"
-    return (f"grips above the floor: {heights}; the robot, its base {BASE_HEIGHT_M[0]:g}-{BASE_HEIGHT_M[1]:g} m "
-            "above the floor, reaches grips that stand where the box world's are above its base")
+    (low, high), (base_low, base_high) = HANDLE_HEIGHT_M[task], BASE_HEIGHT_M
+    return (f"its grips stand above the floor at {heights}; the robot reaches {task} grips {low + base_low:.2f}-"
+            f"{high + base_high:.2f} m above the floor (its base {base_low:g}-{base_high:g} m up, the grip "
+            f"{low:g}-{high:g} m above the base): name another part, or give another seed")
 
 
 def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, room: Room, part: PartGeometry,

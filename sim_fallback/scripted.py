@@ -174,11 +174,11 @@ def record_scripted(
     fps: float = 10.0,
     resolution: tuple[int, int] = (640, 480),
     progress: Callable[[str, int], None] | None = None,
-    world: str = "kitchen",
+    world: str = "box",
     part: str | None = None,
 ) -> RecordingSummary:
-    """Record a scripted opening of scenario `seed` of `world` ("kitchen" or "box"; `part`: the kitchen's target
-    part as a user names it, default the seed's) driven by GROUND TRUTH (a data generator, not the policy).
+    """Record a scripted opening of scenario `seed` of `world` ("box", or "kitchen" with `part` its target part as a
+    user names it, default the seed's) driven by GROUND TRUTH (a data generator, not the policy).
 
     Writes the frames-directory format at `out_dir` (colour, noisy depth, object mask including the
     handle, T_base_camera, joint positions, tool pose and `grasped` per frame: false over the approach until the

@@ -24,11 +24,11 @@ def render_scene_png(
     out_path: str | Path,
     split: Split = "train",
     resolution: tuple[int, int] = (640, 480),
-    world: str = "kitchen",
+    world: str = "box",
     part: str | None = None,
 ) -> Path:
-    """Render the first camera frame (D415 noise on) of scenario `seed` of `world` ("kitchen" or "box"; `part`: a
-    kitchen's target part as a user names it) and write the three panels to `out_path`."""
+    """Render the first camera frame (D415 noise on) of scenario `seed` of `world` ("box", or "kitchen" with `part`
+    its target part as a user names it) and write the three panels to `out_path`."""
     out = Path(out_path)
     if out.suffix.lower() != ".png":
         raise ValueError(f"scene image {out}: the file name must end in .png")

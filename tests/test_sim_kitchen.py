@@ -266,7 +266,8 @@ def test_a_scene_keeps_its_bodies_and_triangles_few():
 def test_a_scripted_opening_in_a_kitchen_grasps_the_true_handle(tmp_path):
     from sim_fallback.scripted import record_scripted
 
-    summary = record_scripted("drawer", 0, tmp_path / "rec", split="test", target=0.1, fps=2.0, resolution=(160, 120))
+    summary = record_scripted("drawer", 0, tmp_path / "rec", split="test", target=0.1, fps=2.0, resolution=(160, 120),
+                              world="kitchen")
     assert summary.world == "kitchen" and summary.part == make_scenario("kitchen", "drawer", 0, "test").part
     assert summary.joint_end == pytest.approx(0.1, abs=0.01)
 
