@@ -23,7 +23,7 @@ from sim_fallback.urdf_text import Shape, box, cached_urdf, joint_xml, link_xml,
 GAP_M = 0.003  # between neighbouring fronts
 EDGE_M = 0.045  # a door's grip centre from its free edge; a bar's end from the front's edge
 TRAY_CLEARANCE_M = 0.02  # a drawer's tray stops this short of the carcass back at its end
-HandlePlace = Literal["top", "bottom", "middle"]
+HandlePlace = Literal["top", "bottom"]
 
 
 @dataclass(frozen=True)
@@ -170,7 +170,7 @@ def _panel(fw: float, fh: float, ft: float, centre: tuple[float, float], front: 
 def handle_position(kind: PartKind, size: tuple[float, float], hinge: int, handle: HandleSpec,
                     place: HandlePlace) -> tuple[HandleSpec, tuple[float, float]]:
     """Where a handle goes on a front of `size` (width, height): centred on a drawer (in its upper part when the
-    drawer is deep), near a door's free edge and its `place` ("top", "bottom" or "middle"); an edge pull on the top
+    drawer is deep), near a door's free edge and its `place` ("top" or "bottom"); an edge pull on the top
     edge (the bottom edge for `place` "bottom"). The handle is shortened when the front is too small for it.
     Returns it and the grip centre (y, z) from the front's centre."""
     fw, fh = size
@@ -185,6 +185,6 @@ def handle_position(kind: PartKind, size: tuple[float, float], hinge: int, handl
     elif kind == "drawer":
         z = fh / 2 - 0.05 - extent_z / 2 if fh > 0.24 else 0.0
     else:
-        z = {"top": 1.0, "bottom": -1.0, "middle": 0.0}[place] * max(fh / 2 - 0.06 - extent_z / 2, 0.0)
+        z = (1.0 if place == "top" else -1.0) * max(fh / 2 - 0.06 - extent_z / 2, 0.0)
     y = 0.0 if kind == "drawer" else -hinge * (fw / 2 - max(EDGE_M, extent_y / 2 + 0.025))
     return handle, (y, z)
