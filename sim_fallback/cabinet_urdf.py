@@ -11,10 +11,12 @@ ranges; the test family also has knob handles.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Literal
 
 import numpy as np
+
+from sim_fallback.furniture import Furniture, Handle, Mechanism, Part
+from sim_fallback.urdf_text import cached_urdf
 
 Kind = Literal["drawer", "door"]
 Split = Literal["train", "test"]
@@ -199,11 +201,16 @@ def cabinet_urdf(spec: CabinetSpec) -> str:
 """
 
 
-def write_cabinet_urdf(spec: CabinetSpec, directory: Path) -> Path:
-    """Write the cabinet's URDF into `directory` and return its path."""
-    path = Path(directory) / f"cabinet_{spec.kind}_{spec.split}_{spec.seed}.urdf"
-    path.write_text(cabinet_urdf(spec))
-    return path
+def cabinet_furniture(spec: CabinetSpec) -> Furniture:
+    """The cabinet as loadable furniture (its URDF written once to the cache): one part, named as its kind, whose
+    mechanism is its friction and damping. No finishes: it is drawn in its URDF colours."""
+    bar = (0.0, 0.0, 1.0) if spec.handle_vertical else (0.0, -1.0, 0.0)
+    handle = Handle(spec.handle_style, tuple(float(v) for v in spec.handle_in_joint), bar, (1.0, 0.0, 0.0),
+                    spec.handle_length_m, spec.handle_thickness_m, spec.handle_standoff_m)
+    part = Part(spec.kind, spec.kind, spec.kind, f"{spec.kind}_joint", spec.joint_upper, handle,
+                Mechanism(friction=spec.friction, damping=spec.damping))
+    return Furniture(cached_urdf(cabinet_urdf(spec), f"cabinet_{spec.kind}_{spec.split}_{spec.seed}"), np.eye(4), 1.0,
+                     (spec.width_m, spec.depth_m, spec.height_m), (part,), f"box {spec.split} {spec.kind} {spec.seed}")
 
 
 Boxes = list[tuple[tuple[float, float, float], tuple[float, float, float]]]  # (size, centre) pairs

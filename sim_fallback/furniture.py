@@ -7,7 +7,7 @@ furniture (the right of someone facing it), z up; metres. A part's joint value i
 (m for a drawer, rad for a door).
 
 A part's `handle` is ground truth: the scripted data generator grasps it and evaluation scores against it; the
-controller never sees it.
+controller never sees it. Lengths are metres as loaded, after `Furniture.scale`.
 """
 
 from __future__ import annotations
@@ -59,7 +59,9 @@ class Handle:
     """A part's handle (ground truth). In the part's link frame at joint value 0: `centre` the grip centre,
     `axis` the direction a parallel gripper's fingers close across (a bar's length direction: unit), `normal`
     out of the front (unit). Knobs, cups and pulls have an `axis` too: the way a gripper would best hold them.
-    `style` "none" is a push-to-open front."""
+    `style` "none" is a push-to-open front. `length_m` is the handle's extent along `axis`, `thickness_m` across
+    it (what the fingers close on); `clear_behind_m` how far behind the grip centre (along -normal) the part's
+    surface lies, its front or a recess's back: fingertips reaching further hit it (None: not known)."""
 
     style: HandleStyle
     centre: tuple[float, float, float]
@@ -67,6 +69,7 @@ class Handle:
     normal: tuple[float, float, float]
     length_m: float = 0.0
     thickness_m: float = 0.0
+    clear_behind_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -89,7 +92,8 @@ class Furniture:
     """One piece of furniture ready to load: `urdf` (the file PyBullet loads), `T_urdf` (4x4: the URDF root's pose
     in the furniture frame, after `scale`, PyBullet's globalScaling), `size_m` (width, depth, height in the
     furniture frame), its openable `parts`, the `finishes` of its links by link name (links not named look like
-    their URDF colour, painted) and `source` (what made it, for reports: "procedural test 12", "partnet 45213")."""
+    their URDF colour, painted) and `source` (what made it, for reports: "procedural test 12", "partnet 45213").
+    Equal when every field is (`T_urdf` compared element by element)."""
 
     urdf: Path
     T_urdf: np.ndarray
@@ -98,6 +102,12 @@ class Furniture:
     parts: tuple[Part, ...]
     source: str
     finishes: dict[str, Finish] = field(default_factory=dict)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Furniture):
+            return NotImplemented
+        mine, theirs = vars(self).copy(), vars(other).copy()
+        return np.array_equal(mine.pop("T_urdf"), theirs.pop("T_urdf")) and mine == theirs
 
     def part(self, name: str) -> Part:
         """The part called `name` (its name or URDF link name); KeyError listing the parts it has."""

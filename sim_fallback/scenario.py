@@ -1,5 +1,6 @@
-"""Randomised scenarios like RGBManip's: a cabinet placed in front of the Panda, a third-person camera,
-and the arm's start configuration. Pure values; `SimWorld` builds them in PyBullet.
+"""Randomised scenarios like RGBManip's, in two worlds: "kitchen" (the default: sim_fallback/kitchen_scenario.py)
+and "box" (`Scenario`: one cabinet on a pedestal in empty space, the ablation). Pure values; `SimWorld` builds
+their `layout()` in PyBullet.
 
 Robot base frame = world frame: origin at the Panda's base, x forward, z up, metres.
 """
@@ -11,27 +12,24 @@ from typing import Literal
 
 import numpy as np
 
-from sim_fallback.cabinet_urdf import KINDS, SPLITS, CabinetSpec, Split, random_cabinet
+from sim_fallback.cabinet_urdf import KINDS, SPLITS, CabinetSpec, Split, cabinet_furniture, random_cabinet
+from sim_fallback.errors import SceneError
+from sim_fallback.kitchen_scenario import KitchenScenario
+from sim_fallback.layout import Layout, Placed, StaticShape
+from sim_fallback.placement import (  # noqa: F401 - the box world's placement rules, also the kitchen's
+    CABINET_BEARING_RAD,
+    CABINET_DISTANCE_M,
+    CABINET_YAW_RAD,
+    HANDLE_HEIGHT_M,
+    look_at,
+)
+from sim_fallback.start import CONDITIONS, Q_START, START_JITTER_RAD, Condition  # noqa: F401
 
 Task = Literal["drawer", "door"]
-Condition = Literal["normal", "locked", "stiff"]  # the object's joint: as drawn, held fast, 3x the friction
-CONDITIONS: tuple[Condition, ...] = ("normal", "locked", "stiff")
-
-# Robot base to the centre of the cabinet's front face (horizontal) and grip centre above the robot base
-# (a pedestal lifts the cabinet), per task. A drawer is pulled toward the robot: its ranges keep a 45 cm
-# pull in the Panda's dexterous workspace (nearer or lower handles put joint 2 on its limit before the
-# end, farther ones start near full stretch), measured with `well_conditioned_start` over the pull. Doors
-# stand where RGBManip (and the paper) place objects, 0.5-0.85 m: nearer, a 70 deg door's free edge sweeps
-# through the robot's own column (`SimWorld.sweep_hits_robot_base`; 9 of 100 test doors at 0.4-0.7 m).
-CABINET_DISTANCE_M = {"drawer": (0.55, 0.68), "door": (0.5, 0.85)}
-HANDLE_HEIGHT_M = {"drawer": (0.72, 0.86), "door": (0.62, 0.78)}
-CABINET_BEARING_RAD = 0.4  # the cabinet lies within +-this of the robot's x axis
-CABINET_YAW_RAD = 0.2  # the cabinet's front turns up to +-this away from facing the robot
 MIN_PEDESTAL_M = (0.01, 0.05)  # RGBManip's base-height range, used when the cabinet is tall enough
-# Start: the hand retracted 0.3 m in front of the base at 0.75 m height, approach along +x (the ready
-# pose's orientation), clear of any cabinet front; jittered per scenario.
-Q_START = np.array([0.0, -1.2523, 0.0, -2.6382, 0.0, 2.9565, 0.7854])
-START_JITTER_RAD = 0.05  # std of the start configuration around Q_START
+PEDESTAL_RGBA = (0.45, 0.45, 0.47, 1.0)
+FLOOR_SIZE_M = 4.0  # the box world's optional floor square
+FLOOR_RGBA = (0.62, 0.6, 0.55, 1.0)
 
 
 @dataclass(frozen=True)
@@ -47,8 +45,8 @@ class CameraPlacement:
 
 @dataclass(frozen=True)
 class Scenario:
-    """One episode's set-up: cabinet, its pose on a pedestal, camera placement, arm start (rad) and the joint's
-    `condition` ("locked": held fast; "stiff": three times its friction)."""
+    """One episode's set-up in the box world: cabinet, its pose on a pedestal, camera placement, arm start (rad) and
+    the joint's `condition` ("locked": held fast; "stiff": three times its friction)."""
 
     task: Task
     seed: int
@@ -60,6 +58,12 @@ class Scenario:
     camera: CameraPlacement
     q_start: tuple[float, ...]
     condition: Condition = "normal"
+
+    world = "box"
+
+    @property
+    def part(self) -> str:
+        return self.cabinet.kind
 
     @classmethod
     def make(
@@ -112,16 +116,34 @@ class Scenario:
         ray = np.cos(cam.elevation_rad) * out + [0.0, 0.0, np.sin(cam.elevation_rad)]
         return look_at(target + cam.distance_m * ray, target)
 
+    def build_layout(self, floor: bool = False) -> Layout:
+        """The cabinet on its pedestal (and with `floor` a 4 m floor square)."""
+        spec, T = self.cabinet, self.T_base_cabinet
+        pose = (*self.cabinet_xy, self.pedestal_height_m, self.cabinet_yaw)
+        centre = T[:3, :3] @ [0.0, 0.0, -self.pedestal_height_m / 2] + T[:3, 3]
+        statics = [StaticShape("pedestal", "box", (spec.depth_m - 0.02, spec.width_m - 0.02, self.pedestal_height_m),
+                               (*centre, self.cabinet_yaw), None, PEDESTAL_RGBA)]
+        if floor:
+            statics.append(StaticShape("floor", "box", (FLOOR_SIZE_M, FLOOR_SIZE_M, 0.01), (0.5, 0.0, -0.005, 0.0),
+                                       None, FLOOR_RGBA))
+        return Layout((Placed(cabinet_furniture(spec), pose),), tuple(statics), 0, spec.kind)
 
-def look_at(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """4x4 pose of a camera at `eye` looking at `target`, OpenCV optical axes, image top toward +z."""
-    z = np.asarray(target, float) - np.asarray(eye, float)
-    z /= np.linalg.norm(z)
-    x = np.cross(z, [0.0, 0.0, 1.0])
-    if np.linalg.norm(x) < 1e-9:
-        raise ValueError("look_at: the camera looks straight up or down; move it off the vertical")
-    x /= np.linalg.norm(x)
-    T = np.eye(4)
-    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-    T[:3, 3] = eye
-    return T
+
+def make_scenario(world: str, task: Task, seed: int, split: Split = "train", part: str | None = None,
+                  target=None, condition: Condition = "normal") -> Scenario | KitchenScenario:
+    """The scenario of `world` ("kitchen" or "box"), deterministic from its arguments. `part` (the user's `--part`
+    text) and `target` (a `Furniture` to open) apply to kitchens; the box world has its one cabinet. SceneError
+    for an unknown world, or a part the box world's cabinet does not have."""
+    if world == "box":
+        scenario = Scenario.make(task, seed, split, condition=condition)
+        if part not in (None, task, "0"):
+            raise SceneError(f"--part {part!r}: the box world's cabinet has one part, its {task} (0): drop --part, or "
+                             "use --world kitchen")
+        return scenario
+    if world == "kitchen":
+        return KitchenScenario.make(task, seed, split, part=part, target=target, condition=condition)
+    raise SceneError(f"--world {world!r} is not a world: use one of {', '.join(WORLDS)}")
+
+
+WORLDS = {"kitchen": "a kitchen around the target (the default)",
+          "box": "one cabinet on a pedestal in empty space (the ablation)"}

@@ -15,9 +15,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pybullet as pb
 
 from drivers.arm.base import ArmState
-from drivers.arm.grasping import LIMIT_MARGIN_RAD, UP, pregrasp_pose
+from drivers.arm.grasping import GRASP_DEPTH_M, LIMIT_MARGIN_RAD, pregrasp_pose
 from drivers.arm.grasping import grasp_pose as bar_grasp_pose
 from drivers.arm.kinematics import Kinematics, well_conditioned_start
 from drivers.arm.motion import (
@@ -36,12 +37,16 @@ from drivers.errors import ArmError
 from sim_fallback.arm import SimArm
 from sim_fallback.cabinet_urdf import Kind, Split
 from sim_fallback.camera import SimCamera, d415_intrinsics
-from sim_fallback.scenario import Q_START, Scenario
+from sim_fallback.scenario import make_scenario
+from sim_fallback.start import Q_START
 from sim_fallback.world import JointTruth, SimWorld
 
 log = logging.getLogger(__name__)
 
 PREGRASP_M = 0.10  # straight approach along the gripper's axis over the last 10 cm
+FINGERTIPS_PAST_TOOL_M = 0.011  # the Panda's fingertips reach this far past its grasp frame
+FINGERTIP_CLEARANCE_M = 0.003
+PREGRASP_MARGIN_M = 0.015  # the open fingers clear the handle by this much each side
 GRIPPER_FORCE_N = 40.0
 CLOSE_TIME_S = 0.5
 DEFAULT_TARGET = {"drawer": 0.20, "door": float(np.radians(30.0))}  # m, rad
@@ -49,12 +54,23 @@ APPROACH_LIMITS = MotionLimits(0.10, 0.5, 5.0)  # m/s, m/s^2, m/s^3 along the ap
 OPEN_LIMITS = {"drawer": MotionLimits(0.10, 0.3, 3.0), "door": MotionLimits(0.25, 0.6, 6.0)}  # m or rad
 
 
-def grasp_pose(handle_pose: np.ndarray, vertical_bar: bool) -> np.ndarray:
-    """Tool pose grasping the true handle from the front (`handle_pose`: x out of the front, grip centre at the
-    origin, 4x4 base frame)."""
-    normal = handle_pose[:3, 0]
-    bar = UP - normal * (normal @ UP) if vertical_bar else np.cross(normal, UP)
-    return bar_grasp_pose(handle_pose[:3, 3], normal, bar)
+def grasp_pose(world: SimWorld) -> np.ndarray:
+    """Tool pose grasping the target part's true handle from the front, fingers across its bar (base frame), as deep
+    as its handle leaves room for: the fingertips stop FINGERTIP_CLEARANCE_M short of the surface behind it."""
+    centre, bar, normal = world.target_handle()
+    handle = world.target.part.handle
+    depth = GRASP_DEPTH_M
+    if handle is not None and handle.clear_behind_m is not None:
+        depth = min(depth, handle.clear_behind_m - FINGERTIPS_PAST_TOOL_M - FINGERTIP_CLEARANCE_M)
+    return bar_grasp_pose(centre, normal, bar, depth_m=depth)
+
+
+def pregrasp_width(world: SimWorld) -> float:
+    """How wide the gripper opens before it closes on the target's handle: its thickness and a margin each side
+    (room in a recessed pull's pocket), at most the gripper's width."""
+    handle = world.target.part.handle
+    widest = world.robot_spec.gripper_max_width_m
+    return widest if handle is None else min(widest, handle.thickness_m + 2 * PREGRASP_MARGIN_M)
 
 
 def opening_path(T_start: np.ndarray, truth: JointTruth) -> PathFn:
@@ -83,16 +99,29 @@ def grasp_handle(
     world: SimWorld, arm: SimArm, limits: MotionLimits, target: float, on_tick: OnTick | None = None
 ) -> None:
     """Move to the pre-grasp pose, approach along the gripper axis and close on the handle (ground truth).
-    `target` is the opening that follows, used to pick an arm configuration that can make it."""
-    T_grasp = grasp_pose(world.handle_pose(), world.scenario.cabinet.handle_vertical)
+    `target` is the opening that follows, used to pick an arm configuration that can make it. ArmError when no arm
+    configuration makes it, or when the fingers closed on something else than the handle."""
+    T_grasp = grasp_pose(world)
     q_pre = pregrasp_configuration(arm.kin, T_grasp, opening_path(T_grasp, world.truth()), target)
-    arm.set_gripper(world.robot_spec.gripper_max_width_m)
+    arm.set_gripper(pregrasp_width(world))
     move_to_joints(arm, q_pre, limits, on_tick)
     approach = T_grasp[:3, 2]
     follow_cartesian_path(arm, arm.kin, line_path(arm.kin.fk(arm.state().q), approach), PREGRASP_M,
                           APPROACH_LIMITS, on_tick)
     arm.set_gripper(0.0, GRIPPER_FORCE_N)
     wait(arm, CLOSE_TIME_S, on_tick)
+    if not holds_target(world):
+        style = world.target.part.handle.style if world.target.part.handle is not None else "unmarked"
+        raise ArmError(f"scripted grasp: the fingers did not both close on the {style} handle of the "
+                       f"{world.target.part.name}: the hand met something else first; try another seed or part")
+
+
+def holds_target(world: SimWorld) -> bool:
+    """Whether both fingers touch the target part (its link or its handle's)."""
+    c, links = world.client, world.truth().links
+    fingers = [world.robot_joints[name] for name in world.robot_spec.finger_joints]
+    return all(any(pb.getContactPoints(world.robot_id, world.cabinet_id, f, link, physicsClientId=c) for link in links)
+               for f in fingers)
 
 
 def open_along_truth(
@@ -120,6 +149,8 @@ class RecordingSummary:
     task: Kind
     seed: int
     split: Split
+    world: str
+    part: str
     frames: int
     joint_start: float
     joint_end: float
@@ -129,7 +160,7 @@ class RecordingSummary:
 
     def __str__(self) -> str:
         scale, unit = (100.0, "cm") if self.task == "drawer" else (float(np.degrees(1.0)), "deg")
-        return (f"{self.frames} frames, {self.task} opened {self.joint_end * scale:.1f} of "
+        return (f"{self.frames} frames, {self.part} ({self.world}) opened {self.joint_end * scale:.1f} of "
                 f"{self.target * scale:.1f} {unit} in {self.sim_time_s:.1f} s simulated "
                 f"({self.wall_time_s:.1f} s wall)")
 
@@ -143,25 +174,29 @@ def record_scripted(
     fps: float = 10.0,
     resolution: tuple[int, int] = (640, 480),
     progress: Callable[[str, int], None] | None = None,
+    world: str = "box",
+    part: str | None = None,
 ) -> RecordingSummary:
-    """Record a scripted opening driven by GROUND TRUTH (a data generator, not the policy).
+    """Record a scripted opening of scenario `seed` of `world` ("box", or "kitchen" with `part` its target part as a
+    user names it, default the seed's) driven by GROUND TRUTH (a data generator, not the policy).
 
     Writes the frames-directory format at `out_dir` (colour, noisy depth, object mask including the
     handle, T_base_camera, joint positions, tool pose and `grasped` per frame: false over the approach until the
-    gripper has closed on the handle, true from then on) plus truth.json with the true
-    joint type, axis (base frame; positive opens) and the joint value at every frame. `target`: opening in
-    m (drawer, default 0.2) or rad (door, default 30 deg). progress(phase, frames) follows every frame written
-    (phase: "grasp", "open" or "hold").
+    gripper has closed on the handle, true from then on) plus truth.json with the true joint type, axis (base
+    frame; positive opens), the joint value at every frame, the world and the part. `target`: opening in m (drawer,
+    default 0.2) or rad (door, default 30 deg). progress(phase, frames) follows every frame written (phase: "grasp",
+    "open" or "hold").
     """
     target = DEFAULT_TARGET[task] if target is None else float(target)
     out = Path(out_dir)
     wall0 = time.perf_counter()
-    log.info("scripted %s opening from GROUND TRUTH (data generator, not the policy): seed %d, split %s",
-             task, seed, split)
-    with SimWorld(Scenario.make(task, seed, split)) as world:
-        arm = SimArm(world)
-        camera = SimCamera(world, intrinsics=d415_intrinsics(*resolution), seed=seed, fps=fps, labels=True, posed=True)
-        limits = MotionLimits.for_robot(world.robot_spec, arm.kin, fraction=0.3)
+    log.info("scripted %s opening from GROUND TRUTH (data generator, not the policy): %s seed %d, split %s",
+             task, world, seed, split)
+    scenario = make_scenario(world, task, seed, split, part=part)  # type: ignore[arg-type]
+    with SimWorld(scenario) as sim:
+        arm = SimArm(sim)
+        camera = SimCamera(sim, intrinsics=d415_intrinsics(*resolution), seed=seed, fps=fps, labels=True, posed=True)
+        limits = MotionLimits.for_robot(sim.robot_spec, arm.kin, fraction=0.3)
         joint_values: list[float] = []
         with FramesWriter(out, camera.intrinsics, T_base_camera=camera.T_base_camera, camera="sim",
                           simulated=True) as writer:
@@ -175,26 +210,26 @@ def record_scripted(
                 mask = (frame.segmentation == SegLabel.OBJECT) | (frame.segmentation == SegLabel.HANDLE)
                 writer.write(frame, mask=mask, joint_positions=state.q, ee_pose=arm.kin.fk(state.q),
                              grasped=phase != "grasp")
-                joint_values.append(world.joint_value())
+                joint_values.append(sim.joint_value())
                 next_t = (frame.index + 1) / fps
                 if progress is not None:
                     progress(phase, len(joint_values))
 
             capture(arm.state())
-            grasp_handle(world, arm, limits, target, capture)
+            grasp_handle(sim, arm, limits, target, capture)
             phase = "open"  # the gripper has closed on the handle: it holds from here on
-            open_along_truth(world, arm, target, OPEN_LIMITS[task], capture)
+            open_along_truth(sim, arm, target, OPEN_LIMITS[task], capture)
             phase = "hold"
             wait(arm, 0.5, capture)
-        truth = world.truth()
+        truth = sim.truth()
         (out / "truth.json").write_text(json.dumps({
             "source": "simulator ground truth (scripted data generator)",
-            "task": task, "seed": seed, "split": split, "target": target,
+            "task": task, "seed": seed, "split": split, "world": world, "part": truth.part, "target": target,
             "joint_type": truth.joint_type,
             "origin": truth.origin.tolist(), "direction": truth.direction.tolist(),
             "joint_upper": truth.upper, "joint_values": joint_values,
         }, indent=2) + "\n")
-        summary = RecordingSummary(out, task, seed, split, len(joint_values), joint_values[0],
-                                   joint_values[-1], target, world.time, time.perf_counter() - wall0)
+        summary = RecordingSummary(out, task, seed, split, world, truth.part, len(joint_values), joint_values[0],
+                                   joint_values[-1], target, sim.time, time.perf_counter() - wall0)
     log.info("recorded %s: %s", out, summary)
     return summary

@@ -11,7 +11,7 @@ from drivers.camera.base import SegLabel
 from drivers.errors import RecordingError
 from sim_fallback.cabinet_urdf import Kind, Split
 from sim_fallback.camera import SimCamera, d415_intrinsics
-from sim_fallback.scenario import Scenario
+from sim_fallback.scenario import make_scenario
 from sim_fallback.world import SimWorld
 
 SEG_COLOURS_RGB = {SegLabel.BACKGROUND: (40, 40, 40), SegLabel.OBJECT: (70, 130, 230),
@@ -24,13 +24,16 @@ def render_scene_png(
     out_path: str | Path,
     split: Split = "train",
     resolution: tuple[int, int] = (640, 480),
+    world: str = "box",
+    part: str | None = None,
 ) -> Path:
-    """Render the scenario's first camera frame (D415 noise on) and write the three panels to `out_path`."""
+    """Render the first camera frame (D415 noise on) of scenario `seed` of `world` ("box", or "kitchen" with `part`
+    its target part as a user names it) and write the three panels to `out_path`."""
     out = Path(out_path)
     if out.suffix.lower() != ".png":
         raise ValueError(f"scene image {out}: the file name must end in .png")
-    with SimWorld(Scenario.make(task, seed, split)) as world:
-        frame = SimCamera(world, intrinsics=d415_intrinsics(*resolution), seed=seed, labels=True).read()
+    with SimWorld(make_scenario(world, task, seed, split, part=part)) as sim:
+        frame = SimCamera(sim, intrinsics=d415_intrinsics(*resolution), seed=seed, labels=True).read()
     depth = frame.depth_m
     valid = depth > 0
     lo, hi = (np.percentile(depth[valid], [1, 99]) if valid.any() else (0.0, 1.0))

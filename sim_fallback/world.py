@@ -1,4 +1,5 @@
-"""The PyBullet world of one scenario: Panda, cabinet on a pedestal, physics clock and ground truth.
+"""The PyBullet world of one scenario: the Panda, the scenario's furniture and static shapes, the parts'
+mechanisms, a physics clock and the ground truth.
 
 Each `SimWorld` owns its own DIRECT-mode client, so several can coexist. Devices (`SimCamera`,
 `SimArm`) are built from a world but keep only a `PhysicsClock` and body ids, never the world: the
@@ -12,7 +13,7 @@ import os
 import re
 import tempfile
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cache
 from pathlib import Path
 from typing import Literal
@@ -22,16 +23,21 @@ import open3d as o3d
 import pybullet as pb
 
 from drivers.arm.robots import panda
-from sim_fallback.cabinet_urdf import write_cabinet_urdf
+from sim_fallback.furniture import Finish, Mechanism, Part
+from sim_fallback.furniture_body import grip_frame, link_indices, link_pose, load_furniture, part_links
+from sim_fallback.kitchen_scenario import KitchenScenario
+from sim_fallback.layout import Layout, Placed
+from sim_fallback.mechanisms import JointMechanism, MechanismForces, set_friction
 from sim_fallback.scenario import Scenario
+from sim_fallback.static_body import static_body
 
 PHYSICS_HZ = 240
 VISUAL_TRIANGLE_FRACTION = 0.25  # robot visuals: decimated collision meshes (0.1 drops the IoU to 0.9)
 STIFF_FRICTION_FACTOR = 3.0  # condition "stiff": the joint's Coulomb friction times this
 LOCKED_FORCE = 1e5  # condition "locked": the joint's brake (N or N m), far above anything the arm can pull
+FIXED_GROUP, ALL_GROUPS = 2, 0xFFFF  # collision filter group of fixed links (furniture bodies, static shapes)
 SWEEP_STEP = 0.02  # sweep_hits_robot_base: the joint's steps (m or rad)
 BASE_TURNS, SHOULDER_TILTS = 12, 9  # ... and the postures of the first two robot joints tried
-FLOOR_SIZE_M = 4.0  # a floor box: about +15 ms a 640x480 frame (pybullet_data's plane doubles the time)
 
 
 class PhysicsClock:
@@ -61,10 +67,11 @@ class PhysicsClock:
 
 @dataclass(frozen=True)
 class JointTruth:
-    """Ground truth of the cabinet joint in the robot base frame (evaluation only).
+    """Ground truth of a part's joint in the robot base frame (evaluation only).
 
     origin: prismatic, the grip centre when closed; revolute, the point of the hinge line at the grip's
-    height. direction: unit; positive joint motion opens. value: m or rad, 0 closed.
+    height. direction: unit; positive joint motion opens. value: m or rad, 0 closed. body_id and links: the body and
+    link indices whose pixels are the part (its link and those fixed to it, e.g. its handle); part: its name.
     """
 
     joint_type: Literal["prismatic", "revolute"]
@@ -72,27 +79,48 @@ class JointTruth:
     direction: np.ndarray
     value: float
     upper: float
+    body_id: int
+    links: tuple[int, ...]
+    part: str
+
+
+@dataclass(frozen=True)
+class LoadedPart:
+    """A part of a loaded piece of furniture: its body, joint (= link) index and description."""
+
+    body: int
+    joint: int
+    part: Part
 
 
 class SimWorld:
-    """PyBullet world of a scenario. Context manager: leaving it disconnects the client.
+    """PyBullet world of a scenario (`Scenario`: the box world; `KitchenScenario`). Context manager: leaving it
+    disconnects the client.
 
-    floor: draw a 4 m floor square under the robot and cabinet (costs render time; off by default,
-    background pixels then read depth 0 like out-of-range stereo).
+    The target part (the scenario's `part` in its target furniture) is `cabinet_id` (its furniture's body),
+    `cabinet_joint` (its joint index) and `handle_link` (its handle's link when the handle is a link of its own,
+    else the part's link); `parts` are the target furniture's parts by name, `all_parts` every furniture's;
+    `furniture_ids` the furniture's bodies in the layout's order, `statics_id` the body of the static shapes;
+    `finishes` the looks of surfaces by (body id, link index; -1 the base) for the renderer. floor: the box world's
+    4 m floor square (costs render time; off by default: background pixels then read depth 0 like out-of-range
+    stereo); kitchens have their own.
     """
 
-    def __init__(self, scenario: Scenario, floor: bool = False) -> None:
+    def __init__(self, scenario: Scenario | KitchenScenario, floor: bool = False) -> None:
         self.scenario = scenario
         self.client = pb.connect(pb.DIRECT)
         self.clock = PhysicsClock(self.client)
-        self._tmp = tempfile.TemporaryDirectory(prefix="axisloop_cabinet_")
+        self.finishes: dict[tuple[int, int], Finish] = {}
+        self.parts: dict[str, LoadedPart] = {}
+        self.all_parts: list[LoadedPart] = []
+        self._tmp = tempfile.TemporaryDirectory(prefix="axisloop_robot_")
         try:
-            self._build(floor)
+            self._build(scenario.build_layout(floor))
         except Exception:
             self.close()
             raise
 
-    def _build(self, floor: bool) -> None:
+    def _build(self, layout: Layout) -> None:
         c, sc = self.client, self.scenario
         pb.setGravity(0, 0, -9.81, physicsClientId=c)
         pb.setTimeStep(self.clock.dt, physicsClientId=c)
@@ -111,61 +139,114 @@ class SimWorld:
         half_open = self.robot_spec.gripper_max_width_m / 2
         for name in self.robot_spec.finger_joints:
             pb.resetJointState(self.robot_id, self.robot_joints[name], half_open, physicsClientId=c)
+        self.furniture_ids: list[int] = []
+        joints = [joint for k, placed in enumerate(layout.furniture)
+                  for joint in self._load(placed, k == layout.target, layout.part)]
+        self.statics_id = static_body(c, layout.statics)
+        for k, shape in enumerate(layout.statics):
+            if shape.finish is not None:
+                self.finishes[(self.statics_id, k - 1)] = shape.finish
+        fixed = [(self.robot_id, -1), *((body, -1) for body in self.furniture_ids),
+                 *((self.statics_id, k - 1) for k in range(len(layout.statics)))]
+        for body, link in fixed:  # what cannot move never collides with what cannot move: no contacts to solve
+            pb.setCollisionFilterGroupMask(body, link, FIXED_GROUP, ALL_GROUPS ^ FIXED_GROUP, physicsClientId=c)
+        self._mechanisms = MechanismForces(c, joints)
+        self._mechanisms.apply()
+        self.clock.add_hook(self._mechanisms.apply)
 
-        spec, T = sc.cabinet, sc.T_base_cabinet
-        urdf = write_cabinet_urdf(spec, Path(self._tmp.name))
-        quat = pb.getQuaternionFromEuler([0.0, 0.0, sc.cabinet_yaw])
-        self.cabinet_id = pb.loadURDF(str(urdf), T[:3, 3].tolist(), quat, useFixedBase=True,
-                                      physicsClientId=c)
-        self.cabinet_joint, self.handle_link = 0, 1
-        pb.changeDynamics(self.cabinet_id, self.cabinet_joint, jointDamping=spec.damping, linearDamping=0.0,
-                          angularDamping=0.0, physicsClientId=c)
-        pb.setJointMotorControl2(self.cabinet_id, self.cabinet_joint, pb.VELOCITY_CONTROL, targetVelocity=0.0,
-                                 force=self.joint_friction(), physicsClientId=c)  # Coulomb friction
-        if sc.condition == "locked":  # a velocity brake alone creeps under a sustained pull: no range either
-            pb.changeDynamics(self.cabinet_id, self.cabinet_joint, jointLowerLimit=0.0, jointUpperLimit=0.0,
-                              physicsClientId=c)
-
-        half = [spec.depth_m / 2 - 0.01, spec.width_m / 2 - 0.01, sc.pedestal_height_m / 2]
-        centre = T[:3, :3] @ [0.0, 0.0, -sc.pedestal_height_m / 2] + T[:3, 3]
-        _static_box(c, half, centre.tolist(), quat, (0.45, 0.45, 0.47, 1.0))
-        if floor:
-            _static_box(c, [FLOOR_SIZE_M / 2, FLOOR_SIZE_M / 2, 0.005], [0.5, 0.0, -0.005], [0, 0, 0, 1],
-                        (0.62, 0.6, 0.55, 1.0))
+    def _load(self, placed: Placed, target: bool, part_name: str) -> list[JointMechanism]:
+        """Load one piece of furniture, give its joints their friction and damping; the target's part in the
+        scenario's condition. Its joints' mechanisms."""
+        c, furniture = self.client, placed.furniture
+        body = load_furniture(c, furniture, placed.T, placed.pose[3])
+        self.furniture_ids.append(body)
+        links = link_indices(c, body)
+        for name, finish in furniture.finishes.items():
+            self.finishes[(body, links[name])] = finish
+        joints = []
+        for part in furniture.parts:
+            j = links[part.link]
+            m = part.mechanism
+            friction = m.friction
+            if target and part.name == part_name:
+                self.cabinet_id, self.cabinet_joint = body, j
+                own = part_links(c, body, j)
+                self.handle_link = own[1] if len(own) > 1 else j
+                friction = self._condition_friction(m)
+                if self.scenario.condition == "stiff":
+                    m = replace(m, stiction=STIFF_FRICTION_FACTOR * m.stiction)
+            self.all_parts.append(LoadedPart(body, j, part))
+            if target:
+                self.parts[part.name] = self.all_parts[-1]
+            pb.changeDynamics(body, j, jointDamping=m.damping, linearDamping=0.0, angularDamping=0.0, physicsClientId=c)
+            set_friction(c, body, j, friction)  # Coulomb friction
+            if target and part.name == part_name and self.scenario.condition == "locked":
+                # a velocity brake alone creeps under a sustained pull: no range either
+                pb.changeDynamics(body, j, jointLowerLimit=0.0, jointUpperLimit=0.0, physicsClientId=c)
+                m = replace(m, stiction=0.0)
+            info = pb.getJointInfo(body, j, physicsClientId=c)
+            axis = link_pose(c, body, j)[:3, :3] @ np.asarray(info[13], float)
+            joints.append(JointMechanism(body, j, info[2] == pb.JOINT_PRISMATIC, axis / np.linalg.norm(axis),
+                                         friction, m))
+        return joints
 
     @property
     def time(self) -> float:
         return self.clock.time
 
-    def joint_friction(self) -> float:
-        """The cabinet joint's Coulomb friction (N or N m) in the scenario's condition: locked holds it fast."""
-        friction = self.scenario.cabinet.friction
-        return {"normal": friction, "stiff": STIFF_FRICTION_FACTOR * friction,
+    @property
+    def target(self) -> LoadedPart:
+        """The target part."""
+        return self.parts[self.scenario.part]
+
+    def _condition_friction(self, m: Mechanism) -> float:
+        return {"normal": m.friction, "stiff": STIFF_FRICTION_FACTOR * m.friction,
                 "locked": LOCKED_FORCE}[self.scenario.condition]
 
+    def joint_friction(self) -> float:
+        """The target joint's Coulomb friction (N or N m) in the scenario's condition: locked holds it fast."""
+        return self._condition_friction(self.target.part.mechanism)
+
     def joint_value(self) -> float:
-        """The cabinet joint's value (m or rad; ground truth)."""
+        """The target joint's value (m or rad; ground truth)."""
         return float(pb.getJointState(self.cabinet_id, self.cabinet_joint, physicsClientId=self.client)[0])
 
-    def handle_pose(self) -> np.ndarray:
-        """4x4 pose of the handle frame (grip centre, cabinet axes) in the base frame (ground truth)."""
-        state = pb.getLinkState(self.cabinet_id, self.handle_link, computeForwardKinematics=True,
-                                physicsClientId=self.client)
-        return _pose(state[4], state[5])
+    def target_handle(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(grip centre, bar axis, front normal) of the target part now, base frame (ground truth)."""
+        t = self.target
+        return grip_frame(self.client, t.body, t.joint, t.part)
 
-    def truth(self) -> JointTruth:
-        """The cabinet joint's type, axis and value in the base frame. Evaluation and data generation only."""
-        spec, T = self.scenario.cabinet, self.scenario.T_base_cabinet
-        direction = T[:3, :3] @ spec.joint_axis_cabinet
-        value = self.joint_value()
-        if spec.kind == "drawer":
-            origin = T[:3, :3] @ spec.handle_cabinet + T[:3, 3]
-            joint_type = "prismatic"
+    def handle_pose(self) -> np.ndarray:
+        """4x4 pose of the target's grip: origin at the grip centre, x out of its front, z as near up as that allows
+        (base frame, ground truth)."""
+        centre, _, normal = self.target_handle()
+        y = np.cross([0.0, 0.0, 1.0], normal)
+        y = y / np.linalg.norm(y) if np.linalg.norm(y) > 1e-9 else np.array([0.0, 1.0, 0.0])
+        T = np.eye(4)
+        T[:3, :3] = np.column_stack([normal, y, np.cross(normal, y)])
+        T[:3, 3] = centre
+        return T
+
+    def truth(self, part: str | None = None) -> JointTruth:
+        """The joint of the target part (or the target furniture's `part`): type, axis and value in the base frame,
+        and its body and links. Evaluation and data generation only."""
+        return self.part_truth(self.parts[part or self.scenario.part])
+
+    def part_truth(self, p: LoadedPart) -> JointTruth:
+        """The joint of any loaded part (`all_parts`), as `truth` gives the target's."""
+        c = self.client
+        info = pb.getJointInfo(p.body, p.joint, physicsClientId=c)
+        T = link_pose(c, p.body, p.joint)
+        direction = T[:3, :3] @ np.asarray(info[13], float)
+        direction /= np.linalg.norm(direction)
+        value = float(pb.getJointState(p.body, p.joint, physicsClientId=c)[0])
+        grip = grip_frame(c, p.body, p.joint, p.part)[0]
+        if info[2] == pb.JOINT_PRISMATIC:
+            origin, joint_type = grip - direction * value, "prismatic"
         else:
-            hinge = T[:3, :3] @ spec.joint_origin_cabinet + T[:3, 3]
-            origin = hinge + direction * float(direction @ (self.handle_pose()[:3, 3] - hinge))
-            joint_type = "revolute"
-        return JointTruth(joint_type, origin, direction, value, spec.joint_upper)
+            origin, joint_type = T[:3, 3] + direction * float(direction @ (grip - T[:3, 3])), "revolute"
+        return JointTruth(joint_type, origin, direction, value, p.part.upper, p.body,  # type: ignore[arg-type]
+                          part_links(c, p.body, p.joint), p.part.name)
 
     def sweep_hits_robot_base(self, value: float) -> bool:
         """Whether the moving part, opened from its present value to `value` (m or rad), must pass through the
@@ -264,16 +345,3 @@ def _cache_directory() -> Path:
     directory = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "axisloop" / "meshes"
     directory.mkdir(parents=True, exist_ok=True)
     return directory
-
-
-def _static_box(client: int, half: list[float], pos: list[float], quat, rgba: tuple) -> int:
-    shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=client)
-    visual = pb.createVisualShape(pb.GEOM_BOX, halfExtents=half, rgbaColor=rgba, physicsClientId=client)
-    return pb.createMultiBody(0.0, shape, visual, pos, quat, physicsClientId=client)
-
-
-def _pose(position, quaternion) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3] = np.reshape(pb.getMatrixFromQuaternion(quaternion), (3, 3))
-    T[:3, 3] = position
-    return T

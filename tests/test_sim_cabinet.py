@@ -129,7 +129,7 @@ def test_handles_are_reachable_by_ik(kind, split):
     for seed in range(4):
         sc = Scenario.make(kind, seed, split)
         with SimWorld(sc) as world:
-            T_grasp = grasp_pose(world.handle_pose(), sc.cabinet.handle_vertical)
+            T_grasp = grasp_pose(world)
             path = opening_path(T_grasp, world.truth())
         for s in (0.0, DEFAULT_TARGET[kind]):
             q = kin.ik(path(s), np.array(sc.q_start), rng=rng)

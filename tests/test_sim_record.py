@@ -58,8 +58,9 @@ def test_short_recording_round_trips_with_consistent_truth(task, target, tmp_pat
     assert inside.mean() > 0.95  # the rest: noise and flying pixels on the silhouette
 
 
-def test_scene_png_has_three_panels(tmp_path):
-    path = render_scene_png("door", 2, tmp_path / "scene.png", resolution=(160, 120))
+@pytest.mark.parametrize("world", ["box", "kitchen"])
+def test_scene_png_has_three_panels(world, tmp_path):
+    path = render_scene_png("door", 2, tmp_path / "scene.png", resolution=(160, 120), world=world)
     image = cv2.imread(str(path))
     assert image.shape == (120, 480, 3)
     colour, depth, seg = image[:, :160], image[:, 160:320], image[:, 320:]

@@ -1,0 +1,179 @@
+"""A kitchen scenario: a seeded kitchen (sim_fallback/kitchen.py), the target part in it, the robot parked in front of
+that part (sim_fallback/placement.py), the camera, and the arm's start. Pure values; `SimWorld` builds them.
+
+Robot base frame = world frame: origin at the Panda's base, x forward, z up; the floor lies `base_height_m` below.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim_fallback.errors import PartError, SceneError
+from sim_fallback.furniture import Finish, Furniture, PartKind
+from sim_fallback.furniture_body import PartGeometry, measure_parts
+from sim_fallback.kitchen import Room, random_room, random_target, role_of
+from sim_fallback.layout import Layout, Placed, StaticShape
+from sim_fallback.parts import ordered, resolve
+from sim_fallback.placement import (
+    BASE_HEIGHT_M,
+    HANDLE_HEIGHT_M,
+    STAND_HALF_M,
+    CameraMount,
+    base_heights,
+    park_robot,
+    place_camera,
+)
+from sim_fallback.start import CONDITIONS, Condition, random_start
+from sim_fallback.unit_families import Split, random_look
+
+ATTEMPTS = 30  # kitchens drawn for one seed until the target has a reachable part as asked
+OPENED = {"drawer": 0.3, "door": float(np.radians(45.0))}  # the grip stays in view opened this far
+STAND = Finish("painted", (0.25, 0.25, 0.27), 0.3, 0)
+SPLITS, KINDS = ("train", "test"), ("drawer", "door")
+
+
+@dataclass(frozen=True)
+class KitchenScenario:
+    """One episode's set-up in a kitchen: the `kitchen` in the robot base frame (the target part `kitchen.part` in
+    `kitchen.target_furniture`), the robot base's height above the floor, the camera, the arm's start (rad) and the
+    target joint's `condition` ("locked": held fast; "stiff": three times its friction and stiction)."""
+
+    task: PartKind
+    seed: int
+    split: Split
+    kitchen: Layout
+    base_height_m: float
+    camera: CameraMount
+    q_start: tuple[float, ...]
+    condition: Condition = "normal"
+
+    world = "kitchen"
+
+    @property
+    def part(self) -> str:
+        return self.kitchen.part
+
+    def build_layout(self, floor: bool = False) -> Layout:
+        """The kitchen (it has its own floor: `floor` changes nothing)."""
+        return self.kitchen
+
+    @property
+    def T_base_camera(self) -> np.ndarray:
+        """Camera pose in the base frame, OpenCV optical axes (x right, y down, z forward)."""
+        return self.camera.T_base_camera
+
+    @classmethod
+    def make(cls, task: PartKind, seed: int, split: Split = "train", part: str | None = None,
+             target: Furniture | None = None, condition: Condition = "normal", style: str | None = None
+             ) -> KitchenScenario:
+        """A kitchen scenario, deterministic from (task, seed, split) and the arguments. `part`: the `--part` text
+        (default: the seed picks a reachable part of the task's kind); `target`: the furniture to open (default: a
+        procedural unit of the split's family, drawn again until it has that part within reach); `style`: every
+        procedural unit's handle style (default: drawn). SceneError when the part is not there or out of reach."""
+        if condition not in CONDITIONS or task not in KINDS or split not in SPLITS:
+            raise SceneError(f"kitchen scenario {task!r}/{split!r}/{condition!r}: the task is one of {KINDS}, the "
+                             f"split one of {SPLITS}, the condition one of {CONDITIONS}")
+        rng = np.random.default_rng([SPLITS.index(split), KINDS.index(task), seed, 2])
+        source = f"procedural {split} {seed}"
+        error: SceneError | None = None
+        for _ in range(ATTEMPTS):
+            look = random_look(split, rng, style)
+            role, furniture = random_target(task, split, look, rng, source) if target is None else \
+                (role_of(target), target)
+            room = random_room(furniture, role, split, look, rng, source)
+            try:
+                chosen = _choose_part(room, task, part, rng)
+                return _park(cls, task, seed, split, room, chosen, condition)
+            except PartError as exc:
+                if target is not None:  # another kitchen would not change its parts nor their heights
+                    raise
+                error = exc
+            except SceneError as exc:
+                error = exc
+        raise error  # type: ignore[misc]
+
+
+def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Generator) -> PartGeometry:
+    """The target part: the one `text` names, else one of the task's kind within reach, drawn from `rng`."""
+    placed = room.furniture[room.target]
+    geometry = measure_parts(placed.furniture)
+    if text is not None:
+        chosen = resolve(placed.furniture, geometry, task, text)
+        if base_heights(_grip_height(placed, chosen), task) is None:
+            raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} is out of the robot's "
+                             f"reach: {_reach(placed, [chosen], task)}")
+        return chosen
+    parts = ordered(geometry, task)
+    reachable = [g for g in parts if base_heights(_grip_height(placed, g), task) is not None]
+    if not reachable:
+        raise PartError(f"{placed.furniture.source} has no {task} within the robot's reach: "
+                         f"{_reach(placed, parts, task)}")
+    return reachable[int(rng.integers(len(reachable)))]
+
+
+def _grip_height(placed: Placed, part: PartGeometry) -> float:
+    return float((placed.T @ [*part.grip, 1.0])[2])
+
+
+def _reach(placed: Placed, parts: list[PartGeometry], task: str) -> str:
+    heights = ", ".join(f"{g.name} {_grip_height(placed, g):.2f} m" for g in parts) or f"it has no {task}"
+    (low, high), (base_low, base_high) = HANDLE_HEIGHT_M[task], BASE_HEIGHT_M
+    return (f"its grips stand above the floor at {heights}; the robot reaches {task} grips {low + base_low:.2f}-"
+            f"{high + base_high:.2f} m above the floor (its base {base_low:g}-{base_high:g} m up, the grip "
+            f"{low:g}-{high:g} m above the base): name another part, or give another seed")
+
+
+def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, room: Room, part: PartGeometry,
+          condition: Condition) -> KitchenScenario:
+    """The robot parked in front of `part`, the camera placed, all in the robot base frame."""
+    rng = np.random.default_rng([SPLITS.index(split), KINDS.index(task), seed, 3])
+    placed = room.furniture[room.target]
+    T_room = placed.T
+    grip = (T_room @ [*part.grip, 1.0])[:3]
+    normal = T_room[:3, :3] @ part.normal
+    others = [p.footprint() for k, p in enumerate(room.furniture) if k != room.target]
+    others += [s.footprint() for s in room.statics if s.name not in ("floor", "wall")]
+    try:
+        T = park_robot(grip, normal, task, others, rng)
+    except ValueError as exc:
+        raise SceneError(f"{placed.furniture.source}, {part.name}: {exc}") from None
+    lo, hi = base_heights(_grip_height(placed, part), task)  # type: ignore[misc]
+    height = float(rng.uniform(lo, hi))
+    T[2, 3] = -height
+    layout = Layout(tuple(room.furniture), tuple(room.statics), room.target, part.name).moved(T)
+    if height > 0.01:
+        stand = StaticShape("robot stand", "box", (2 * STAND_HALF_M, 2 * STAND_HALF_M, height - 0.002),
+                            (0.0, 0.0, -height / 2 - 0.001, 0.0), STAND)
+        layout = Layout(layout.furniture, (*layout.statics, stand), layout.target, layout.part)
+    camera = _camera(layout, part, T @ T_room, -height, task, rng)
+    return cls(task, seed, split, layout, height, camera, random_start(rng), condition)
+
+
+def _camera(layout: Layout, part: PartGeometry, T_base_furniture: np.ndarray, floor_z: float, task: PartKind,
+            rng: np.random.Generator) -> CameraMount:
+    """A camera that sees the part's front closed and its grip opened by OPENED[task]."""
+    def base(points: np.ndarray) -> np.ndarray:
+        return np.asarray(points) @ T_base_furniture[:3, :3].T + T_base_furniture[:3, 3]
+
+    opened = part.grip + OPENED[task] * part.normal if task == "drawer" else _swung(part, OPENED[task])
+    corners = part.corners()
+    front = corners[corners @ part.normal >= part.front_centre @ part.normal - 1e-6]
+    must_see = base(np.vstack([front, opened]))
+    obstacles = [(p.footprint(), *p.heights) for k, p in enumerate(layout.furniture) if k != layout.target]
+    obstacles += [(s.footprint(), *s.heights) for s in layout.statics if s.name != "floor"]
+    try:
+        return place_camera(base(part.front_centre), base(part.grip), T_base_furniture[:3, :3] @ part.normal, must_see,
+                            floor_z, obstacles, rng)
+    except ValueError as exc:
+        raise SceneError(f"{layout.target_furniture.furniture.source}, {part.name}: {exc}") from None
+
+
+def _swung(part: PartGeometry, angle: float) -> np.ndarray:
+    """The grip of a door opened by `angle`, turned about the front's vertical edge farthest from it (its hinge)."""
+    sideways = np.cross([0.0, 0.0, 1.0], part.normal)
+    lateral = part.corners() @ sideways
+    grip = part.grip @ sideways
+    r = grip - max((lateral.min(), lateral.max()), key=lambda edge: abs(grip - edge))
+    return part.grip + r * (np.cos(angle) - 1.0) * sideways + abs(r) * np.sin(angle) * part.normal

@@ -1,0 +1,327 @@
+"""Kitchens: every part and handle style builds and opens with its handle where its truth says, seeded kitchens
+around the target, the robot's reach rule, the camera, part resolution, disjoint families and the box world as
+before."""
+
+import hashlib
+from dataclasses import replace
+
+import numpy as np
+import pybullet as pb
+import pytest
+from sim_scenes import showroom
+
+from sim_fallback.cabinet_urdf import cabinet_urdf
+from sim_fallback.errors import PartError, SceneError
+from sim_fallback.furniture_body import grip_frame, measure_parts, part_links
+from sim_fallback.handles import STYLES
+from sim_fallback.kitchen_scenario import KitchenScenario
+from sim_fallback.parts import ordered, resolve
+from sim_fallback.placement import HANDLE_HEIGHT_M
+from sim_fallback.scenario import Scenario, make_scenario
+from sim_fallback.unit_families import LAYOUTS, random_carcass, random_look, random_unit, random_width
+from sim_fallback.world import SimWorld
+
+# Scenario.make's cabinets, placements, cameras and URDFs for seeds 0-19 as they were before kitchens existed
+BOX_WORLD_SHA1 = {("drawer", "train"): "2a4c330eadf76eafec044e6c5d4add45519937b0",
+                  ("drawer", "test"): "5472f5345591c2b3d1db735f7fd714b51f1a2fd1",
+                  ("door", "train"): "1affa5586d8418c04112c099386e7c02e71665ba",
+                  ("door", "test"): "83671de1408f6f3e6110bf30f4a8ea06821c6571"}
+
+
+def every_unit(style: str, split: str = "test") -> list:
+    """One unit of every role and layout with handles of `style`."""
+    rng = np.random.default_rng(7)
+    look = random_look(split, rng, style)
+    return [random_unit(role, layout, random_width(split, layout, rng), random_carcass(split, role, rng), look, split,
+                        rng, f"{style} {role} {layout}").furniture()
+            for role, layouts in LAYOUTS.items() for layout in layouts]
+
+
+def probe(world: SimWorld, point: np.ndarray, body: int, link: int) -> float:
+    """Signed distance (m) from `point` to a link's collision shapes (negative inside)."""
+    c = world.client
+    sphere = pb.createMultiBody(0.0, pb.createCollisionShape(pb.GEOM_SPHERE, radius=1e-4, physicsClientId=c), -1,
+                                point.tolist(), physicsClientId=c)
+    try:
+        hits = pb.getClosestPoints(sphere, body, 0.05, -1, link, physicsClientId=c)
+        return min((h[8] for h in hits), default=0.05) + 1e-4
+    finally:
+        pb.removeBody(sphere, physicsClientId=c)
+
+
+def check_handle_where_truth_says(world: SimWorld, loaded) -> None:
+    """The grip centre is on the handle, a ray from the front meets the handle there, and the part's surface lies
+    `clear_behind_m` behind it (not nearer)."""
+    c, h = world.client, loaded.part.handle
+    handle_link = part_links(c, loaded.body, loaded.joint)[1]
+    centre, bar, normal = grip_frame(c, loaded.body, loaded.joint, loaded.part)
+    assert probe(world, centre, loaded.body, handle_link) < 1e-3, loaded.part
+    hit = pb.rayTest((centre + 0.15 * normal).tolist(), (centre - 0.005 * normal).tolist(), physicsClientId=c)[0]
+    assert hit[:2] == (loaded.body, handle_link), (loaded.part, hit[:2])
+    behind = centre - (h.clear_behind_m + 0.002) * normal
+    assert probe(world, behind, loaded.body, loaded.joint) < 1e-3, loaded.part.name
+    assert probe(world, centre - (h.clear_behind_m - 0.004) * normal, loaded.body, loaded.joint) > 0
+    assert abs(np.linalg.norm(bar) - 1) < 1e-6 and abs(bar @ normal) < 1e-6
+
+
+def check_opens_along_its_truth(world: SimWorld, loaded) -> None:
+    """Set open, the grip moves as the joint's truth says; pushed open, the part opens and stops at its end."""
+    c, body, joint = world.client, loaded.body, loaded.joint
+    truth = world.part_truth(loaded)
+    grip0 = grip_frame(c, body, joint, loaded.part)[0]
+    q = 0.5 * loaded.part.upper
+    pb.resetJointState(body, joint, q, physicsClientId=c)
+    grip = grip_frame(c, body, joint, loaded.part)[0]
+    if truth.joint_type == "prismatic":
+        np.testing.assert_allclose(grip - grip0, q * truth.direction, atol=1e-3)
+    else:
+        a, b = grip0 - truth.origin, grip - truth.origin
+        assert abs(a @ truth.direction) < 1e-3 and abs(b @ truth.direction) < 1e-3
+        assert np.degrees(np.arctan2(np.cross(a, b) @ truth.direction, a @ b)) == pytest.approx(np.degrees(q), abs=0.2)
+    assert world.part_truth(loaded).value == pytest.approx(q, abs=1e-6)
+    pb.resetJointState(body, joint, 0.0, physicsClientId=c)
+
+
+@pytest.mark.parametrize("style", STYLES["test"])
+def test_every_layout_and_handle_style_opens_with_the_handle_where_its_truth_says(style):
+    units = every_unit(style)
+    with SimWorld(showroom(units)) as world:
+        assert len(world.all_parts) == sum(len(u.parts) for u in units)
+        for loaded in world.all_parts:
+            assert loaded.part.handle.style == style
+            check_handle_where_truth_says(world, loaded)
+            check_opens_along_its_truth(world, loaded)
+
+
+def test_kitchen_scenes_build_with_their_run_counter_walls_floor_and_objects():
+    for task in ("drawer", "door"):
+        for seed in range(6):
+            sc = make_scenario("kitchen", task, seed, "test")
+            assert sc == make_scenario("kitchen", task, seed, "test")  # seeded
+            names = [s.name for s in sc.kitchen.statics]
+            assert names[0] == "floor" and "wall" in names and "countertop" in names and "object" in names
+            floor_top = sc.kitchen.statics[0].heights[1]
+            assert floor_top == pytest.approx(-sc.base_height_m)
+            with SimWorld(sc) as world:
+                for loaded in world.parts.values():
+                    check_handle_where_truth_says(world, loaded)
+                    check_opens_along_its_truth(world, loaded)
+                grip = world.target_handle()[0]
+                low, high = HANDLE_HEIGHT_M[task]
+                assert low - 1e-6 <= grip[2] <= high + 1e-6  # the reach rule: the grip where the box world's are
+                assert world.truth().part == sc.part and world.truth().body_id == world.cabinet_id
+    assert make_scenario("kitchen", "drawer", 0, "test") != make_scenario("kitchen", "drawer", 1, "test")
+
+
+def test_the_run_touches_the_target_under_an_overhanging_countertop_against_the_wall():
+    sc = next(s for s in (make_scenario("kitchen", "drawer", seed, "train") for seed in range(20))
+              if " base " in s.kitchen.target_furniture.furniture.source)
+    layout = sc.kitchen
+    T_room = np.linalg.inv(layout.target_furniture.T)  # the target's frame: x out of its front, its back at the wall
+    backs, fronts, sides = [], [], []
+    for p in layout.furniture:
+        corners = np.c_[p.footprint(), np.zeros(4), np.ones(4)] @ T_room.T
+        backs.append(corners[:, 0].min())
+        fronts.append(corners[:, 0].max())
+        sides.append((corners[:, 1].min(), corners[:, 1].max(), p.heights))
+    target = layout.target
+    width, depth, height = layout.target_furniture.furniture.size_m
+    assert backs[target] == pytest.approx(-depth / 2)
+    neighbours = [s for k, s in enumerate(sides) if k != target and abs(s[2][0] - sides[target][2][0]) < 1e-6]
+    assert any(abs(s[0] - width / 2) < 1e-6 or abs(s[1] + width / 2) < 1e-6 for s in neighbours)  # touching it
+    counter = next(s for s in layout.statics if s.name == "countertop")
+    corners = np.c_[counter.footprint(), np.zeros(4), np.ones(4)] @ T_room.T
+    assert corners[:, 0].max() - depth / 2 > 0.015 and counter.heights[0] == pytest.approx(sides[target][2][1])
+    wall = [s for s in layout.statics if s.name == "wall"][0]
+    wall_face = (np.c_[wall.footprint(), np.zeros(4), np.ones(4)] @ T_room.T)[:, 0].max()
+    assert wall_face == pytest.approx(-depth / 2, abs=1e-6)
+
+
+def test_the_part_stays_in_view_and_not_always_in_the_middle():
+    from sim_fallback.camera import d415_intrinsics
+
+    K = d415_intrinsics()
+    offsets, kinds = [], set()
+    for seed in range(10):
+        sc = make_scenario("kitchen", "door" if seed % 2 else "drawer", seed, "train")
+        kinds.add(sc.camera.kind)
+        placed = sc.kitchen.target_furniture
+        part = next(g for g in measure_parts(placed.furniture) if g.name == sc.part)
+        corners = part.corners()
+        front = corners[corners @ part.normal > part.front_centre @ part.normal - 1e-6]
+        corners = front @ placed.T[:3, :3].T + placed.T[:3, 3]
+        T = sc.T_base_camera
+        local = (corners - T[:3, 3]) @ T[:3, :3]
+        u, v = K.fx * local[:, 0] / local[:, 2] + K.cx, K.fy * local[:, 1] / local[:, 2] + K.cy
+        front = local[:, 2] > 0
+        assert front.all() and (u > -0.05 * K.width).all() and (u < 1.05 * K.width).all(), seed
+        assert (v > -0.05 * K.height).all() and (v < 1.05 * K.height).all(), seed
+        offsets.append(np.hypot(u.mean() - K.cx, v.mean() - K.cy))
+    assert kinds == {"tripod", "base"} and max(offsets) > 30
+
+
+def test_a_part_is_named_by_name_index_link_or_position_and_otherwise_listed():
+    rng = np.random.default_rng(3)
+    look = random_look("train", rng, "bar")
+    unit = random_unit("base", "drawer-over-doors", 0.7, random_carcass("train", "base", rng), look, "train", rng,
+                       "test unit").furniture()
+    geometry = measure_parts(unit)
+    assert [g.name for g in ordered(geometry, "door")] == ["left door", "right door"]
+    assert resolve(unit, geometry, "door", "Left  Door").name == "left door"
+    assert resolve(unit, geometry, "door", "1").name == "right door"
+    assert resolve(unit, geometry, "door", "door_2").name == "right door"  # the link's name
+    assert resolve(unit, geometry, "door", "right door").name == "right door"
+    assert resolve(unit, geometry, "drawer", "top drawer").name == "drawer"  # by position
+    assert resolve(unit, geometry, "drawer", "0").name == "drawer"
+    with pytest.raises(PartError, match=r"'2' is not one of its parts.*0 left door \(link door_1\), 1 right door"):
+        resolve(unit, geometry, "door", "2")
+    with pytest.raises(PartError, match="'drawer' is a drawer, not a door"):
+        resolve(unit, geometry, "door", "drawer")
+    pair = random_unit("base", "doors", 0.7, random_carcass("train", "base", rng), look, "train", rng,
+                       "pair").furniture()
+    with pytest.raises(PartError, match="'cellar door' is not one of its parts"):
+        KitchenScenario.make("door", 0, "train", part="cellar door", target=pair)
+    sc = KitchenScenario.make("door", 0, "train", part="right door", target=pair)
+    assert sc.part == "right door" and sc.kitchen.target_furniture.furniture == pair
+
+
+def test_the_seed_picks_a_reachable_part_and_named_parts_out_of_reach_are_refused():
+    rng = np.random.default_rng(5)
+    look = random_look("train", rng, "bar")
+    chest = random_unit("base", "drawers", 0.5, random_carcass("train", "base", rng), look, "train", rng,
+                        "stack").furniture()
+    names = [g.name for g in ordered(measure_parts(chest), "drawer")]
+    picked = {KitchenScenario.make("drawer", seed, "train", target=chest).part for seed in range(4)}
+    assert picked == {names[0]}  # only the top drawer's handle stands high enough above a base on the floor
+    with pytest.raises(PartError, match="out of the robot's reach"):
+        KitchenScenario.make("drawer", 0, "train", part="bottom drawer", target=chest)
+
+
+def test_train_and_test_families_are_disjoint():
+    def sizes(split):
+        out = []
+        for seed in range(15):
+            sc = make_scenario("kitchen", "drawer", seed, split)
+            out += [(p.furniture.size_m, p.furniture.parts) for p in sc.kitchen.furniture]
+        return out
+
+    train, test = sizes("train"), sizes("test")
+    train_depths = {round(size[1], 6) for size, _ in train}
+    assert not train_depths & {round(size[1], 6) for size, _ in test}
+    train_styles = {p.handle.style for _, parts in train for p in parts}
+    test_styles = {p.handle.style for _, parts in test for p in parts}
+    assert train_styles <= set(STYLES["train"]) and test_styles - set(STYLES["train"])
+    bars = lambda units: [p.handle.length_m for _, parts in units for p in parts if p.handle.style == "bar"]  # noqa
+    assert max(bars(train)) < min(bars(test))
+    with pytest.raises(ValueError, match="not in the train family"):
+        random_look("train", np.random.default_rng(0), "knob")
+
+
+def test_the_box_world_is_unchanged():
+    for (task, split), digest in BOX_WORLD_SHA1.items():
+        h = hashlib.sha1()
+        for seed in range(20):
+            sc = Scenario.make(task, seed, split)
+            h.update(repr(sc).encode())
+            h.update(cabinet_urdf(sc.cabinet).encode())
+            h.update(repr(sc.T_base_camera.round(12).tolist()).encode())
+        assert h.hexdigest() == digest, (task, split)
+    sc = make_scenario("box", "door", 4)
+    with SimWorld(sc) as world:
+        assert (world.robot_id, world.cabinet_id, world.cabinet_joint, world.handle_link) == (0, 1, 0, 1)
+        assert pb.getNumBodies(physicsClientId=world.client) == 3 and world.finishes == {}
+        T = sc.T_base_cabinet
+        np.testing.assert_allclose(world.handle_pose()[:3, 3], T[:3, :3] @ sc.cabinet.handle_cabinet + T[:3, 3],
+                                   atol=1e-5)
+        np.testing.assert_allclose(world.truth().direction, T[:3, :3] @ sc.cabinet.joint_axis_cabinet, atol=1e-6)
+    with pytest.raises(SceneError, match="box world's cabinet has one part"):
+        make_scenario("box", "door", 4, part="left door")
+    with pytest.raises(SceneError, match="--world 'garden' is not a world: use one of kitchen, box"):
+        make_scenario("garden", "door", 4)
+
+
+def test_finishes_reach_the_renderer_by_body_and_link():
+    sc = make_scenario("kitchen", "door", 2, "test")
+    with SimWorld(sc) as world:
+        target = sc.kitchen.target_furniture.furniture
+        for name, finish in target.finishes.items():
+            index = -1 if name == "body" else next(
+                j for j in range(pb.getNumJoints(world.cabinet_id, physicsClientId=world.client))
+                if pb.getJointInfo(world.cabinet_id, j, physicsClientId=world.client)[12].decode() == name)
+            assert world.finishes[(world.cabinet_id, index)] == finish
+        statics = [s for s in sc.kitchen.statics]
+        assert world.finishes[(world.statics_id, -1)] == statics[0].finish  # the floor: the static body's base
+        kinds = {world.finishes[(world.statics_id, k - 1)].kind for k in range(len(statics))}
+        assert kinds <= {"wood", "laminate", "painted", "metal"}
+
+
+def test_a_scene_keeps_its_bodies_and_triangles_few():
+    sc = make_scenario("kitchen", "drawer", 0, "test")
+    with SimWorld(sc) as world:
+        bodies = pb.getNumBodies(physicsClientId=world.client)
+        assert bodies == 2 + len(sc.kitchen.furniture)  # the robot, the furniture, one body of static shapes
+        assert len(sc.kitchen.furniture) <= 12
+
+
+def test_a_scripted_opening_in_a_kitchen_grasps_the_true_handle(tmp_path):
+    from sim_fallback.scripted import record_scripted
+
+    summary = record_scripted("drawer", 0, tmp_path / "rec", split="test", target=0.1, fps=2.0, resolution=(160, 120),
+                              world="kitchen")
+    assert summary.world == "kitchen" and summary.part == make_scenario("kitchen", "drawer", 0, "test").part
+    assert summary.joint_end == pytest.approx(0.1, abs=0.01)
+
+
+def test_the_condition_changes_the_target_joint_only():
+    sc = make_scenario("kitchen", "door", 1, "test")
+    stiff = make_scenario("kitchen", "door", 1, "test", condition="stiff")
+    assert replace(stiff, condition="normal") == sc
+    with SimWorld(stiff) as world:
+        m = world.target.part.mechanism
+        assert world.joint_friction() == pytest.approx(3 * m.friction)
+    with SimWorld(make_scenario("kitchen", "door", 1, "test", condition="locked")) as world:
+        c = world.client
+        for _ in range(240):
+            pb.applyExternalTorque(world.cabinet_id, world.cabinet_joint, (20 * world.truth().direction).tolist(),
+                                   pb.WORLD_FRAME, physicsClientId=c)
+            world.clock.step()
+        assert world.joint_value() < 1e-3
+
+
+@pytest.fixture
+def kitchen_rig(monkeypatch):
+    """Rigs build kitchens: `Scenario.make`, the rig's scenario, made a kitchen's (until --world reaches the rig)."""
+    made = []
+
+    def kitchen(task, seed, split="train", camera=None, condition="normal"):
+        made.append(make_scenario("kitchen", task, seed, split, condition=condition))
+        return made[-1]
+
+    monkeypatch.setattr(Scenario, "make", staticmethod(kitchen))
+    return made
+
+
+def test_no_label_reaches_the_controller_in_a_kitchen(kitchen_rig, monkeypatch):
+    """Garbage labels in a kitchen change nothing: the episode never reads them."""
+    from deploy.bench.open import simulate_episode
+    from deploy.perception.rgbd import RGBDSegmenter
+    from sim_fallback.camera import SimCamera
+
+    first = simulate_episode("drawer", 2, "test", target=0.1, max_steps=1)
+    rng = np.random.default_rng(0)
+    monkeypatch.setattr(SimCamera, "_labels", lambda self, seg: rng.integers(0, 4, seg.shape, dtype=np.uint8))
+    seen = []
+    real_start = RGBDSegmenter.start
+
+    def start(self, frame, prompt=None):
+        seen.append((frame.segmentation, frame.mask, frame.T_base_camera))
+        return real_start(self, frame, prompt)
+
+    monkeypatch.setattr(RGBDSegmenter, "start", start)
+    again = simulate_episode("drawer", 2, "test", target=0.1, max_steps=1)
+    sc = make_scenario("kitchen", "drawer", 2, "test")
+    assert kitchen_rig == [sc, sc]
+    assert seen and all(labels is None and mask is None for labels, mask, _ in seen)
+    assert not np.allclose(seen[0][2], sc.T_base_camera)  # a calibrated pose, not the true one
+    for key in ("stop_reason", "opened_m", "true_opened_m", "steps", "axis"):
+        assert again[key] == first[key], key
