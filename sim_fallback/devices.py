@@ -38,9 +38,10 @@ _channels = itertools.count()
 
 @dataclass(frozen=True)
 class EpisodeSignals:
-    """What one episode's simulated arm senses and grips with: its torque sensing and its pads' friction."""
+    """What one episode's simulated arm senses and grips with: its torque sensing (None: PyBullet's exact torques)
+    and its pads' friction."""
 
-    torque_sensing: TorqueSensing
+    torque_sensing: TorqueSensing | None
     pad_friction: float
 
 
@@ -89,12 +90,13 @@ def open_sim_can_bus(robot: RobotConfig) -> tuple[CanBus, SimMotorBus]:
 
 
 def sim_can_arm(config: RobotConfig, world: SimWorld | None = None, faults: dict[str, MotorFaults] | None = None,
-                lockstep: bool = True) -> tuple[CanArm, SimMotorBus]:
+                lockstep: bool = True, signals: EpisodeSignals | None = None) -> tuple[CanArm, SimMotorBus]:
     """A CanArm on simulated Damiao motors (on a private channel of python-can's virtual interface, whatever
     interface the robot config names), and the motors (for fault injection).
 
     `faults` maps joint names ("gripper") to faults present from the start. `lockstep` runs the motors on the
-    arm's cycle; False: in their own thread on the wall clock, with the CanArm's realtime loop (no world)."""
+    arm's cycle; False: in their own thread on the wall clock, with the CanArm's realtime loop (no world).
+    `signals`: the world's arm's (None: its episode's, `episode_signals`)."""
     if world is not None and not lockstep:
         raise ArmError("a simulated world steps on the arm's cycle: sim-can with a world needs lockstep=True")
     # always python-can's in-process bus, on a channel of its own, whatever the config names (can0 on socketcan)
@@ -105,7 +107,7 @@ def sim_can_arm(config: RobotConfig, world: SimWorld | None = None, faults: dict
         motors = SimMotorBus(config)
     else:
         _check_panda(config, world)
-        motors = SimMotorBus(config, PyBulletMotors(_episode_arm(config, world), config))
+        motors = SimMotorBus(config, PyBulletMotors(_episode_arm(config, world, signals), config))
     for name, f in (faults or {}).items():
         motors.motor(name).faults = f
     c = config.can
@@ -119,8 +121,8 @@ def sim_can_arm(config: RobotConfig, world: SimWorld | None = None, faults: dict
     return arm, motors
 
 
-def _episode_arm(robot: RobotConfig, world: SimWorld) -> SimArm:
-    signals = episode_signals(robot, world.scenario.seed)
+def _episode_arm(robot: RobotConfig, world: SimWorld, signals: EpisodeSignals | None = None) -> SimArm:
+    signals = signals or episode_signals(robot, world.scenario.seed)
     return SimArm(world, robot.kinematics(), pad_friction=signals.pad_friction,
                   torque_sensing=signals.torque_sensing)
 

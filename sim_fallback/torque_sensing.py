@@ -34,13 +34,13 @@ class TorqueErrors:
 
     noise_share: float = 0.003
     bias_share: float = 0.005
-    bias_time_s: float = 30.0
+    bias_time_s: float = 120.0
     offset_share: float = 0.02
 
     @classmethod
     def none(cls) -> TorqueErrors:
         """Only the quantisation of the feedback frame."""
-        return cls(0.0, 0.0, 30.0, 0.0)
+        return cls(0.0, 0.0, 120.0, 0.0)
 
 
 class TorqueSensing:
