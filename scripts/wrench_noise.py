@@ -2,13 +2,15 @@
 with PyBullet's exact torques, the sim arm with its torques measured as Damiao motors measure them
 (sim_fallback/torque_sensing.py, as every episode's arm has), and the CAN driver over simulated motors (sim-can).
 
-Per drawer scene of the test split: 1 s holding still, then 12 cm out and back at 8 cm/s without contact, then the
-handle grasped (the scripted grasp, ground truth) and pulled 15 cm along the true axis, compliant and force-bounded as
-an episode pulls. Force magnitude (N), filtered (the robot config's low-pass) and raw; the still and moving phases
-give |F|, the pull gives what the controller acts on: |F - F at the pull's start|. The first 10 % of each phase is
-dropped. `std` is the spread within a scene (the mean over the scenes), the rest pool the scenes' samples.
+Per drawer scene of the test split: 2 s holding still (the second one counted), then 12 cm out and back at 8 cm/s
+without contact, then the handle grasped (the scripted grasp, ground truth) and pulled 15 cm along the true axis,
+compliant and force-bounded as an episode pulls. Force magnitude (N), filtered (the robot config's low-pass) and raw.
+Holding still: |F| as the torques read (a motor-current offset reads as a force); the torques' offset is then
+measured over that second, as an episode does at its pre-grasp pose, and subtracted from then on: moving, |F|;
+pulling, what the controller acts on, |F - F at the pull's start|. The first 10 % of each phase is dropped. `std` is
+the spread within a scene (the mean over the scenes), the rest pool the scenes' samples.
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/wrench_noise.py   # JSON: mean, std, p90, max per arm and phase
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/wrench_noise.py   # JSON: mean, median, std, p90, max per arm and phase
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from drivers.arm.motion import follow_cartesian_path, line_path
 from drivers.arm.registry import open_arm
 from drivers.arm.robot_config import load_robot_config
 from drivers.arm.trajectory import MotionLimits
-from drivers.arm.wrench import WrenchEstimator
+from drivers.arm.wrench import WrenchEstimator, torque_offset
 from sim_fallback.arm import SimArm
 from sim_fallback.scenario import Scenario
 from sim_fallback.scripted import grasp_handle
@@ -30,14 +32,14 @@ from sim_fallback.world import SimWorld
 PANDA = load_robot_config("panda_sim")
 KINDS = ("sim exact", "sim", "sim-can")
 SCENES = range(3)
-STILL_TICKS = 240
+STILL_TICKS = 480
 MOVE_M, PULL_M, LIMITS = 0.12, 0.15, MotionLimits(0.08, 0.32, 3.2)
 COMPLIANCE = PANDA.compliance.gains().with_force_limit(60.0)
 
 
 def stats(scenes: list[list[float]]) -> dict[str, float]:
     a = np.concatenate(scenes)
-    return {"mean": float(a.mean()), "std": float(np.mean([np.std(x) for x in scenes])),
+    return {"mean": float(a.mean()), "median": float(np.median(a)), "std": float(np.mean([np.std(x) for x in scenes])),
             "p90": float(np.percentile(a, 90)), "max": float(a.max())}
 
 
@@ -58,9 +60,15 @@ def record(kind: str, seed: int) -> dict[str, tuple[list[float], list[float]]]:
                 rec[phase][0].append(float(np.linalg.norm(filtered.force - start[0])))
                 rec[phase][1].append(float(np.linalg.norm(raw.force - start[1])))
 
-            for _ in range(STILL_TICKS):
+            still = []
+            for k in range(STILL_TICKS):
                 arm.sync()
-                note("still", arm.state())
+                filtered.update(arm.state())
+                if k >= STILL_TICKS // 2:  # settled from the world's start
+                    still.append(arm.state())
+                    note("still", still[-1])
+            offset = torque_offset(arm.kin, still)
+            filtered.offset = raw.offset = offset
             here = arm.kin.fk(arm.state().q)[:3, 3]
             back = -here * np.array([1.0, 1.0, 0.0])
             back = back / np.linalg.norm(back) + [0.0, 0.0, 0.5]  # toward the robot base, and up
@@ -72,7 +80,8 @@ def record(kind: str, seed: int) -> dict[str, tuple[list[float], list[float]]]:
                 estimator.update(arm.state())
             start[:] = [filtered.force, raw.force]
             follow_cartesian_path(arm, arm.kin, line_path(arm.kin.fk(arm.state().q), world.truth().direction),
-                                  PULL_M, LIMITS, lambda state, _t: note("pulling", state), compliance=COMPLIANCE)
+                                  PULL_M, LIMITS, lambda state, _t: note("pulling", state),
+                                  compliance=COMPLIANCE.with_torque_offset(offset))
     return {phase: (f[len(f) // 10:], r[len(r) // 10:]) for phase, (f, r) in rec.items()}
 
 

@@ -7,7 +7,9 @@ How firmly: two rubber pads with friction coefficient mu, squeezed with the grip
 against a pull. Where the pads touch is found from the geometry between the fingers (`ContactPatch`): along the
 pads' width (the hand's x axis, a bar's length) the patch covers the whole pad on a bar, a few millimetres on a
 round knob. Two point-to-point constraints join hand and object at the patch centre +- a quarter of its span along
-x, each holding at most mu F. Together they resist a twist about the closing or the approach axis with up to
+x, each holding at most mu F (PyBullet bounds a constraint's force per world axis: along a diagonal it holds up to
+sqrt(3) times more; the arm's own weight, which the solver shares with the constraints, then stays off the other
+axes' friction). Together they resist a twist about the closing or the approach axis with up to
 mu F x span / 2, the friction moment of a line contact under uniform pressure, and leave the rotation about x free
 (a round bar turns in the fingers). So a knob turns in the fingers under a twist a bar holds, and a pad that spends
 its friction on the twist has less left to hold the pull. The fingers' own contact friction must be off (the
@@ -18,8 +20,10 @@ simulated arm turns it off): the grip is the friction.
   bounds a constraint's impulse, but its position correction still pulls a small drift back: moving the
   constraints is what lets the object go); a finger that no longer touches the object (slid off a bar's end)
   breaks the grip.
-- Pulled across x past it (out of the fingers), the contacts drift; SLIP_DISTANCE_M away the grip breaks and the
-  fingers close on nothing, as a real gripper's measured width shows.
+- Pulled across x in the pads' plane past it (out of the fingers), the contacts drift; SLIP_DISTANCE_M away the
+  grip breaks and the fingers close on nothing, as a real gripper's measured width shows. Along the closing
+  direction the pads' contacts push (not their friction): a drift that way moves the constraints, as the fingers
+  centre what they hold.
 """
 
 from __future__ import annotations
@@ -100,19 +104,21 @@ class Grip:
         on_hand = [self._world(self._robot, self._hand, p) for p in self._on_hand]
         on_object = [self._world(self.body, self.link, p) for p in self._on_object]
         drift = [h - c for h, c in zip(on_hand, on_object, strict=True)]
-        bar = self._rotation(self._robot, self._hand)[:, 0]
+        hand = self._rotation(self._robot, self._hand)
+        bar, closing = hand[:, 0], hand[:, 1]
         mean = (drift[0] + drift[1]) / 2
-        across = mean - (mean @ bar) * bar
+        out = mean - (mean @ bar) * bar - (mean @ closing) * closing  # in the pads' plane, across the bar
         touching = all(self._touches(f) for f in self._fingers)
         self._lost_steps = 0 if touching else self._lost_steps + 1
-        if np.linalg.norm(across) > SLIP_DISTANCE_M or self._lost_steps >= LOST_CONTACT_STEPS:
+        if np.linalg.norm(out) > SLIP_DISTANCE_M or self._lost_steps >= LOST_CONTACT_STEPS:
             self.release()
             return False
-        if abs(mean @ bar) > SLIDE_STEP_M or self._twist() > np.sin(TWIST_STEP_RAD):
+        moved = max(abs(mean @ bar), abs(mean @ closing))  # along the bar, or pressed into a pad
+        if moved > SLIDE_STEP_M or self._twist() > np.sin(TWIST_STEP_RAD):
             patch = self.patch() if touching else None
             if patch is not None:
                 self._detach()
-                self._attach(patch, across)
+                self._attach(patch, out)
         return True
 
     def release(self) -> None:
