@@ -10,7 +10,7 @@ measured over that second, as an episode does at its pre-grasp pose, and subtrac
 pulling, what the controller acts on, |F - F at the pull's start|. The first 10 % of each phase is dropped. `std` is
 the spread within a scene (the mean over the scenes), the rest pool the scenes' samples.
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/wrench_noise.py   # JSON: mean, median, std, p90, max per arm and phase
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/wrench_noise.py  # JSON: mean, median, std, p90, max per phase
 """
 
 from __future__ import annotations
