@@ -5,15 +5,15 @@
 - quantised: 12 bits over [-TMAX, TMAX], clipped to that range, the torque field of the feedback frame
   (drivers/arm/damiao.py; TMAX of the joint's motor model);
 - offset: per joint, constant over an episode (the torque constant's and the current sensor's calibration error,
-  the gear's friction at rest), normal with std OFFSET_SHARE x TMAX;
+  the gear's friction at rest), normal with std `offset_share` x TMAX;
 - bias(t): per joint, drifting slowly (the current sensor's offset warming up): an Ornstein-Uhlenbeck process with
-  std BIAS_SHARE x TMAX and correlation time BIAS_TIME_S, starting from its stationary spread;
-- noise: white, std NOISE_SHARE x TMAX per reading (the current sample's noise).
+  std `bias_share` x TMAX and correlation time `bias_time_s`, starting from its stationary spread;
+- noise: white, std `noise_share` x TMAX per reading (the current sample's noise).
 
-Sizes as shares of TMAX: TMAX is the full scale of the motor's torque feedback and, in the vendor's tables, its peak
-torque. They are engineering estimates, not measured on a Damiao motor (no published figure was found; the
-sources looked at and what they give: docs/benchmarks.md, "Torque sensing model"). Every draw comes from one seed,
-so an episode's signals repeat exactly.
+Sizes (`TorqueErrors`) are shares of TMAX, the full scale of the torque feedback (at or a little above the motor's
+peak torque in the vendor's tables). They are engineering estimates, not measured on a Damiao motor (no published
+figure was found; the sources looked at and what they give: docs/benchmarks.md, "Torque sensing model"). Every
+draw comes from one seed, so an episode's signals repeat exactly.
 """
 
 from __future__ import annotations
