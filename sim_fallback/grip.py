@@ -38,7 +38,7 @@ PAD_GIVE_M = 0.0005  # the rubber pad yields this deep under the grip: surface t
 PROBE_STEP_M = 0.0005  # the pad's width is probed at this spacing
 SLIDE_STEP_M = 0.001  # drift along the bar past this moves the contacts: the object slides
 TWIST_STEP_RAD = np.radians(1.0)  # a twist (not about the bar) past this moves the contacts: the object turns
-SLIP_DISTANCE_M = 0.01  # drift across the bar past this breaks the grip
+SLIP_DISTANCE_M = 0.01  # drift across the bar in the pads' plane (out of the fingers) past this breaks the grip
 LOST_CONTACT_STEPS = 12  # a finger off the object this many physics steps running (0.05 s) breaks the grip
 
 
@@ -138,9 +138,9 @@ class Grip:
             offsets = np.arange(-PAD_HALF_WIDTH_M, PAD_HALF_WIDTH_M + 1e-9, PROBE_STEP_M)
             line = on_pad + np.outer(offsets + (pad_centre - on_pad) @ bar, bar)
             gaps = np.array([self._gap(p) for p in line])
-            touching = offsets[gaps <= gaps.min() + PAD_GIVE_M]
-            centres.append(line[gaps <= gaps.min() + PAD_GIVE_M].mean(axis=0))
-            spans.append(touching.max() - touching.min() + PROBE_STEP_M)
+            touches = gaps <= gaps.min() + PAD_GIVE_M
+            centres.append(line[touches].mean(axis=0))
+            spans.append(offsets[touches].max() - offsets[touches].min() + PROBE_STEP_M)
         return ContactPatch(np.mean(centres, axis=0), bar, float(np.mean(spans)))
 
     # --- constraints -------------------------------------------------------------------------------------
