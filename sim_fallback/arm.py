@@ -3,10 +3,14 @@
 Control: PyBullet POSITION_CONTROL (a velocity constraint with position and velocity gains) limited to
 the URDF joint efforts; `control_period_s` = 1/240 s, one physics step per `sync()`.
 
-Grasp: when the closing fingers both touch the handle, the hand holds it as a parallel gripper does
-(sim_fallback/grip.py): the handle turns in the fingers about its bar, slides along the bar past the grip's
-friction (2 pads x FINGER_FRICTION x the gripping force, or `grasp_force_limit_n` when set) and slips out
-past it, after which the fingers close on nothing and the measured width drops. Opening releases it.
+Torques: PyBullet's applied joint torques, exact, or as a Damiao motor measures them (`torque_sensing`,
+sim_fallback/torque_sensing.py), one reading per physics step.
+
+Grasp: when the closing fingers both touch one link of anything, the hand holds it as a parallel gripper does
+(sim_fallback/grip.py): a bar turns in the fingers about its length, a knob also about the other axes; the object
+slides through the fingers past the grip's friction (2 pads x `pad_friction` x the gripping force, or
+`grasp_force_limit_n` when set) and slips out past it, after which the fingers close on nothing and the measured
+width drops. Opening releases it.
 """
 
 from __future__ import annotations
@@ -18,10 +22,11 @@ from drivers.arm.base import Arm, ArmState
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.safety import SafetyGuard, SafetyLimits
 from drivers.errors import ArmError
-from sim_fallback.grip import Grip
+from sim_fallback.grip import Grip, grasped_link, make_probe
+from sim_fallback.torque_sensing import TorqueSensing
 from sim_fallback.world import SimWorld
 
-FINGER_FRICTION = 1.0  # rubber finger pads on a handle
+PAD_FRICTION = 0.8  # rubber finger pads on a lacquered or metal handle: 0.4-0.8 (episodes draw theirs)
 POSITION_GAIN, VELOCITY_GAIN = 0.3, 1.0  # PyBullet POSITION_CONTROL gains at 240 Hz
 FINGER_SPEED_M_S = 0.1
 
@@ -32,7 +37,8 @@ class SimArm(Arm):
     kin: the arm's kinematics (default `Kinematics.panda()`, the model the real arm uses);
     guard: the safety check every `command()` goes through (default: the Panda's `SafetyLimits`);
     grasp_force_limit_n: the grip's friction force (N) past which it slides and slips (None: from the gripping
-    force).
+    force and `pad_friction`, the pads' friction coefficient);
+    torque_sensing: what turns the simulated joint torques into measured ones (None: exact).
     """
 
     control_period_s = 1.0 / 240
@@ -43,24 +49,32 @@ class SimArm(Arm):
         kin: Kinematics | None = None,
         guard: SafetyGuard | None = None,
         grasp_force_limit_n: float | None = None,
+        pad_friction: float = PAD_FRICTION,
+        torque_sensing: TorqueSensing | None = None,
     ) -> None:
         self._clock = world.clock
         self._client, self._robot = world.client, world.robot_id
-        self._cabinet, self._handle_link = world.cabinet_id, world.handle_link
         spec = world.robot_spec
         self._spec = spec
         self.kin = kin or Kinematics.panda()
         self.guard = guard or SafetyGuard(SafetyLimits.for_robot(spec, self.kin), spec.arm_joints)
         self.grasp_force_limit_n = grasp_force_limit_n
+        self.pad_friction = float(pad_friction)
+        self.torque_sensing = torque_sensing
+        self._sensed: tuple[int, np.ndarray] | None = None  # (physics step, measured torques)
         self._joints = [world.robot_joints[name] for name in spec.arm_joints]
         self._fingers = [world.robot_joints[name] for name in spec.finger_joints]
         self._hand = world.robot_joints["panda_hand_joint"]  # the hand link's index = its joint's index
+        for finger in self._fingers:  # the grip's friction model holds what the pads hold, not the contacts
+            pb.changeDynamics(self._robot, finger, lateralFriction=0.0, spinningFriction=0.0,
+                              physicsClientId=self._client)
         info = [pb.getJointInfo(self._robot, j, physicsClientId=self._client) for j in self._joints]
         self._effort = [i[10] for i in info]  # URDF effort limits, N m
         self._q_prev_cmd = np.zeros(len(self._joints))
         self._dq_prev_cmd = np.zeros(len(self._joints))
         self._gripper_target = spec.gripper_max_width_m
         self._grip: Grip | None = None
+        self._probe = make_probe(self._client)
         self._grip_force_n = 40.0
         self._may_grip = False  # set by a gripper command, cleared by a grip: a slipped grasp stays slipped
         self._clock.add_hook(self._after_step)
@@ -82,9 +96,17 @@ class SimArm(Arm):
             t=self._clock.time,
             q=np.array([s[0] for s in arm]),
             dq=np.array([s[1] for s in arm]),
-            tau=np.array([s[3] for s in arm]),
+            tau=self._measured(np.array([s[3] for s in arm])),
             gripper_width_m=float(sum(s[0] for s in states[len(self._joints):])),
         )
+
+    def _measured(self, tau: np.ndarray) -> np.ndarray:
+        """The torques as the arm measures them: one reading per physics step, however often it is asked."""
+        if self.torque_sensing is None:
+            return tau
+        if self._sensed is None or self._sensed[0] != self._clock.steps:
+            self._sensed = (self._clock.steps, self.torque_sensing.measure(tau, self._clock.time))
+        return self._sensed[1].copy()
 
     def command(self, q: np.ndarray, dq: np.ndarray | None = None) -> None:
         q = np.asarray(q, float)
@@ -135,28 +157,22 @@ class SimArm(Arm):
 
     def _after_step(self) -> None:
         if self._grip is None:
-            if self._may_grip and self._closing_on_handle():
+            if self._may_grip and self._closing():
                 self._make_grip()
         elif not self._grip.update():
             self._grip = None
 
-    def _contacts(self) -> list[list]:
-        robot, cabinet, handle, c = self._robot, self._cabinet, self._handle_link, self._client
-        return [pb.getContactPoints(robot, cabinet, f, handle, physicsClientId=c) for f in self._fingers]
-
-    def _closing_on_handle(self) -> bool:
-        if self._gripper_target >= self.state().gripper_width_m - 1e-4:
-            return False
-        return all(self._contacts())
+    def _closing(self) -> bool:
+        return self._gripper_target < self.state().gripper_width_m - 1e-4
 
     def _make_grip(self) -> None:
-        """Both fingers touch the handle: hold it at the middle of their contacts, along the tool's x (the bar)."""
-        centre = np.mean([np.mean([c[6] for c in finger], axis=0) for finger in self._contacts()], axis=0)
-        hand = pb.getLinkState(self._robot, self._hand, physicsClientId=self._client)
-        bar = np.asarray(pb.getMatrixFromQuaternion(hand[5])).reshape(3, 3)[:, 0]  # the hand frame's x axis
+        """Both fingers touch one link: hold it where they touch (sim_fallback/grip.py)."""
+        held = grasped_link(self._client, self._robot, self._fingers)
+        if held is None:
+            return
         limit = self.grasp_force_limit_n if self.grasp_force_limit_n is not None else \
-            2 * FINGER_FRICTION * self._grip_force_n
-        self._grip = Grip(self._client, self._robot, self._hand, self._cabinet, self._handle_link, centre, bar, limit)
+            2 * self.pad_friction * self._grip_force_n
+        self._grip = Grip(self._client, self._robot, self._hand, self._fingers, *held, limit, self._probe)
         self._may_grip = False
 
     def _release(self) -> None:

@@ -1,18 +1,22 @@
 """The simulated devices behind the camera and arm registries (registered by sim_fallback/plugin.py).
 
 - camera `sim`: a D415 rendered in the PyBullet world of the rig;
-- arm `sim`: the world's Panda (`SimArm`);
+- arm `sim`: the world's Panda (`SimArm`), its joint torques measured as its Damiao motors would
+  (sim_fallback/torque_sensing.py) and its finger pads' friction drawn per episode (`episode_signals`);
 - arm `sim-can`: the real CAN driver (`CanArm`) talking to simulated Damiao motors on a virtual bus (its bare bus,
   for bring-up commands that address the motors directly, from `open_sim_can_bus`). In lockstep
   (default) the motors step with the CanArm's cycles on the caller's clock: deterministic and unaffected by
   machine load. Without a world the motors are unloaded integrated joints; with one they are the world's Panda
-  (one physics step per cycle). `lockstep=False` gives the motors their own thread and the CanArm its realtime
-  loop, exactly as on hardware (benchmarks, loop tests).
+  (one physics step per cycle, the arm `sim`'s torque sensing and pads). `lockstep=False` gives the motors their
+  own thread and the CanArm its realtime loop, exactly as on hardware (benchmarks, loop tests).
 """
 
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
+
+import numpy as np
 
 from drivers.arm.can_arm import CanArm
 from drivers.arm.can_bus import CanBus
@@ -23,9 +27,30 @@ from drivers.errors import ArmError, CameraError
 from sim_fallback.arm import SimArm
 from sim_fallback.camera import SimCamera, d415_intrinsics
 from sim_fallback.can_motors import MotorFaults, PyBulletMotors, SimMotorBus
+from sim_fallback.torque_sensing import TorqueSensing
 from sim_fallback.world import SimWorld
 
+PAD_FRICTION_RANGE = (0.4, 0.8)  # rubber pads on lacquered or metal handles
+SIGNALS_STREAM = 34  # the episode's random stream for its arm signals (its camera and calibration use others)
+
 _channels = itertools.count()
+
+
+@dataclass(frozen=True)
+class EpisodeSignals:
+    """What one episode's simulated arm senses and grips with: its torque sensing (None: PyBullet's exact torques)
+    and its pads' friction."""
+
+    torque_sensing: TorqueSensing | None
+    pad_friction: float
+
+
+def episode_signals(robot: RobotConfig, seed: int) -> EpisodeSignals:
+    """The arm signals of episode `seed`: torque errors for `robot`'s motors and a pad friction in
+    PAD_FRICTION_RANGE, both drawn from the seed."""
+    rng = np.random.default_rng([seed, SIGNALS_STREAM])
+    pad_friction = float(rng.uniform(*PAD_FRICTION_RANGE))
+    return EpisodeSignals(TorqueSensing.for_robot(robot, rng.integers(2**63)), pad_friction)
 
 
 def open_sim_camera(_argument: str, world: SimWorld | None = None, width: int = 640, height: int = 480,
@@ -45,11 +70,11 @@ def open_sim_camera(_argument: str, world: SimWorld | None = None, width: int = 
 
 
 def open_sim_arm(_argument: str, robot: RobotConfig, world: SimWorld | None = None) -> SimArm:
-    """The world's Panda, connected on construction."""
+    """The world's Panda, connected on construction, with the signals of the world's episode."""
     if world is None:
         raise ArmError("arm 'sim' needs a simulated world: use it with --camera sim, or use --arm sim-can")
     _check_panda(robot, world)
-    return SimArm(world, robot.kinematics())
+    return _episode_arm(robot, world)
 
 
 def open_sim_can_arm(_argument: str, robot: RobotConfig, world: SimWorld | None = None) -> CanArm:
@@ -65,12 +90,13 @@ def open_sim_can_bus(robot: RobotConfig) -> tuple[CanBus, SimMotorBus]:
 
 
 def sim_can_arm(config: RobotConfig, world: SimWorld | None = None, faults: dict[str, MotorFaults] | None = None,
-                lockstep: bool = True) -> tuple[CanArm, SimMotorBus]:
+                lockstep: bool = True, signals: EpisodeSignals | None = None) -> tuple[CanArm, SimMotorBus]:
     """A CanArm on simulated Damiao motors (on a private channel of python-can's virtual interface, whatever
     interface the robot config names), and the motors (for fault injection).
 
     `faults` maps joint names ("gripper") to faults present from the start. `lockstep` runs the motors on the
-    arm's cycle; False: in their own thread on the wall clock, with the CanArm's realtime loop (no world)."""
+    arm's cycle; False: in their own thread on the wall clock, with the CanArm's realtime loop (no world).
+    `signals`: the world's arm's (None: its episode's, `episode_signals`)."""
     if world is not None and not lockstep:
         raise ArmError("a simulated world steps on the arm's cycle: sim-can with a world needs lockstep=True")
     # always python-can's in-process bus, on a channel of its own, whatever the config names (can0 on socketcan)
@@ -81,7 +107,7 @@ def sim_can_arm(config: RobotConfig, world: SimWorld | None = None, faults: dict
         motors = SimMotorBus(config)
     else:
         _check_panda(config, world)
-        motors = SimMotorBus(config, PyBulletMotors(SimArm(world, config.kinematics()), config))
+        motors = SimMotorBus(config, PyBulletMotors(_episode_arm(config, world, signals), config))
     for name, f in (faults or {}).items():
         motors.motor(name).faults = f
     c = config.can
@@ -93,6 +119,12 @@ def sim_can_arm(config: RobotConfig, world: SimWorld | None = None, faults: dict
     arm = CanArm(config, bus, realtime=False, on_cycle=lambda: motors.step(config.control_period_s),
                  on_close=motors.close)
     return arm, motors
+
+
+def _episode_arm(robot: RobotConfig, world: SimWorld, signals: EpisodeSignals | None = None) -> SimArm:
+    signals = signals or episode_signals(robot, world.scenario.seed)
+    return SimArm(world, robot.kinematics(), pad_friction=signals.pad_friction,
+                  torque_sensing=signals.torque_sensing)
 
 
 def _check_panda(config: RobotConfig, world: SimWorld) -> None:

@@ -40,7 +40,7 @@ from drivers.arm.motion import (
     move_to_pose,
 )
 from drivers.arm.trajectory import MotionLimits
-from drivers.arm.wrench import WrenchEstimator
+from drivers.arm.wrench import WrenchEstimator, torque_offset
 from drivers.camera.base import Frame
 
 log = logging.getLogger(__name__)
@@ -180,6 +180,7 @@ def grasp(episode: Episode, handle: Handle) -> None:
              approach, _vec(q_pre))
     arm.set_gripper(1.0)  # fully open (clipped to the gripper's width)
     move_to_joints(arm, q_pre, episode.joint_limits)
+    _measure_torque_offset(episode)
     open_width = arm.state().gripper_width_m
     T = episode.tool()
     follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), approach, episode.line_limits())
@@ -361,13 +362,25 @@ def _pull(episode: Episode, path: PathFn, length: float, label: str, limits: Mot
                           "the arm's clearance")
 
 
+def _measure_torque_offset(episode: Episode) -> None:
+    """At the pre-grasp pose, touching nothing: the joint torques' own offset (motor-current torque sensing reads
+    a few percent of each motor's peak torque there), the mean over SETTLE_S once the arm has settled, which every
+    later force reading of the episode subtracts (`Compliance.torque_offset`)."""
+    episode.wait(SETTLE_S)
+    states = []
+    for _ in range(round(SETTLE_S / episode.arm.control_period_s)):
+        episode.arm.sync()
+        states.append(episode.arm.state())
+    episode.compliance = episode.compliance.with_torque_offset(torque_offset(episode.kin, states))
+
+
 def _ease_off_press(episode: Episode) -> None:
     """A handle nearer than seen (a short knob, the calibration's error) leaves the palm pushing on it at the
     approach's end. The first pull would start by releasing that push, which its force bound reads as resistance
     (a pull held still at 0 deg): back off along the approach, before closing, until the tool no longer pushes.
     Arms that measure no joint torques skip this."""
     arm, kin = episode.arm, episode.kin
-    wrench = WrenchEstimator(kin, time_constant_s=0.0)
+    wrench = WrenchEstimator(kin, 0.0, episode.compliance.torque_offset)
     for _ in range(round(MAX_EASE_M / EASE_STEP_M)):
         state = arm.state()
         w = wrench.update(state)

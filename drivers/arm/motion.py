@@ -34,6 +34,8 @@ STALL_SCALE = 0.02  # compliant pulls: a path slowed below this share of its spe
 RELEASE_SPEED_SHARE, RELEASE_JERK_PER_ACCELERATION = 0.2, 100.0  # easing back after a force stop ...
 PROGRESS_SHARE = 0.01  # compliant pulls: progress counts in steps of this share of the path
 SCALE_RISE_PER_S = 2.0  # compliant pulls: the force bound gives the path its speed back this slowly
+HELD_FORCE_S = 0.1  # compliant pulls: the force held before the pull is the mean over this long at rest (one reading
+# of motor-current joint torques is a few newtons off at the tool; the mean of 24 is a fifth of that)
 
 
 class Outcome(Enum):
@@ -296,7 +298,7 @@ class Compliance:
     eases back to where the arm measured itself then (joint accelerations within `release_acceleration_rad_s2`),
     pressing no further. None: no force limit. The pull's force is what it adds to the force held when it began
     (the grasp's squeeze, about 20 N in simulation, is not the object's resistance), and so is the force the
-    admittance follows.
+    admittance follows. `torque_offset`: the joint torques' own offset, measured free (drivers/arm/wrench.py).
     """
 
     stiffness_n_per_m: float = 1000.0
@@ -311,9 +313,13 @@ class Compliance:
     stall_s: float = 0.3
     no_progress_s: float = 3.0
     release_acceleration_rad_s2: float = 5.0
+    torque_offset: tuple[float, ...] | None = None
 
     def with_force_limit(self, force_limit_n: float | None) -> Compliance:
         return replace(self, force_limit_n=force_limit_n)
+
+    def with_torque_offset(self, offset: np.ndarray | None) -> Compliance:
+        return replace(self, torque_offset=None if offset is None else tuple(float(x) for x in offset))
 
 
 class CompliantPull:
@@ -323,7 +329,7 @@ class CompliantPull:
     def __init__(self, arm: Arm, kin: Kinematics, track: Tracker, profile: PathProfile,
                  compliance: Compliance) -> None:
         self.arm, self.kin, self.track, self.profile, self.c = arm, kin, track, profile, compliance
-        self.wrench = WrenchEstimator(kin, compliance.filter_time_constant_s)
+        self.wrench = WrenchEstimator(kin, compliance.filter_time_constant_s, compliance.torque_offset)
         self.offset = np.zeros(3)
         self.scale = 1.0  # path speed factor of the force bound
         self.peak_force_n = self.max_offset_m = self.across_force_n = self.pull_n = 0.0
@@ -333,8 +339,7 @@ class CompliantPull:
         arm, dt, path_fn = self.arm, self.arm.control_period_s, self.track.path_fn
         q = arm.state().q
         dq = np.zeros_like(q)
-        self.wrench.update(arm.state())
-        self.bias = self.wrench.force  # held before the pull (the grasp's squeeze): not the object's resistance
+        self.bias = self._held_force()
         active, clock, s, still_s = self.profile, 0.0, 0.0, 0.0
         release: OnlineRetargeter | None = None
         q_hold, T = q, path_fn(0.0)
@@ -391,6 +396,16 @@ class CompliantPull:
             reason = self._force_reason(*blocked_at)
         return path_result(samples, outcome, reason, max_error, self.kin, arm, path_fn,
                            (self.peak_force_n, self.max_offset_m, self.across_force_n))
+
+    def _held_force(self) -> np.ndarray:
+        """The force the tool holds before the pull (the grasp's squeeze: not the object's resistance), the mean
+        over HELD_FORCE_S at rest; the wrench filter starts from it."""
+        states = []
+        for _ in range(max(1, round(HELD_FORCE_S / self.arm.control_period_s))):
+            self.arm.sync()
+            states.append(self.arm.state())
+        self.wrench.start(states)
+        return self.wrench.force
 
     def _feel(self, state: ArmState, s: float, admit: bool) -> float:
         """Fold in the measured torques; update the admittance offset; the pull's force (N): how far the filtered
