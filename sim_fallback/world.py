@@ -23,6 +23,7 @@ import pybullet as pb
 
 from drivers.arm.robots import panda
 from sim_fallback.cabinet_urdf import write_cabinet_urdf
+from sim_fallback.furniture import Finish
 from sim_fallback.scenario import Scenario
 
 PHYSICS_HZ = 240
@@ -83,6 +84,7 @@ class SimWorld:
 
     def __init__(self, scenario: Scenario, floor: bool = False) -> None:
         self.scenario = scenario
+        self.finishes: dict[tuple[int, int], Finish] = {}  # how surfaces look, by (body id, link index; -1 base)
         self.client = pb.connect(pb.DIRECT)
         self.clock = PhysicsClock(self.client)
         self._tmp = tempfile.TemporaryDirectory(prefix="axisloop_cabinet_")
