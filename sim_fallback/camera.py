@@ -19,6 +19,7 @@ the slots it missed are skipped and indices jump, like a real camera's latest fr
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
@@ -73,6 +74,7 @@ class SimCamera(Camera):
                               else np.asarray(T_base_camera, float)).copy()
         self._seed = seed
         self.labels, self.posed = labels, posed
+        self.timings_ms: dict[str, float] = {}  # what the last frame read cost, by step
         self._renderer = self._make_renderer(world)
         self.connect()
 
@@ -99,7 +101,10 @@ class SimCamera(Camera):
             self._clock.step(steps_needed)
         self._last_slot = slot
         view = self._capture()
-        return Frame(index=slot, t=self._clock.time, color=view.color, depth_m=self._depth(view),
+        start = time.perf_counter()
+        depth = self._depth(view)
+        self.timings_ms = {**view.timings_ms, "depth model": 1e3 * (time.perf_counter() - start)}
+        return Frame(index=slot, t=self._clock.time, color=view.color, depth_m=depth,
                      intrinsics=self._intrinsics, T_base_camera=self.T_base_camera.copy() if self.posed else None,
                      segmentation=self._labels(_pybullet_ids(view.links)) if self.labels else None)
 

@@ -23,6 +23,7 @@ NOISE_POOL = 2  # colour noise drawn once per camera, this many images' worth, r
 BACKGROUND_RGB = (0.05, 0.05, 0.05)  # empty space (linear)
 LAMP_HEIGHT_M = 2.4
 _LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
+_LEVELS = 4096  # linear levels the exposed signal is quantised to before sRGB encoding
 
 
 @dataclass(frozen=True)
@@ -90,17 +91,18 @@ class Exposure:
         self._balance = (1.0 + rng.uniform(-0.03, 0.03, 3)).astype(np.float32)
         self._scale: float | None = None
         self._pool = rng.standard_normal(NOISE_POOL * shape[0] * shape[1] * 3, dtype=np.float32)
-        x = (np.arange(4096, dtype=np.float64) + 0.5) / 4096
+        x = (np.arange(_LEVELS, dtype=np.float64) + 0.5) / _LEVELS
         srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
         self._encode = np.round(np.clip(srgb, 0, 1) * 255).astype(np.uint8)
+        self._sigma = (np.sqrt(x * SHOT_NOISE + READ_NOISE ** 2) * _LEVELS).astype(np.float32)  # per level
 
     def image(self, radiance: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """(H, W, 3) uint8 sRGB of the (3, H * W) linear radiance."""
         mean = float(_LUMA @ radiance.mean(axis=1)) or 1.0
         target = EXPOSURE_KEY * self._bias / mean
         self._scale = target if self._scale is None else self._scale * (target / self._scale) ** EXPOSURE_RATE
-        exposed = radiance.T.reshape(*self.shape, 3) * (self._scale * self._balance)
-        sigma = np.sqrt(np.maximum(exposed, 0.0) * SHOT_NOISE + READ_NOISE ** 2)
-        start = int(rng.integers(0, len(self._pool) - exposed.size + 1))
-        exposed += sigma * self._pool[start:start + exposed.size].reshape(exposed.shape)
-        return self._encode[np.clip(exposed * 4096, 0, 4095).astype(np.int32)]
+        level = radiance.T * (self._scale * _LEVELS * self._balance)  # (H * W, 3) in 1/4096 of full scale
+        start = int(rng.integers(0, len(self._pool) - level.size + 1))
+        code = np.clip(level, 0, _LEVELS - 1).astype(np.int32)
+        level += self._sigma.take(code) * self._pool[start:start + level.size].reshape(level.shape)
+        return self._encode.take(np.clip(level, 0, _LEVELS - 1).astype(np.int32)).reshape(*self.shape, 3)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from drivers.camera.base import Intrinsics
@@ -30,9 +31,10 @@ def camera_rays(intrinsics: Intrinsics) -> np.ndarray:
 
 def box_pixels(boxes: list[tuple[np.ndarray, np.ndarray]], T_world_camera: np.ndarray, intrinsics: Intrinsics
                ) -> np.ndarray:
-    """Flat indices of the pixels inside the image rectangle of any of the world boxes (low, high)."""
+    """Flat indices of the pixels that can see any of the world boxes (low, high): inside the convex hull of a
+    box's projected corners, grown by a pixel."""
     K = intrinsics
-    mask = np.zeros((K.height, K.width), bool)
+    mask = np.zeros((K.height, K.width), np.uint8)
     T = np.linalg.inv(T_world_camera)
     for lo, hi in boxes:
         corners = np.array([[(lo, hi)[i >> 2 & 1][0], (lo, hi)[i >> 1 & 1][1], (lo, hi)[i & 1][2]]
@@ -41,14 +43,15 @@ def box_pixels(boxes: list[tuple[np.ndarray, np.ndarray]], T_world_camera: np.nd
         if cam[:, 2].max() <= 0:
             continue
         if cam[:, 2].min() < NEAR_M:
-            mask[:] = True
+            mask[:] = 1
             break
-        u = K.fx * cam[:, 0] / cam[:, 2] + K.cx
-        v = K.fy * cam[:, 1] / cam[:, 2] + K.cy
-        c0, c1 = max(int(np.floor(u.min())), 0), min(int(np.ceil(u.max())) + 1, K.width)
-        r0, r1 = max(int(np.floor(v.min())), 0), min(int(np.ceil(v.max())) + 1, K.height)
-        if c0 < c1 and r0 < r1:
-            mask[r0:r1, c0:c1] = True
+        uv = np.stack([K.fx * cam[:, 0] / cam[:, 2] + K.cx, K.fy * cam[:, 1] / cam[:, 2] + K.cy], axis=1)
+        if np.abs(uv).max() > 1e6:
+            mask[:] = 1
+            break
+        hull = cv2.convexHull(np.round(uv * 16).astype(np.int32))
+        cv2.fillConvexPoly(mask, hull, 1, lineType=cv2.LINE_8, shift=4)
+    mask = cv2.dilate(mask, np.ones((3, 3), np.uint8))
     return np.flatnonzero(mask)
 
 

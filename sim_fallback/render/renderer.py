@@ -28,7 +28,8 @@ class Render:
     """One rendered view: `color` (H, W, 3) uint8; `depth_m` (H, W) float32 exact, 0 where nothing; `links`
     (H, W, 2) int32 (body id, link index; -1 for a base; (-1, -1) where nothing); `reflectance` (H, W) float32
     infrared return in 0-1 (0 where nothing); `seen` the frame's geometry and lights (for depth models that
-    render more); `timings_ms` of the steps."""
+    render more); `timings_ms` of the steps (scene: poses and rebuilds; static layer: what a new camera pose or
+    static scene costs once; cast; shadows; surfaces; shading; exposure: colour noise and encoding)."""
 
     color: np.ndarray
     depth_m: np.ndarray
@@ -99,21 +100,22 @@ class RayRenderer:
                ) -> Render:
         """Colour, exact depth, links and infrared return of the view from `T_base_camera` now; `extra_lights`
         (e.g. a projector) are seen too (lights 1... of `Render.seen`) but do not light the colour image."""
-        times = [time.perf_counter()]
+        start = time.perf_counter()
         self.update()
         lighting = self.lighting(T_base_camera)
         seen = self.view().see(T_base_camera, (lighting.lamp, *extra_lights))
-        times.append(time.perf_counter())
+        timings = {"scene": 1e3 * (time.perf_counter() - start), **seen.timings_ms}
+        start = time.perf_counter()
         radiance = seen.image("colour", lighting.shade, BACKGROUND_RGB)
-        times.append(time.perf_counter())
+        timings["shading"] = 1e3 * (time.perf_counter() - start)
+        start = time.perf_counter()
         color = self._exposure.image(radiance, rng)
-        times.append(time.perf_counter())
         K = self.intrinsics
         shape = (K.height, K.width)
-        out = Render(color, seen.depth.reshape(shape), self.link_image(seen.row),
-                     self.reflectance(seen).reshape(shape), seen)
-        out.timings_ms = {k: 1e3 * (b - a) for k, a, b in zip(("cast", "shading", "exposure"), times[:-1], times[1:],
-                                                               strict=True)}
+        out = Render(color, seen.depth.reshape(shape), self.link_image(seen.row), self.reflectance(seen).reshape(shape),
+                     seen, timings)
+        timings["exposure"] = 1e3 * (time.perf_counter() - start)
+        timings["scene"] -= sum(seen.timings_ms.values())  # reading the poses, rebuilding the scenes
         return out
 
     @staticmethod

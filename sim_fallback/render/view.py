@@ -4,12 +4,14 @@ projector), with the part that only the static scene makes computed once.
 While the camera and the static scene stay put, the static scene's hits, looks and light visibility are kept
 (`_Layer`). A frame then casts only the pixels whose image rectangle holds a moving link at the dynamic scene,
 tests the lights' visibility there, and, for the static pixels, only the rays toward a light that the moving links
-may block (those inside the moving links' rectangle as the light sees them). Images derived from a frame
-(`Seen.image`, e.g. shading) are recomputed only at the pixels that differ from the static layer.
+may block (those inside the moving links' rectangle as the light sees them), one per 2 x 2 block of pixels (the
+moving links' shadows on static surfaces have 2-pixel steps). Images derived from a frame (`Seen.image`, e.g.
+shading) are recomputed only at the pixels that differ from the static layer.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -21,6 +23,19 @@ from sim_fallback.render.scene import RayScene
 
 SHADOW_OFFSET_M = 0.002  # rays toward a light start this far off the surface, along its normal
 _AHEAD = 1e-3  # light-frame depth (m) below which a point counts as beside or behind a light
+
+
+class _Stopwatch:
+    """Milliseconds spent per named step."""
+
+    def __init__(self) -> None:
+        self.laps: dict[str, float] = {}
+        self._last = time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        self.laps[name] = self.laps.get(name, 0.0) + 1e3 * (now - self._last)
+        self._last = now
 
 
 @dataclass(frozen=True)
@@ -52,17 +67,25 @@ def lit_by(scene: RayScene, s: Surface, light: Light, static: bool = True, dynam
 
 @dataclass
 class _Layer:
-    """The static scene as one camera pose sees it."""
+    """The static scene as one camera pose sees it: its hits (`surface`, in pixel order) with their looks and
+    light, the same as whole images (`depth` 0 and `row` the triangle count where nothing), each hit's light-frame
+    coordinates per light ((3, n): x / z, y / z, z) and the hit at the top-left of its 2 x 2 block (`anchor`: the
+    hit itself where that pixel sees nothing static)."""
 
     key: tuple
     directions: np.ndarray  # (H * W, 3) world rays
-    surface: Surface  # every static hit, in pixel order
+    surface: Surface
     rgb: np.ndarray
     gloss: np.ndarray
     lit: np.ndarray  # (lights, n) by the static scene
     position: np.ndarray  # (H * W,) each pixel's entry in `surface`, -1 where nothing
-    depth: np.ndarray  # (H * W,) inf where nothing
-    light_coords: list[np.ndarray]  # per light: (3, n) the points in its frame (x / z, y / z, z)
+    depth: np.ndarray
+    row: np.ndarray
+    rgb_image: np.ndarray
+    gloss_image: np.ndarray
+    lit_image: np.ndarray
+    light_coords: list[np.ndarray]
+    anchor: np.ndarray
     images: dict
 
 
@@ -70,7 +93,8 @@ class _Layer:
 class Seen:
     """One frame: `depth` (H * W,) metres (0 where nothing); `row` (H * W,) the triangle (the triangle count where
     nothing); `rgb` (3, H * W) and `gloss` (H * W,) looks; `lit` (lights, H * W); `fresh` the hits that differ from
-    the static layer (moving links, and static points whose light they block) with their looks and light."""
+    the static layer (moving links, and static points whose light they block) with their looks and light;
+    `timings_ms`: cast (rays, hits), surfaces (looks), shadows (light visibility)."""
 
     depth: np.ndarray
     row: np.ndarray
@@ -82,6 +106,7 @@ class Seen:
     fresh_gloss: np.ndarray
     fresh_lit: np.ndarray
     _layer: _Layer
+    timings_ms: dict[str, float]
 
     def image(self, name: str, shader: Shader, background: tuple[float, ...] = (0.0,)) -> np.ndarray:
         """(k, H * W) image of `shader` (computed once per static layer for its pixels, then at the fresh ones);
@@ -108,66 +133,90 @@ class CachedView:
 
     def see(self, T_world_camera: np.ndarray, lights: tuple[Light, ...]) -> Seen:
         """The frame from `T_world_camera` (the scene updated for it)."""
-        layer = self._static_layer(T_world_camera, lights)
+        clock = _Stopwatch()
+        layer = self._static_layer(T_world_camera, lights, clock)
         eye = T_world_camera[:3, 3].astype(np.float32)
         pixels = box_pixels(self.scene.dynamic_boxes(), T_world_camera, self.intrinsics)
         hits = self.scene.cast(eye, layer.directions[pixels], dynamic=True)
-        nearer = hits.t < layer.depth[pixels]
+        nearer = np.flatnonzero(hits.t < np.where(layer.depth[pixels] > 0, layer.depth[pixels], np.inf))
         hits.t, hits.triangle, hits.uv = hits.t[nearer], hits.triangle[nearer], hits.uv[nearer]
-        moving = surface(self.scene, eye, layer.directions[pixels][nearer], pixels[nearer], hits)
+        moving = surface(self.scene, eye, layer.directions[pixels[nearer]], pixels[nearer], hits)
+        clock.lap("cast")
         covered = np.zeros(len(layer.surface.index), bool)
-        covered[layer.position[moving.index][layer.position[moving.index] >= 0]] = True
+        under = layer.position[moving.index]
+        covered[under[under >= 0]] = True
         shadowed = np.zeros((len(lights), len(layer.surface.index)), bool)
         for k, light in enumerate(lights):
-            maybe = np.flatnonzero(~covered & layer.lit[k] & self._maybe_blocked(layer, k, light))
-            blocked = ~lit_by(self.scene, layer.surface.take(maybe), light, static=False)
-            shadowed[k, maybe[blocked]] = True
+            maybe = ~covered & layer.lit[k] & self._maybe_blocked(layer, k, light)
+            tested = np.flatnonzero(maybe & (layer.anchor == np.arange(len(maybe))))  # the blocks' anchors
+            blocked = np.zeros(len(maybe), bool)
+            blocked[tested] = ~lit_by(self.scene, layer.surface.take(tested), light, static=False)
+            shadowed[k] = maybe & blocked[layer.anchor]
         changed = np.flatnonzero(shadowed.any(axis=0))
-        static_fresh = layer.surface.take(changed)
+        moving_lit = self._moving_lit(moving, lights)
+        clock.lap("shadows")
         moving_rgb, moving_gloss = self.look(moving)
-        moving_lit = np.array([lit_by(self.scene, moving, light) for light in lights]).reshape(len(lights), -1)
-        fresh = Surface.join(static_fresh, moving)
+        fresh = Surface.join(layer.surface.take(changed), moving)
         fresh_rgb = np.concatenate([layer.rgb[:, changed], moving_rgb], axis=1)
         fresh_gloss = np.concatenate([layer.gloss[changed], moving_gloss])
         fresh_lit = np.concatenate([layer.lit[:, changed] & ~shadowed[:, changed], moving_lit], axis=1)
-
-        n_pixels = len(layer.depth)
-        depth = np.where(np.isfinite(layer.depth), layer.depth, 0.0).astype(np.float32)
-        row = np.full(n_pixels, len(self.scene.triangles.link), np.int64)
-        row[layer.surface.index] = layer.surface.row
-        rgb = np.zeros((3, n_pixels), np.float32)
-        rgb[:, layer.surface.index] = layer.rgb
-        gloss = np.zeros(n_pixels, np.float32)
-        gloss[layer.surface.index] = layer.gloss
-        lit = np.zeros((len(lights), n_pixels), bool)
-        lit[:, layer.surface.index] = layer.lit
-        for image, values in ((depth, moving.depth), (row, moving.row), (gloss, moving_gloss)):
-            image[moving.index] = values
+        depth, row, gloss = layer.depth.copy(), layer.row.copy(), layer.gloss_image.copy()
+        rgb, lit = layer.rgb_image.copy(), layer.lit_image.copy()
+        depth[moving.index], row[moving.index], gloss[moving.index] = moving.depth, moving.row, moving_gloss
         rgb[:, moving.index], lit[:, fresh.index] = moving_rgb, fresh_lit
-        return Seen(depth, row, rgb, gloss, lit, fresh, fresh_rgb, fresh_gloss, fresh_lit, layer)
+        clock.lap("surfaces")
+        return Seen(depth, row, rgb, gloss, lit, fresh, fresh_rgb, fresh_gloss, fresh_lit, layer, clock.laps)
 
-    def _static_layer(self, T_world_camera: np.ndarray, lights: tuple[Light, ...]) -> _Layer:
+    def _moving_lit(self, moving: Surface, lights: tuple[Light, ...]) -> np.ndarray:
+        """(lights, n) visibility of the lights at the moving links' hits, tested at one hit per 2 x 2 block of
+        pixels on the same triangle (the block's top-left one where it is such a hit)."""
+        w = self.intrinsics.width
+        position = np.full(self.intrinsics.width * self.intrinsics.height, -1, np.int64)
+        position[moving.index] = np.arange(len(moving.index))
+        rows, cols = np.divmod(moving.index, w)
+        anchor = position[(rows - rows % 2) * w + cols - cols % 2]
+        own = np.arange(len(anchor))
+        anchor = np.where((anchor >= 0) & (moving.row[np.maximum(anchor, 0)] == moving.row), anchor, own)
+        tested = np.flatnonzero(anchor == own)
+        lit = np.zeros((len(lights), len(anchor)), bool)
+        for k, light in enumerate(lights):
+            lit[k, tested] = lit_by(self.scene, moving.take(tested), light)
+        return lit[:, anchor]
+
+    def _static_layer(self, T_world_camera: np.ndarray, lights: tuple[Light, ...], clock: _Stopwatch) -> _Layer:
         key = (self.scene.version, T_world_camera.tobytes(), lights)
         if self._layer is not None and self._layer.key == key:
             return self._layer
+        self._layer = self._build_layer(key, T_world_camera, lights)
+        clock.lap("static layer")
+        return self._layer
+
+    def _build_layer(self, key: tuple, T_world_camera: np.ndarray, lights: tuple[Light, ...]) -> _Layer:
         R, eye = T_world_camera[:3, :3].astype(np.float32), T_world_camera[:3, 3].astype(np.float32)
         directions = self._rays @ R.T
-        pixels = np.arange(len(directions))
-        s = surface(self.scene, eye, directions, pixels, self.scene.cast(eye, directions, dynamic=False))
+        n_pixels = len(directions)
+        s = surface(self.scene, eye, directions, np.arange(n_pixels), self.scene.cast(eye, directions, dynamic=False))
         rgb, gloss = self.look(s)
         lit = np.array([lit_by(self.scene, s, light, dynamic=False) for light in lights]).reshape(len(lights), -1)
-        position = np.full(len(pixels), -1, np.int64)
+        position = np.full(n_pixels, -1, np.int64)
         position[s.index] = np.arange(len(s.index))
-        depth = np.full(len(pixels), np.inf, np.float32)
-        depth[s.index] = s.depth
+        depth = np.zeros(n_pixels, np.float32)
+        row = np.full(n_pixels, len(self.scene.triangles.link), np.int64)
+        rgb_image, gloss_image = np.zeros((3, n_pixels), np.float32), np.zeros(n_pixels, np.float32)
+        lit_image = np.zeros((len(lights), n_pixels), bool)
+        depth[s.index], row[s.index], rgb_image[:, s.index], gloss_image[s.index] = s.depth, s.row, rgb, gloss
+        lit_image[:, s.index] = lit
         coords = []
         for light in lights:
             q = light.frame().astype(np.float32) @ (s.point - np.asarray(light.position, np.float32)[:, None])
-            z = q[2]
             with np.errstate(divide="ignore", invalid="ignore"):
-                coords.append(np.stack([q[0] / z, q[1] / z, z]))
-        self._layer = _Layer(key, directions, s, rgb, gloss, lit, position, depth, coords, {})
-        return self._layer
+                coords.append(np.stack([q[0] / q[2], q[1] / q[2], q[2]]))
+        w = self.intrinsics.width
+        rows, cols = np.divmod(s.index, w)
+        anchor = position[(rows - rows % 2) * w + cols - cols % 2]
+        anchor = np.where(anchor >= 0, anchor, np.arange(len(anchor)))
+        return _Layer(key, directions, s, rgb, gloss, lit, position, depth, row, rgb_image, gloss_image, lit_image,
+                      coords, anchor, {})
 
     def _maybe_blocked(self, layer: _Layer, k: int, light: Light) -> np.ndarray:
         """(n,) bool over the static hits: the moving links may lie between the point and light `k`."""
