@@ -167,7 +167,9 @@ class DepthNoise:
         if self.subpixel > 0 or self.subpixel_per_m > 0:
             unit = rng.standard_normal(out.shape, dtype=np.float32) if field is None else field
             out += unit * self.sigma_m(out, fx)
+        truth = near[rows]
         drop = (out < self.min_range_m) | (out > self.max_range_m) | (out <= 0)  # invalid depth is 0 here
+        drop |= (truth < self.min_range_m) | (truth > self.max_range_m)  # no disparity to find out there
         if self.max_incidence_deg < 90:
             drop |= _grazing(near, far, fx, (w - 1) / 2, (h - 1) / 2 - top, self.max_incidence_deg)[rows]
         out[drop] = 0.0
