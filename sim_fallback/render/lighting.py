@@ -15,8 +15,10 @@ import numpy as np
 from sim_fallback.render.rays import Surface
 from sim_fallback.render.view import Light
 
-EXPOSURE_KEY = 0.2  # auto exposure brings the image's mean linear luminance here
-EXPOSURE_RATE = 0.5  # fraction of the way to the new exposure per frame (auto exposure settles over frames)
+EXPOSURE_KEY = 0.18  # auto exposure brings the image's mean linear luminance here,
+HIGHLIGHTS = (0.98, 0.9)  # unless that puts this quantile of it above this fraction of full scale
+EXPOSURE_RATE = 0.1  # fraction of the way (in stops) to the new exposure per frame: it settles over frames
+METERING_STEP = 8  # the exposure meters every 8th pixel of every 8th row
 SHOT_NOISE = 2e-4  # variance per unit of exposed linear signal
 READ_NOISE = 0.003  # standard deviation, linear
 NOISE_POOL = 2  # colour noise drawn once per camera, this many images' worth, read at a random offset per frame
@@ -81,8 +83,8 @@ class Lighting:
 
 
 class Exposure:
-    """The colour camera's auto exposure and sensor noise, with a seeded exposure bias (+-0.3 EV) and white
-    balance error (+-3 %); keeps its exposure from frame to frame."""
+    """The colour camera's auto exposure (metering the mean luminance, sparing the highlights, settling over
+    frames) and sensor noise, with a seeded exposure bias (+-0.3 EV) and white balance error (+-3 %)."""
 
     def __init__(self, shape: tuple[int, int], seed: int) -> None:
         rng = np.random.default_rng([seed, 11])
@@ -98,8 +100,10 @@ class Exposure:
 
     def image(self, radiance: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """(H, W, 3) uint8 sRGB of the (3, H * W) linear radiance."""
-        mean = float(_LUMA @ radiance.mean(axis=1)) or 1.0
-        target = EXPOSURE_KEY * self._bias / mean
+        metered = _LUMA @ radiance.reshape(3, *self.shape)[:, ::METERING_STEP, ::METERING_STEP].reshape(3, -1)
+        highlight = float(np.quantile(metered, HIGHLIGHTS[0]))
+        target = self._bias * min(EXPOSURE_KEY / max(float(metered.mean()), 1e-6),
+                                  HIGHLIGHTS[1] / max(highlight, 1e-6))
         self._scale = target if self._scale is None else self._scale * (target / self._scale) ** EXPOSURE_RATE
         level = radiance.T * (self._scale * _LEVELS * self._balance)  # (H * W, 3) in 1/4096 of full scale
         start = int(rng.integers(0, len(self._pool) - level.size + 1))
