@@ -42,11 +42,12 @@ def bench_sim(episodes: int = 1, world: str = "kitchen", progress: Callable[[str
     hits, looks and light, computed once per camera pose); render_ms_1280x720: a whole 1280x720 frame;
     real_time_factor: simulated / wall time of a 10 s scripted opening (IK and safety checks every tick) with a
     640x480 frame every 0.1 s and the default depth model (the artefact model); _stereo: active stereo; _exact:
-    exact depth.
+    exact depth; _cpu: simulated / the process's CPU time (what a core of its own would give on a busy machine).
     """
     if world not in WORLDS:
         raise ValueError(f"unknown world {world!r}: use one of {', '.join(WORLDS)}")
-    steps, hd, first, rtf = [], [], [], {name: [] for name in DEPTH_MODELS}
+    steps, hd, first = [], [], []
+    rtf, rtf_cpu = {name: [] for name in DEPTH_MODELS}, {name: [] for name in DEPTH_MODELS}
     frames: dict[str, list[dict]] = {"model": [], "stereo": []}
     show = progress or (lambda _what: None)
     for seed in range(episodes):
@@ -67,8 +68,9 @@ def bench_sim(episodes: int = 1, world: str = "kitchen", progress: Callable[[str
         for name, model in DEPTH_MODELS.items():
             show(f"{where}a {OPENING_S:g} s scripted opening, depth: {name}")
             with _world(seed, world) as w:
-                factor, timings = _opening(w, SimArm(w), model())
+                factor, factor_cpu, timings = _opening(w, SimArm(w), model())
             rtf[name].append(factor)
+            rtf_cpu[name].append(factor_cpu)
             frames.get(name, []).extend(timings)
     return {
         "world": world,
@@ -81,6 +83,8 @@ def bench_sim(episodes: int = 1, world: str = "kitchen", progress: Callable[[str
         "real_time_factor": float(np.median(rtf["model"])),
         "real_time_factor_stereo": float(np.median(rtf["stereo"])),
         "real_time_factor_exact": float(np.median(rtf["exact"])),
+        "real_time_factor_cpu": float(np.median(rtf_cpu["model"])),
+        "real_time_factor_stereo_cpu": float(np.median(rtf_cpu["stereo"])),
     }
 
 
@@ -102,17 +106,19 @@ def _median_ms(fn, n: int) -> float:
 
 def _median_steps(timings: list[dict]) -> dict[str, float]:
     """Per step, the median over frames (the first frame, which builds the static layer, left out), and the
-    median total."""
+    median total, in wall time and in CPU time."""
     later = timings[1:] or timings
-    steps = sorted({k for t in later for k in t if k != "static layer"})
+    steps = sorted({k for t in later for k in t if k not in ("static layer", "cpu")})
     out = {k: round(float(np.median([t.get(k, 0.0) for t in later])), 2) for k in steps}
-    out["total"] = round(float(np.median([sum(t.values()) for t in later])), 2)
+    out["total"] = round(float(np.median([sum(t.get(k, 0.0) for k in steps) for t in later])), 2)
+    out["total_cpu"] = round(float(np.median([t["cpu"] for t in later])), 2)
     return out
 
 
-def _opening(world: SimWorld, arm: SimArm, noise: DepthNoise | ActiveStereo) -> tuple[float, list[dict]]:
+def _opening(world: SimWorld, arm: SimArm, noise: DepthNoise | ActiveStereo) -> tuple[float, float, list[dict]]:
     """Grasp (untimed), then time a ground-truth opening lasting OPENING_S with frames at 10 Hz: the real-time
-    factor and each frame's timings."""
+    factor over wall time and over the process's CPU time, and each frame's timings (ms by step, wall; `cpu`: the
+    frame's CPU time)."""
     grasp_handle(world, arm, MotionLimits.for_robot(world.robot_spec, arm.kin, fraction=0.3), OPENING_M)
     camera = SimCamera(world, noise=noise, fps=10.0)
     v = OPENING_M / (OPENING_S - 1.0)  # cruise speed; about 1 s goes to speeding up and braking
@@ -123,12 +129,14 @@ def _opening(world: SimWorld, arm: SimArm, noise: DepthNoise | ActiveStereo) -> 
     def grab(state, _t: float) -> None:
         nonlocal next_t
         if state.t >= next_t - 1e-9:
+            cpu = time.process_time()
             next_t = (camera.read().index + 1) / camera.fps
-            timings.append(dict(camera.timings_ms))
+            timings.append({**camera.timings_ms, "cpu": 1e3 * (time.process_time() - cpu)})
 
-    sim0, wall0 = world.time, time.perf_counter()
+    sim0, wall0, cpu0 = world.time, time.perf_counter(), time.process_time()
     open_along_truth(world, arm, OPENING_M, limits, grab)
-    return (world.time - sim0) / (time.perf_counter() - wall0), timings
+    simulated = world.time - sim0
+    return simulated / (time.perf_counter() - wall0), simulated / (time.process_time() - cpu0), timings
 
 
 WALL_DISTANCES_M = (0.5, 1.0, 2.0)

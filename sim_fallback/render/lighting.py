@@ -96,7 +96,6 @@ class Exposure:
         x = (np.arange(_LEVELS, dtype=np.float64) + 0.5) / _LEVELS
         srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
         self._encode = np.round(np.clip(srgb, 0, 1) * 255).astype(np.uint8)
-        self._sigma = (np.sqrt(x * SHOT_NOISE + READ_NOISE ** 2) * _LEVELS).astype(np.float32)  # per level
 
     def image(self, radiance: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """(H, W, 3) uint8 sRGB of the (3, H * W) linear radiance."""
@@ -107,6 +106,8 @@ class Exposure:
         self._scale = target if self._scale is None else self._scale * (target / self._scale) ** EXPOSURE_RATE
         level = radiance.T * (self._scale * _LEVELS * self._balance)  # (H * W, 3) in 1/4096 of full scale
         start = int(rng.integers(0, len(self._pool) - level.size + 1))
-        code = np.clip(level, 0, _LEVELS - 1).astype(np.int32)
-        level += self._sigma.take(code) * self._pool[start:start + level.size].reshape(level.shape)
-        return self._encode.take(np.clip(level, 0, _LEVELS - 1).astype(np.int32)).reshape(*self.shape, 3)
+        sigma = np.sqrt(np.maximum(level, 0.0) * np.float32(SHOT_NOISE * _LEVELS) + np.float32(
+            (READ_NOISE * _LEVELS) ** 2))
+        level += sigma * self._pool[start:start + level.size].reshape(level.shape)
+        np.clip(level, 0, _LEVELS - 1, out=level)
+        return self._encode.take(level.astype(np.int32)).reshape(*self.shape, 3)

@@ -29,16 +29,13 @@ def camera_rays(intrinsics: Intrinsics) -> np.ndarray:
     return rays.reshape(-1, 3)
 
 
-def box_pixels(boxes: list[tuple[np.ndarray, np.ndarray]], T_world_camera: np.ndarray, intrinsics: Intrinsics
-               ) -> np.ndarray:
-    """Flat indices of the pixels that can see any of the world boxes (low, high): inside the convex hull of a
-    box's projected corners, grown by a pixel."""
+def box_pixels(boxes: np.ndarray, T_world_camera: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:
+    """Flat indices of the pixels that can see any of the boxes ((n, 8, 3) world corners): inside the convex hull
+    of a box's projected corners, grown by a pixel."""
     K = intrinsics
     mask = np.zeros((K.height, K.width), np.uint8)
     T = np.linalg.inv(T_world_camera)
-    for lo, hi in boxes:
-        corners = np.array([[(lo, hi)[i >> 2 & 1][0], (lo, hi)[i >> 1 & 1][1], (lo, hi)[i & 1][2]]
-                            for i in range(8)])
+    for corners in boxes:
         cam = corners @ T[:3, :3].T + T[:3, 3]
         if cam[:, 2].max() <= 0:
             continue

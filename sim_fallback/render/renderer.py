@@ -10,8 +10,8 @@ from the surface: diffuse albedo times one minus gloss), which the depth models 
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping
+from functools import cached_property
 
 import numpy as np
 
@@ -23,20 +23,23 @@ from sim_fallback.render.surfaces import Surfaces
 from sim_fallback.render.view import CachedView, Light, Seen
 
 
-@dataclass
 class Render:
     """One rendered view: `color` (H, W, 3) uint8; `depth_m` (H, W) float32 exact, 0 where nothing; `links`
-    (H, W, 2) int32 (body id, link index; -1 for a base; (-1, -1) where nothing); `reflectance` (H, W) float32
-    infrared return in 0-1 (0 where nothing); `seen` the frame's geometry and lights (for depth models that
-    render more); `timings_ms` of the steps (scene: poses and rebuilds; static layer: what a new camera pose or
-    static scene costs once; cast; shadows; surfaces; shading; exposure: colour noise and encoding)."""
+    (H, W, 2) int32 (body id, link index; -1 for a base; (-1, -1) where nothing; made when first asked for);
+    `reflectance` (H, W) float32 infrared return in 0-1 (0 where nothing); `seen` the frame's geometry and lights
+    (for depth models that render more); `timings_ms` of the steps (scene: poses and rebuilds; static layer: what a
+    new camera pose or static scene costs once; cast; shadows; surfaces; shading; exposure: colour noise and
+    encoding)."""
 
-    color: np.ndarray
-    depth_m: np.ndarray
-    links: np.ndarray
-    reflectance: np.ndarray
-    seen: Seen
-    timings_ms: dict[str, float] = field(default_factory=dict)
+    def __init__(self, color: np.ndarray, depth_m: np.ndarray, links: Callable[[], np.ndarray] | np.ndarray,
+                 reflectance: np.ndarray, seen: Seen | None, timings_ms: dict[str, float] | None = None) -> None:
+        self.color, self.depth_m, self.reflectance, self.seen = color, depth_m, reflectance, seen
+        self.timings_ms = timings_ms or {}
+        self._links = links
+
+    @cached_property
+    def links(self) -> np.ndarray:
+        return self._links() if callable(self._links) else self._links
 
 
 class RayRenderer:
@@ -112,8 +115,8 @@ class RayRenderer:
         color = self._exposure.image(radiance, rng)
         K = self.intrinsics
         shape = (K.height, K.width)
-        out = Render(color, seen.depth.reshape(shape), self.link_image(seen.row), self.reflectance(seen).reshape(shape),
-                     seen, timings)
+        out = Render(color, seen.depth.reshape(shape), lambda: self.link_image(seen.row),
+                     self.reflectance(seen).reshape(shape), seen, timings)
         timings["exposure"] = 1e3 * (time.perf_counter() - start)
         timings["scene"] -= sum(seen.timings_ms.values())  # reading the poses, rebuilding the scenes
         return out

@@ -99,6 +99,17 @@ def link_poses(client: int, links: tuple[tuple[int, int], ...]) -> np.ndarray:
     return poses
 
 
+def _link_boxes(tri: Triangles) -> np.ndarray:
+    """(links, 8, 3) corners of each link's bounding box in its own frame."""
+    boxes = np.zeros((len(tri.links), 8, 3), np.float32)
+    signs = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)], bool)
+    for k in range(len(tri.links)):
+        corners = tri.corners[tri.starts[k]:tri.starts[k + 1]].reshape(-1, 3)
+        if len(corners):
+            boxes[k] = np.where(signs, corners.max(axis=0), corners.min(axis=0))
+    return boxes
+
+
 class RayScene:
     """The triangles of a PyBullet client in two ray-casting scenes: `static` (links that have not moved since it
     was built; `version` counts its builds) and `dynamic` (the moving links, rebuilt at every `update`).
@@ -120,6 +131,7 @@ class RayScene:
         if bodies != self._bodies:
             self._bodies = bodies
             self.triangles = read_triangles(self.client)
+            self._local_boxes = _link_boxes(self.triangles)
             self.poses = link_poses(self.client, self.triangles.links)
             self.moving = np.zeros(len(self.triangles.links), bool)
             self._build_static()
@@ -161,16 +173,13 @@ class RayScene:
     def _build_dynamic(self) -> None:
         ids = np.flatnonzero(self.moving[self.triangles.link])
         self._dynamic, self._dynamic_ids = self._scene(ids), ids
-        self._boxes = []
-        if len(ids):
-            corners = self.world_corners(ids)
-            links = self.triangles.link[ids]
-            for k in np.unique(links):
-                c = corners[links == k].reshape(-1, 3)
-                self._boxes.append((c.min(axis=0), c.max(axis=0)))
+        links = np.flatnonzero(self.moving)
+        box = self._local_boxes[links]  # (n, 8, 3) in each link's frame
+        pose = self.poses[links].astype(np.float32)
+        self._boxes = np.einsum("nij,nkj->nki", pose[:, :3, :3], box) + pose[:, None, :3, 3]
 
-    def dynamic_boxes(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        """World axis-aligned boxes (low, high corners) around each moving link."""
+    def dynamic_boxes(self) -> np.ndarray:
+        """(n, 8, 3) world corners of a box around each moving link (the link's bounds in its own frame)."""
         return self._boxes
 
     def cast(self, origin: np.ndarray, directions: np.ndarray, dynamic: bool) -> Hits:

@@ -222,11 +222,9 @@ class CachedView:
         """(n,) bool over the static hits: the moving links may lie between the point and light `k`."""
         boxes = self.scene.dynamic_boxes()
         coords = layer.light_coords[k]
-        if not boxes:
+        if not len(boxes):
             return np.zeros(coords.shape[1], bool)
-        corners = np.concatenate([[[(lo, hi)[i >> 2 & 1][0], (lo, hi)[i >> 1 & 1][1], (lo, hi)[i & 1][2]]
-                                   for i in range(8)] for lo, hi in boxes])
-        q = light.frame() @ (corners - np.asarray(light.position)).T
+        q = light.frame() @ (boxes.reshape(-1, 3) - np.asarray(light.position)).T
         behind = ~(coords[2] > _AHEAD)  # beside or behind the light: always tested
         if q[2].min() <= _AHEAD:
             return np.ones(coords.shape[1], bool)
