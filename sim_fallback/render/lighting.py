@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from sim_fallback.render.rays import Surface
@@ -104,10 +105,11 @@ class Exposure:
         target = self._bias * min(EXPOSURE_KEY / max(float(metered.mean()), 1e-6),
                                   HIGHLIGHTS[1] / max(highlight, 1e-6))
         self._scale = target if self._scale is None else self._scale * (target / self._scale) ** EXPOSURE_RATE
-        level = radiance.T * (self._scale * _LEVELS * self._balance)  # (H * W, 3) in 1/4096 of full scale
+        level = radiance * (self._scale * _LEVELS * self._balance).astype(np.float32)[:, None]  # 1/4096 of full
         start = int(rng.integers(0, len(self._pool) - level.size + 1))
         sigma = np.sqrt(np.maximum(level, 0.0) * np.float32(SHOT_NOISE * _LEVELS) + np.float32(
             (READ_NOISE * _LEVELS) ** 2))
         level += sigma * self._pool[start:start + level.size].reshape(level.shape)
         np.clip(level, 0, _LEVELS - 1, out=level)
-        return self._encode.take(level.astype(np.int32)).reshape(*self.shape, 3)
+        codes = level.astype(np.uint16)
+        return cv2.merge([self._encode.take(codes[c]).reshape(self.shape) for c in range(3)])

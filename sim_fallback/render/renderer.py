@@ -116,12 +116,7 @@ class RayRenderer:
         K = self.intrinsics
         shape = (K.height, K.width)
         out = Render(color, seen.depth.reshape(shape), lambda: self.link_image(seen.row),
-                     self.reflectance(seen).reshape(shape), seen, timings)
+                     seen.reflectance.reshape(shape), seen, timings)
         timings["exposure"] = 1e3 * (time.perf_counter() - start)
         timings["scene"] -= sum(seen.timings_ms.values())  # reading the poses, rebuilding the scenes
         return out
-
-    @staticmethod
-    def reflectance(seen: Seen) -> np.ndarray:
-        """(H * W,) infrared return of a frame's pixels."""
-        return Surfaces.reflectance(seen.rgb, seen.gloss)

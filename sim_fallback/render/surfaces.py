@@ -132,8 +132,9 @@ class Surfaces:
                 rgb[:, mask] *= texel.T
         return rgb, self._gloss.take(s.row)
 
-    @staticmethod
-    def reflectance(rgb: np.ndarray, gloss: np.ndarray) -> np.ndarray:
-        """Infrared return: the base colour's luminance (as a stand-in for its near-infrared albedo) times one
-        minus gloss (a glossy surface sends the projector's light on, not back)."""
-        return (rgb[0] * _LUMA[0] + rgb[1] * _LUMA[1] + rgb[2] * _LUMA[2]) * (1.0 - gloss)
+
+
+def infrared_return(rgb: np.ndarray, gloss: np.ndarray) -> np.ndarray:
+    """What a surface sends back of a projector's infrared: its base colour's luminance (a stand-in for its
+    near-infrared albedo) times one minus gloss (a glossy surface sends the light on, not back)."""
+    return (rgb[0] * _LUMA[0] + rgb[1] * _LUMA[1] + rgb[2] * _LUMA[2]) * (1.0 - gloss)

@@ -20,6 +20,7 @@ import numpy as np
 from drivers.camera.base import Intrinsics
 from sim_fallback.render.rays import Surface, box_pixels, camera_rays, surface
 from sim_fallback.render.scene import RayScene
+from sim_fallback.render.surfaces import infrared_return
 
 SHADOW_OFFSET_M = 0.002  # rays toward a light start this far off the surface, along its normal
 _AHEAD = 1e-3  # light-frame depth (m) below which a point counts as beside or behind a light
@@ -81,8 +82,7 @@ class _Layer:
     position: np.ndarray  # (H * W,) each pixel's entry in `surface`, -1 where nothing
     depth: np.ndarray
     row: np.ndarray
-    rgb_image: np.ndarray
-    gloss_image: np.ndarray
+    reflectance: np.ndarray
     lit_image: np.ndarray
     light_coords: list[np.ndarray]
     anchor: np.ndarray
@@ -92,14 +92,14 @@ class _Layer:
 @dataclass
 class Seen:
     """One frame: `depth` (H * W,) metres (0 where nothing); `row` (H * W,) the triangle (the triangle count where
-    nothing); `rgb` (3, H * W) and `gloss` (H * W,) looks; `lit` (lights, H * W); `fresh` the hits that differ from
+    nothing); `reflectance` (H * W,) the infrared return (`infrared_return`); `lit` (lights, H * W); `fresh` the
+    hits that differ from
     the static layer (moving links, and static points whose light they block) with their looks and light;
     `timings_ms`: cast (rays, hits), surfaces (looks), shadows (light visibility)."""
 
     depth: np.ndarray
     row: np.ndarray
-    rgb: np.ndarray
-    gloss: np.ndarray
+    reflectance: np.ndarray
     lit: np.ndarray
     fresh: Surface
     fresh_rgb: np.ndarray
@@ -160,12 +160,13 @@ class CachedView:
         fresh_rgb = np.concatenate([layer.rgb[:, changed], moving_rgb], axis=1)
         fresh_gloss = np.concatenate([layer.gloss[changed], moving_gloss])
         fresh_lit = np.concatenate([layer.lit[:, changed] & ~shadowed[:, changed], moving_lit], axis=1)
-        depth, row, gloss = layer.depth.copy(), layer.row.copy(), layer.gloss_image.copy()
-        rgb, lit = layer.rgb_image.copy(), layer.lit_image.copy()
-        depth[moving.index], row[moving.index], gloss[moving.index] = moving.depth, moving.row, moving_gloss
-        rgb[:, moving.index], lit[:, fresh.index] = moving_rgb, fresh_lit
+        depth, row = layer.depth.copy(), layer.row.copy()
+        reflectance, lit = layer.reflectance.copy(), layer.lit_image.copy()
+        depth[moving.index], row[moving.index] = moving.depth, moving.row
+        reflectance[moving.index] = infrared_return(moving_rgb, moving_gloss)
+        lit[:, fresh.index] = fresh_lit
         clock.lap("surfaces")
-        return Seen(depth, row, rgb, gloss, lit, fresh, fresh_rgb, fresh_gloss, fresh_lit, layer, clock.laps)
+        return Seen(depth, row, reflectance, lit, fresh, fresh_rgb, fresh_gloss, fresh_lit, layer, clock.laps)
 
     def _moving_lit(self, moving: Surface, lights: tuple[Light, ...]) -> np.ndarray:
         """(lights, n) visibility of the lights at the moving links' hits, tested at one hit per 2 x 2 block of
@@ -201,10 +202,9 @@ class CachedView:
         position = np.full(n_pixels, -1, np.int64)
         position[s.index] = np.arange(len(s.index))
         depth = np.zeros(n_pixels, np.float32)
-        row = np.full(n_pixels, len(self.scene.triangles.link), np.int64)
-        rgb_image, gloss_image = np.zeros((3, n_pixels), np.float32), np.zeros(n_pixels, np.float32)
-        lit_image = np.zeros((len(lights), n_pixels), bool)
-        depth[s.index], row[s.index], rgb_image[:, s.index], gloss_image[s.index] = s.depth, s.row, rgb, gloss
+        row = np.full(n_pixels, len(self.scene.triangles.link), np.int32)
+        reflectance, lit_image = np.zeros(n_pixels, np.float32), np.zeros((len(lights), n_pixels), bool)
+        depth[s.index], row[s.index], reflectance[s.index] = s.depth, s.row, infrared_return(rgb, gloss)
         lit_image[:, s.index] = lit
         coords = []
         for light in lights:
@@ -215,8 +215,8 @@ class CachedView:
         rows, cols = np.divmod(s.index, w)
         anchor = position[(rows - rows % 2) * w + cols - cols % 2]
         anchor = np.where(anchor >= 0, anchor, np.arange(len(anchor)))
-        return _Layer(key, directions, s, rgb, gloss, lit, position, depth, row, rgb_image, gloss_image, lit_image,
-                      coords, anchor, {})
+        return _Layer(key, directions, s, rgb, gloss, lit, position, depth, row, reflectance, lit_image, coords, anchor,
+                      {})
 
     def _maybe_blocked(self, layer: _Layer, k: int, light: Light) -> np.ndarray:
         """(n,) bool over the static hits: the moving links may lie between the point and light `k`."""
