@@ -140,7 +140,8 @@ def _opening(world: SimWorld, arm: SimArm, noise: DepthNoise | ActiveStereo) -> 
 
 
 WALL_DISTANCES_M = (0.5, 1.0, 2.0)
-WALL_SURFACES = {"plain": None, "wood": Finish("wood", (0.45, 0.3, 0.18), 0.15, 7)}
+WALL_SURFACES = {"plain": None, "wood": Finish("wood", (0.45, 0.3, 0.18), 0.15, 7),
+                 "dark": Finish("painted", (0.03, 0.03, 0.03), 0.3, 0)}
 WALL_FRAMES = 3
 D415_RMS_PCT_AT_2M = 2.0  # datasheet: RMS error under 2 % of the distance at 2 m, central 80 % of the image
 

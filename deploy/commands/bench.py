@@ -210,7 +210,8 @@ def bench_sim_cmd(
 @app.command("depth")
 def bench_depth_cmd(json_out: JsonOpt = False) -> None:
     """Fill rate and error of the simulated D415's depth (artefact model and active stereo) on walls facing the
-    camera at 0.5, 1 and 2 m (plain and wood-textured), against the D415's published figures.
+    camera at 0.5, 1 and 2 m (plain light grey, wood-textured, dark), for comparing with the D415's published
+    figures (docs/simulation.md).
 
     Example: deploy bench depth --json
     """

@@ -73,11 +73,11 @@ class DepthNoise:
     @classmethod
     def d415(cls) -> DepthNoise:
         """A D415 at 640x480, calibrated against the active-stereo simulation (sim_fallback.render.stereo) and
-        the datasheet (docs/simulation.md): disparity noise 0.045 + 0.075 px per m over a 5 px window, stereo
+        the datasheet (docs/simulation.md): disparity noise 0.05 + 0.075 px per m over a 5 px window, stereo
         shadows and the left band 1 px wider, edges widened 1 px, surfaces up to 3 px wide lost, dots lost below
         an infrared return of 0.014 at 1 m; 1 mm units, 0.3-10 m range."""
         return cls(
-            subpixel=0.045,
+            subpixel=0.05,
             subpixel_per_m=0.075,
             correlation_px=5,
             depth_unit_m=0.001,

@@ -168,20 +168,22 @@ class ActiveStereo:
 
 
 def refine(left: np.ndarray, right: np.ndarray, disparity: np.ndarray, block_px: int) -> np.ndarray:
-    """Sub-pixel disparities: one Lucas-Kanade step over the matching window from the matcher's disparity rounded
-    to whole pixels (OpenCV's own sub-pixel fit locks onto whole pixels by up to a quarter pixel). Invalid (<= 0)
-    disparities stay as they are."""
+    """Sub-pixel disparities: one Lucas-Kanade step over the matching window from the matcher's disparity (OpenCV's
+    own sub-pixel fit locks onto whole pixels by up to a quarter pixel), the right image interpolated linearly.
+    Invalid (<= 0) disparities stay as they are."""
     h, w = left.shape
-    whole = np.rint(disparity).astype(np.int64)
     L, R = left.astype(np.float32), right.astype(np.float32)
     gradient = np.zeros_like(R)
     gradient[:, 1:-1] = (R[:, 2:] - R[:, :-2]) / 2
-    cols = np.clip(np.arange(w)[None, :] - whole, 0, w - 1)
-    index = np.arange(h)[:, None] * w + cols
-    shifted, slope = R.ravel().take(index), gradient.ravel().take(index)
+    x = np.clip(np.arange(w, dtype=np.float32)[None, :] - np.maximum(disparity, 0), 0, w - 1.001)
+    x0 = x.astype(np.int64)
+    frac = x - x0
+    index = np.arange(h)[:, None] * w + x0
+    shifted = R.ravel().take(index) * (1 - frac) + R.ravel().take(index + 1) * frac
+    slope = gradient.ravel().take(index) * (1 - frac) + gradient.ravel().take(index + 1) * frac
     valid = (disparity > 0).astype(np.float32)
     num = cv2.boxFilter((shifted - L) * slope * valid, -1, (block_px, block_px), normalize=False)
     den = cv2.boxFilter(slope * slope * valid, -1, (block_px, block_px), normalize=False)
     with np.errstate(divide="ignore", invalid="ignore"):
-        step = np.clip(np.where(den > 0, num / den, 0.0), -1.0, 1.0)
-    return np.where(disparity > 0, whole + step, disparity).astype(np.float32)
+        step = np.clip(np.where(den > 0, num / den, 0.0), -0.5, 0.5)
+    return np.where(disparity > 0, disparity + step, disparity).astype(np.float32)
