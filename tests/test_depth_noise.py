@@ -295,6 +295,17 @@ def test_dark_surfaces_far_away_lose_depth_bright_ones_keep_it():
     assert np.all(noise.apply(wall(2.0), FX, rng) > 0)  # without the infrared return: nothing to go by
 
 
+def test_dark_surfaces_beside_bright_ones_lose_depth():
+    noise = DepthNoise(min_relative_return=0.07)
+    reflectance = np.full((200, 200), 0.02, np.float32)
+    rng = np.random.default_rng(1)
+    alone = noise.apply(wall(1.0), FX, rng, reflectance=reflectance)
+    assert np.all(alone > 0)  # the infrared exposure is set for it
+    reflectance[:, 100:] = 0.8
+    beside = noise.apply(wall(1.0), FX, rng, reflectance=reflectance)
+    assert np.mean(beside[:, :100] > 0) < 0.01 and np.all(beside[:, 100:] > 0)
+
+
 def test_correlated_noise_keeps_its_sigma_and_grows_with_distance():
     noise = DepthNoise(subpixel=0.05, subpixel_per_m=0.07, correlation_px=5)
     out = noise.apply(wall(1.0, shape=(480, 640)), FX, np.random.default_rng(3)).astype(np.float64)

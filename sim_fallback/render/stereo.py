@@ -61,8 +61,10 @@ class ActiveStereo:
     """The D415's stereo depth. `baseline_m` between the infrared cameras; `min_range_m` sets the disparity search
     (f B / min range, rounded up to 16); `block_px` the matching window; `projector_w` the projector's power
     (irradiance at 1 m on a surface facing it, in the units of the `ambient_ir`); `gain_cap` the most the infrared
-    auto exposure amplifies; `shot_noise` / `read_noise` the infrared sensor's (8-bit levels); `uniqueness` and
-    `speckle_px` the matcher's filters; `depth_unit_m` the depth's quantisation."""
+    auto exposure amplifies; `shot_noise` / `read_noise` the infrared sensor's (8-bit levels); `uniqueness`,
+    `speckle_px` and `texture_snr` (the least ratio of the left image's contrast over the window to its noise
+    there for a match to be trusted, as the D415's texture threshold does) the matcher's filters; `depth_unit_m`
+    the depth's quantisation."""
 
     baseline_m: float = 0.055
     min_range_m: float = 0.3
@@ -70,11 +72,12 @@ class ActiveStereo:
     block_px: int = 5
     projector_w: float = 1.0
     ambient_ir: float = 0.04
-    gain_cap: float = 400.0
+    gain_cap: float = 4000.0
     shot_noise: float = 0.07
     read_noise: float = 1.5
     uniqueness: int = 10
     speckle_px: int = 100
+    texture_snr: float = 1.0
     depth_unit_m: float = 0.001
     seed: int = 0
 
@@ -146,6 +149,16 @@ class ActiveStereo:
             noisy.append(np.clip(np.rint(level), 0, 255).astype(np.uint8))
         return self.match(noisy[0], noisy[1], intrinsics.fx)
 
+    def _textured(self, image: np.ndarray) -> np.ndarray:
+        """Pixels whose matching window shows more contrast than the sensor's noise explains: variance over the
+        window above (1 + texture_snr^2) times the noise variance at the window's mean level."""
+        x = image.astype(np.float32)
+        window = (self.block_px, self.block_px)
+        mean = cv2.boxFilter(x, -1, window)
+        variance = cv2.boxFilter(x * x, -1, window) - mean * mean
+        noise = self.read_noise ** 2 + self.shot_noise * mean + 1.0 / 12  # + the 8-bit rounding
+        return variance > (1.0 + self.texture_snr ** 2) * noise
+
     def match(self, left: np.ndarray, right: np.ndarray, fx: float) -> np.ndarray:
         """Depth (metres, 0 = none) of the left 8-bit image from the rectified pair: SGBM with the images padded on
         the left, so that the matcher's own blind band falls in the padding and the band the right camera cannot
@@ -159,6 +172,7 @@ class ActiveStereo:
         pad = ((0, 0), (n, 0))
         disparity = sgbm.compute(np.pad(left, pad), np.pad(right, pad))[:, n:].astype(np.float32) / 16.0
         disparity = refine(left, right, disparity, b)
+        disparity[~self._textured(left)] = 0.0
         with np.errstate(divide="ignore"):
             depth = np.where(disparity > 0, np.float32(fx * self.baseline_m) / disparity, 0.0)
         depth[(depth < self.min_range_m) | (depth > self.max_range_m)] = 0.0
@@ -187,3 +201,5 @@ def refine(left: np.ndarray, right: np.ndarray, disparity: np.ndarray, block_px:
     with np.errstate(divide="ignore", invalid="ignore"):
         step = np.clip(np.where(den > 0, num / den, 0.0), -0.5, 0.5)
     return np.where(disparity > 0, disparity + step, disparity).astype(np.float32)
+
+
