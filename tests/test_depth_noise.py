@@ -301,9 +301,11 @@ def test_dark_surfaces_beside_bright_ones_lose_depth():
     rng = np.random.default_rng(1)
     alone = noise.apply(wall(1.0), FX, rng, reflectance=reflectance)
     assert np.all(alone > 0)  # the infrared exposure is set for it
-    reflectance[:, 100:] = 0.8
+    reflectance[:, 100:] = 0.8  # the image's mean return: 0.41, 7 % of it 0.029
     beside = noise.apply(wall(1.0), FX, rng, reflectance=reflectance)
-    assert np.mean(beside[:, :100] > 0) < 0.01 and np.all(beside[:, 100:] > 0)
+    assert np.mean(beside[:, :100] > 0) < 0.3 and np.all(beside[:, 100:] > 0)
+    reflectance[:, 100:] = 2.0
+    assert np.mean(noise.apply(wall(1.0), FX, rng, reflectance=reflectance)[:, :100] > 0) < 0.01
 
 
 def test_correlated_noise_keeps_its_sigma_and_grows_with_distance():

@@ -11,9 +11,9 @@ Effects, each switchable (a zero sigma, rate, width or threshold, `stereo_shadow
 - `edge_widening_px`: nearer surfaces spread this far over farther ones (the matching window straddles the edge);
 - `thin_px`: no depth on surfaces narrower than this (across rows or columns) standing out of their background;
 - `min_return`, `min_relative_return`: no depth where the infrared return (0-1, given per pixel as `reflectance`)
-  over z^2 (m) is below `min_return`, or below `min_relative_return` times the image's bright end (its 99th
-  percentile: the infrared auto exposure is set for the brightest surfaces): dark and glossy surfaces, far away or
-  beside bright ones, lose the projector's dots; the boundary is patchy;
+  over z^2 (m) is below `min_return`, or below `min_relative_return` times the image's mean (the infrared auto
+  exposure is set for it): dark and glossy surfaces, far away or beside bright ones, lose the projector's dots;
+  the boundary is patchy;
 - random holes, dropout at grazing incidence, flying pixels at depth edges, range limits.
 The D415's minimum range is about 0.45 m at 1280x720 and less at lower resolutions (about 0.3 m at 640x480, the
 default here) or with a disparity shift. docs/simulation.md gives how the parameters were set.
@@ -78,7 +78,7 @@ class DepthNoise:
         """A D415 at 640x480, calibrated against the active-stereo simulation (sim_fallback.render.stereo) and
         the datasheet (docs/simulation.md): disparity noise 0.05 + 0.075 px per m over a 5 px window, stereo
         shadows and the left band 1 px wider, edges widened 1 px, surfaces up to 3 px wide lost, dots lost below
-        an infrared return (over z^2) of 0.0035 or of 3.5 % of the image's bright end; 1 mm units, 0.3-10 m
+        an infrared return (over z^2) of 0.01 or of 3.5 % of the image's mean; 1 mm units, 0.3-10 m
         range."""
         return cls(
             subpixel=0.05,
@@ -93,7 +93,7 @@ class DepthNoise:
             stereo_margin_px=1,
             edge_widening_px=1,
             thin_px=3,
-            min_return=0.0035,
+            min_return=0.01,
             min_relative_return=0.035,
         )
 
@@ -147,8 +147,7 @@ class DepthNoise:
             with np.errstate(divide="ignore", invalid="ignore"):
                 signal = np.where(z > 0, np.asarray(reflectance, np.float32) / (z * z), 0.0)
             seen = signal[::4, ::4][z[::4, ::4] > 0]
-            bright = float(np.percentile(seen, 99)) if seen.size else 0.0
-            floor = max(self.min_return, self.min_relative_return * bright)
+            floor = max(self.min_return, self.min_relative_return * float(seen.mean()) if seen.size else 0.0)
             maybe = (z > 0) & (signal < floor * _PATCH_SPREAD)
             if maybe.any():  # a patchy boundary, not a clean contour
                 lost |= maybe & (signal < floor * np.exp(0.5 * _patches(rng, z.shape)))

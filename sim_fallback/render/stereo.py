@@ -25,6 +25,7 @@ from sim_fallback.render.view import Light, Seen
 DOT_SPACING_PX = 3.2  # mean distance between the projector's dots, in image pixels at the camera's focal length
 DOT_SIGMA_PX = 0.6  # a dot's Gaussian radius, same units
 PATTERN_OVERSAMPLING = 2  # pattern texels per image pixel
+IR_MEAN_LEVEL = 40.0  # the infrared auto exposure brings the left image's mean here (8-bit levels)
 PATTERN_MARGIN = 0.2  # the projector's field of view exceeds the camera's by this fraction of it on each side
 
 
@@ -61,10 +62,11 @@ class ActiveStereo:
     """The D415's stereo depth. `baseline_m` between the infrared cameras; `min_range_m` sets the disparity search
     (f B / min range, rounded up to 16); `block_px` the matching window; `projector_w` the projector's power
     (irradiance at 1 m on a surface facing it, in the units of the `ambient_ir`); `gain_cap` the most the infrared
-    auto exposure amplifies; `shot_noise` / `read_noise` the infrared sensor's (8-bit levels); `uniqueness`,
+    auto exposure (which brings the image's mean to IR_MEAN_LEVEL: near bright surfaces saturate) amplifies;
+    `shot_noise` / `read_noise` the infrared sensor's (8-bit levels); the matcher's filters `uniqueness`,
     `speckle_px` and `texture_snr` (the least ratio of the left image's contrast over the window to its noise
-    there for a match to be trusted, as the D415's texture threshold does) the matcher's filters; `depth_unit_m`
-    the depth's quantisation."""
+    there for a match to be trusted, as the D415's texture threshold does); `depth_unit_m` the depth's
+    quantisation."""
 
     baseline_m: float = 0.055
     min_range_m: float = 0.3
@@ -140,7 +142,7 @@ class ActiveStereo:
         shader = self.shader(T_base_camera, intrinsics, 1)
         for name, seen in (("ir left", left), ("ir right", right)):
             images.append(seen.image(name, shader)[0].reshape(shape))
-        gain = min(self.gain_cap, 200.0 / max(float(np.percentile(images[0], 99)), 1e-9))
+        gain = min(self.gain_cap, IR_MEAN_LEVEL / max(float(images[0].mean()), 1e-9))  # auto exposure
         noisy = []
         for image in images:
             level = image * gain
