@@ -3,8 +3,8 @@
 
 Effects, each switchable (a zero sigma, rate, width or threshold, `stereo_shadows=False`, `depth_unit_m=0`,
 `min_range_m=0`, `max_range_m=inf` or `max_incidence_deg=90` turns it off):
-- axial noise sigma_z = z^2 * (subpixel + subpixel_per_m * z) / (fx * baseline), correlated over a
-  `correlation_px` square (the matching window averages it); quantisation to `depth_unit_m`;
+- axial noise sigma_z = z^2 * subpixel / (fx * baseline), correlated over a `correlation_px` square (the
+  matching window averages it); quantisation to `depth_unit_m`;
 - `stereo_shadows`: no depth where the right camera cannot see the point: the band at the left edge (about
   fx * baseline / z wide) and the shadows beside depth edges, on the far side to the left of a nearer surface,
   both `stereo_margin_px` wider (where the matching window reaches them);
@@ -46,13 +46,12 @@ class DepthNoise:
     `depth_unit_m`; random holes at `hole_rate`; dropout where the view ray meets the surface more
     than `max_incidence_deg` from its normal; flying pixels: a pixel next to a depth jump larger than
     `edge_jump_m` gets, with probability `flying_pixel_rate`, a value between the two sides; depths
-    outside [`min_range_m`, `max_range_m`] read 0. Disparity noise growing with distance, correlated
-    noise, stereo shadows, widened edges, thin surfaces and dark surfaces as in the module docstring.
+    outside [`min_range_m`, `max_range_m`] read 0. Correlated noise, stereo shadows, widened edges, thin
+    surfaces and dark surfaces as in the module docstring.
     """
 
     baseline_m: float = 0.055
     subpixel: float = 0.0
-    subpixel_per_m: float = 0.0
     correlation_px: int = 0
     depth_unit_m: float = 0.0
     hole_rate: float = 0.0
@@ -76,13 +75,12 @@ class DepthNoise:
     @classmethod
     def d415(cls) -> DepthNoise:
         """A D415 at 640x480, calibrated against the active-stereo simulation (sim_fallback.render.stereo) and
-        the datasheet (docs/simulation.md): disparity noise 0.05 + 0.075 px per m over a 5 px window, stereo
+        the datasheet (docs/simulation.md): disparity noise 0.085 px over a 5 px window, stereo
         shadows and the left band 1 px wider, edges widened 1 px, surfaces up to 3 px wide lost, dots lost below
-        an infrared return (over z^2) of 0.01 or of 3.5 % of the image's mean; 1 mm units, 0.3-10 m
+        an infrared return (over z^2) of 0.005 or of 3.5 % of the image's mean; 1 mm units, 0.3-10 m
         range."""
         return cls(
-            subpixel=0.05,
-            subpixel_per_m=0.075,
+            subpixel=0.085,
             correlation_px=5,
             depth_unit_m=0.001,
             max_incidence_deg=80.0,
@@ -93,13 +91,13 @@ class DepthNoise:
             stereo_margin_px=1,
             edge_widening_px=1,
             thin_px=3,
-            min_return=0.01,
+            min_return=0.005,
             min_relative_return=0.035,
         )
 
     def sigma_m(self, depth_m: np.ndarray | float, fx: float) -> np.ndarray:
         """Axial noise standard deviation (m) at `depth_m` for focal length `fx` (px)."""
-        return np.square(depth_m) * (self.subpixel + self.subpixel_per_m * depth_m) / (fx * self.baseline_m)
+        return np.square(depth_m) * self.subpixel / (fx * self.baseline_m)
 
     def apply(self, depth_m: np.ndarray, fx: float, rng: np.random.Generator,
               reflectance: np.ndarray | None = None) -> np.ndarray:
@@ -117,7 +115,7 @@ class DepthNoise:
         if self.edge_widening_px > 0 and h and w:
             depth = _widen(_clean(depth), self.edge_widening_px, self.edge_jump_m)
         field = None
-        if (self.subpixel > 0 or self.subpixel_per_m > 0) and self.correlation_px > 1 and h and w:
+        if self.subpixel > 0 and self.correlation_px > 1 and h and w:
             field = _window_noise(rng, depth.shape, self.correlation_px)
         out = np.empty(depth.shape, np.float32)
         step = max(1, _BLOCK_PX // max(w, 1))  # rows per block
@@ -171,7 +169,7 @@ class DepthNoise:
             fly = rng.random(edge.size, np.float32) < self.flying_pixel_rate
             edge, other, here = edge[fly], other[fly], out.flat[edge[fly]]
             out.flat[edge] = here + rng.random(edge.size, np.float32) * (other - here)
-        if self.subpixel > 0 or self.subpixel_per_m > 0:
+        if self.subpixel > 0:
             unit = rng.standard_normal(out.shape, dtype=np.float32) if field is None else field
             out += unit * self.sigma_m(out, fx)
         truth = near[rows]
