@@ -69,9 +69,8 @@ def lit_by(scene: RayScene, s: Surface, light: Light, static: bool = True, dynam
 @dataclass
 class _Layer:
     """The static scene as one camera pose sees it: its hits (`surface`, in pixel order) with their looks and
-    light, the same as whole images (`depth` 0 and `row` the triangle count where nothing), each hit's light-frame
-    coordinates per light ((3, n): x / z, y / z, z) and the hit at the top-left of its 2 x 2 block (`anchor`: the
-    hit itself where that pixel sees nothing static)."""
+    light, the same as whole images (`depth` 0 and `row` the triangle count where nothing), and the hits that
+    stand for their 2 x 2 block of pixels when testing what the moving links shadow."""
 
     key: tuple
     directions: np.ndarray  # (H * W, 3) world rays
@@ -84,8 +83,9 @@ class _Layer:
     row: np.ndarray
     reflectance: np.ndarray
     lit_image: np.ndarray
-    light_coords: list[np.ndarray]
-    anchor: np.ndarray
+    anchors: np.ndarray  # entries at the top-left of their 2 x 2 block (or alone in it)
+    members: np.ndarray  # (anchors, 4) the entries of each anchor's block, -1 padded
+    anchor_coords: list[np.ndarray]  # per light: (3, anchors) the anchors in its frame (x / z, y / z, z)
     images: dict
 
 
@@ -130,6 +130,7 @@ class CachedView:
         self.scene, self.intrinsics, self.look = scene, intrinsics, look
         self._rays = camera_rays(intrinsics)
         self._layer: _Layer | None = None
+        self._position = np.full(intrinsics.width * intrinsics.height, -1, np.int32)
 
     def see(self, T_world_camera: np.ndarray, lights: tuple[Light, ...]) -> Seen:
         """The frame from `T_world_camera` (the scene updated for it)."""
@@ -138,20 +139,17 @@ class CachedView:
         eye = T_world_camera[:3, 3].astype(np.float32)
         pixels = box_pixels(self.scene.dynamic_boxes(), T_world_camera, self.intrinsics)
         hits = self.scene.cast(eye, layer.directions[pixels], dynamic=True)
-        nearer = np.flatnonzero(hits.t < np.where(layer.depth[pixels] > 0, layer.depth[pixels], np.inf))
+        behind = layer.depth[pixels]
+        nearer = np.flatnonzero((hits.t < behind) | ((behind == 0) & np.isfinite(hits.t)))
         hits.t, hits.triangle, hits.uv = hits.t[nearer], hits.triangle[nearer], hits.uv[nearer]
         moving = surface(self.scene, eye, layer.directions[pixels[nearer]], pixels[nearer], hits)
         clock.lap("cast")
-        covered = np.zeros(len(layer.surface.index), bool)
-        under = layer.position[moving.index]
-        covered[under[under >= 0]] = True
         shadowed = np.zeros((len(lights), len(layer.surface.index)), bool)
         for k, light in enumerate(lights):
-            maybe = ~covered & layer.lit[k] & self._maybe_blocked(layer, k, light)
-            tested = np.flatnonzero(maybe & (layer.anchor == np.arange(len(maybe))))  # the blocks' anchors
-            blocked = np.zeros(len(maybe), bool)
-            blocked[tested] = ~lit_by(self.scene, layer.surface.take(tested), light, static=False)
-            shadowed[k] = maybe & blocked[layer.anchor]
+            tested = np.flatnonzero(self._maybe_blocked(layer, k, light))
+            blocked = ~lit_by(self.scene, layer.surface.take(layer.anchors[tested]), light, static=False)
+            members = layer.members[tested[blocked]].ravel()
+            shadowed[k, members[members >= 0]] = True
         changed = np.flatnonzero(shadowed.any(axis=0))
         moving_lit = self._moving_lit(moving, lights)
         clock.lap("shadows")
@@ -172,11 +170,12 @@ class CachedView:
         """(lights, n) visibility of the lights at the moving links' hits, tested at one hit per 2 x 2 block of
         pixels on the same triangle (the block's top-left one where it is such a hit)."""
         w = self.intrinsics.width
-        position = np.full(self.intrinsics.width * self.intrinsics.height, -1, np.int64)
-        position[moving.index] = np.arange(len(moving.index))
+        position = self._position  # -1 everywhere between calls
+        position[moving.index] = np.arange(len(moving.index), dtype=np.int32)
         rows, cols = np.divmod(moving.index, w)
         anchor = position[(rows - rows % 2) * w + cols - cols % 2]
-        own = np.arange(len(anchor))
+        position[moving.index] = -1
+        own = np.arange(len(anchor), dtype=np.int32)
         anchor = np.where((anchor >= 0) & (moving.row[np.maximum(anchor, 0)] == moving.row), anchor, own)
         tested = np.flatnonzero(anchor == own)
         lit = np.zeros((len(lights), len(anchor)), bool)
@@ -206,28 +205,39 @@ class CachedView:
         reflectance, lit_image = np.zeros(n_pixels, np.float32), np.zeros((len(lights), n_pixels), bool)
         depth[s.index], row[s.index], reflectance[s.index] = s.depth, s.row, infrared_return(rgb, gloss)
         lit_image[:, s.index] = lit
-        coords = []
-        for light in lights:
-            q = light.frame().astype(np.float32) @ (s.point - np.asarray(light.position, np.float32)[:, None])
-            with np.errstate(divide="ignore", invalid="ignore"):
-                coords.append(np.stack([q[0] / q[2], q[1] / q[2], q[2]]))
         w = self.intrinsics.width
         rows, cols = np.divmod(s.index, w)
         anchor = position[(rows - rows % 2) * w + cols - cols % 2]
         anchor = np.where(anchor >= 0, anchor, np.arange(len(anchor)))
-        return _Layer(key, directions, s, rgb, gloss, lit, position, depth, row, reflectance, lit_image, coords, anchor,
-                      {})
+        anchors = np.flatnonzero(anchor == np.arange(len(anchor)))
+        slot = np.full(len(anchor), -1, np.int64)
+        slot[anchors] = np.arange(len(anchors))
+        slot = slot[anchor]  # each entry's anchor, as a row of `members`
+        order = np.argsort(slot, kind="stable")
+        starts = np.searchsorted(slot[order], np.arange(len(anchors)))
+        members = np.full((len(anchors), 4), -1, np.int64)
+        members[slot[order], np.arange(len(order)) - starts[slot[order]]] = order
+        coords = []
+        for light in lights:
+            p = s.point[:, anchors] - np.asarray(light.position, np.float32)[:, None]
+            q = light.frame().astype(np.float32) @ p
+            with np.errstate(divide="ignore", invalid="ignore"):
+                coords.append(np.stack([q[0] / q[2], q[1] / q[2], q[2]]))
+        return _Layer(key, directions, s, rgb, gloss, lit, position, depth, row, reflectance, lit_image, anchors,
+                      members, coords, {})
 
     def _maybe_blocked(self, layer: _Layer, k: int, light: Light) -> np.ndarray:
-        """(n,) bool over the static hits: the moving links may lie between the point and light `k`."""
+        """(anchors,) bool: lit by light `k` in the static scene, and the moving links may lie between the anchor
+        and the light (inside their rectangle as the light sees them, and farther)."""
         boxes = self.scene.dynamic_boxes()
-        coords = layer.light_coords[k]
+        coords = layer.anchor_coords[k]
+        lit = layer.lit[k, layer.anchors]
         if not len(boxes):
             return np.zeros(coords.shape[1], bool)
         q = light.frame() @ (boxes.reshape(-1, 3) - np.asarray(light.position)).T
-        behind = ~(coords[2] > _AHEAD)  # beside or behind the light: always tested
         if q[2].min() <= _AHEAD:
-            return np.ones(coords.shape[1], bool)
+            return lit
         a, b = q[0] / q[2], q[1] / q[2]
         inside = (coords[0] >= a.min()) & (coords[0] <= a.max()) & (coords[1] >= b.min()) & (coords[1] <= b.max())
-        return behind | (inside & (coords[2] > q[2].min()))
+        behind = ~(coords[2] > _AHEAD)  # beside or behind the light: always tested
+        return lit & (behind | (inside & (coords[2] > q[2].min())))
