@@ -38,6 +38,31 @@ def test_a_wall_at_a_known_distance_reads_its_exact_depth(client):
     assert np.all(out.links[..., 0] == 0) and np.all(out.links[..., 1] == -1)
 
 
+def test_spheres_cylinders_and_capsules_have_their_shape(client):
+    c = client
+    wall(c, 2.5)
+    shapes = [pb.createVisualShape(pb.GEOM_SPHERE, radius=0.15, physicsClientId=c),
+              pb.createVisualShape(pb.GEOM_CYLINDER, radius=0.08, length=0.4, physicsClientId=c),
+              pb.createVisualShape(pb.GEOM_CAPSULE, radius=0.06, length=0.3, physicsClientId=c)]
+    turned = pb.getQuaternionFromEuler([0.4, 0.3, 0.0])
+    centres = ([1.5, 0.35, 1.0], [1.3, 0.0, 1.0], [1.6, -0.4, 0.9])
+    sphere, *others = [pb.createMultiBody(0, -1, shape, position, turned, physicsClientId=c)
+                       for shape, position in zip(shapes, centres, strict=True)]
+    ours = RayRenderer(c, K).render(T, _rng())
+    # the sphere: the ray toward its centre meets it at |c| - r, depth (along x) (|c| - r) c_x / |c|
+    centre = np.array(centres[0]) - T[:3, 3]
+    u, v = K.fx * -centre[1] / centre[0] + K.cx, K.fy * -centre[2] / centre[0] + K.cy
+    expected = (np.linalg.norm(centre) - 0.15) * centre[0] / np.linalg.norm(centre)
+    assert ours.depth_m[round(v), round(u)] == pytest.approx(expected, abs=0.003)  # facets: 15 deg
+    assert ours.links[round(v), round(u), 0] == sphere
+    pybullets = TinyRenderer(c, K).render(T, _rng())  # cylinders and capsules as PyBullet draws them
+    for body in others:
+        both = (ours.links[..., 0] == body) & (pybullets.links[..., 0] == body)
+        either = (ours.links[..., 0] == body) | (pybullets.links[..., 0] == body)
+        assert both.sum() > 300 and both.sum() / either.sum() > 0.9
+        assert np.median(np.abs(ours.depth_m - pybullets.depth_m)[both]) < 0.002
+
+
 def _textured_object(folder):
     """A PartNet-Mobility-like object: mobility.urdf, one link drawn by textured_objs/quad.obj (+ MTL) with
     images/texture.png: its quarters red (top left), green (top right), blue (bottom left), white."""

@@ -126,8 +126,9 @@ def visual_mesh(shape: tuple, rgb: tuple[float, float, float]) -> Mesh | None:
         loaded = read_obj(Path(filename)) if filename.lower().endswith(".obj") else read_other(Path(filename))
         return tinted(loaded, rgb).transformed(np.asarray(dims), T)
     else:
-        log.warning("the simulated camera cannot draw visual shape %s of body %d link %d (geometry %d%s): skipped",
-                    shape[2], shape[0], shape[1], kind, f", {filename}" if filename else ", given as arrays")
+        log.warning("the simulated camera cannot draw body %d link %d's visual shape (geometry type %d, %s): "
+                    "skipped; give meshes as OBJ, STL or PLY files", shape[0], shape[1], kind,
+                    filename or "given as arrays")
         return None
     return mesh.transformed(np.ones(3), T)
 

@@ -3,9 +3,8 @@
 Every link's triangles are kept in the link's frame in one table (`Triangles`). Links that have not moved since
 the static scene was built are merged into one Open3D `RaycastingScene` (Embree) in world coordinates, built once;
 a link seen to move leaves it for good and joins the dynamic scene, rebuilt every frame from the moving links'
-current poses (building costs about 0.3 ms per thousand triangles, casting is what counts). A frame casts every
-ray at the static scene and only the rays inside the image box of the moving links at the dynamic one, and keeps
-the nearer hit. A body added or removed rebuilds everything.
+current poses (building a scene is cheap next to casting rays at it). A body added or removed rebuilds
+everything.
 """
 
 from __future__ import annotations

@@ -185,8 +185,8 @@ class ActiveStereo:
 
 def refine(left: np.ndarray, right: np.ndarray, disparity: np.ndarray, block_px: int) -> np.ndarray:
     """Sub-pixel disparities: one Lucas-Kanade step over the matching window from the matcher's disparity (OpenCV's
-    own sub-pixel fit locks onto whole pixels by up to a quarter pixel), the right image interpolated linearly.
-    Invalid (<= 0) disparities stay as they are."""
+    own sub-pixel fit is drawn toward whole pixels), the right image interpolated linearly. Invalid (<= 0)
+    disparities stay as they are."""
     h, w = left.shape
     L, R = left.astype(np.float32), right.astype(np.float32)
     gradient = np.zeros_like(R)
