@@ -51,8 +51,9 @@ class TinyRenderer:
         self.client, self.intrinsics = client, intrinsics
         self._proj = _gl_list(projection_matrix(intrinsics))
 
-    def render(self, T_base_camera: np.ndarray, _rng: np.random.Generator) -> Render:
-        """Colour, depth, links and (the colour's luminance as) infrared return of the view now."""
+    def render(self, T_base_camera: np.ndarray, _rng: np.random.Generator, _extra_lights: tuple = ()) -> Render:
+        """Colour, depth, links and (the colour's luminance as) infrared return of the view now (extra lights, such
+        as a projector, are not drawn)."""
         w, h = self.intrinsics.width, self.intrinsics.height
         view = _gl_list(np.linalg.inv(T_base_camera @ _GL_FROM_CV))
         _, _, rgba, zbuffer, seg = pb.getCameraImage(
