@@ -22,7 +22,9 @@ from drivers.camera.base import Frame, Intrinsics
 from drivers.camera.depth_noise import DepthNoise
 from drivers.errors import ArmError
 from sim_fallback.arm import SimArm
-from sim_fallback.camera import _GL_FROM_CV, SimCamera, _gl_list, d415_intrinsics
+from sim_fallback.camera import SimCamera, d415_intrinsics
+from sim_fallback.render.renderer import Render
+from sim_fallback.render.tiny import TinyRenderer
 from sim_fallback.scenario import Scenario, look_at
 from sim_fallback.world import SimWorld
 
@@ -89,8 +91,9 @@ class BoardPlate:
 
 
 class RigCamera(SimCamera):
-    """The simulated D415, fixed or carried by a robot link (`link`, `T_link_camera`), with optional Gaussian
-    colour noise of `color_sigma` grey levels (images are otherwise noise-free in TinyRenderer)."""
+    """The simulated D415, fixed or carried by a robot link (`link`, `T_link_camera`), drawn by TinyRenderer (the
+    board's texture lives only in PyBullet), with optional Gaussian colour noise of `color_sigma` grey levels
+    (images are otherwise noise-free in TinyRenderer)."""
 
     def __init__(self, world: SimWorld, T_base_camera: np.ndarray | None = None, link: int | None = None,
                  T_link_camera: np.ndarray | None = None, color_sigma: float = 0.0, **options) -> None:
@@ -111,11 +114,13 @@ class RigCamera(SimCamera):
             frame.color = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
         return frame
 
-    def render(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _make_renderer(self, world: SimWorld) -> TinyRenderer:
+        return TinyRenderer(world.client, self.intrinsics)
+
+    def _capture(self) -> Render:
         if self._link is not None:
             self.T_base_camera = self._mounted_pose()
-            self._view = _gl_list(np.linalg.inv(self.T_base_camera @ _GL_FROM_CV))
-        return super().render()
+        return super()._capture()
 
 
 @dataclass

@@ -84,7 +84,8 @@ def test_min_and_max_range_give_zero():
     rng = np.random.default_rng(5)
     assert np.all(noise.apply(wall(0.25), FX, rng) == 0)
     assert np.all(noise.apply(wall(12.0), FX, rng) == 0)
-    assert np.mean(noise.apply(wall(0.4), FX, rng) > 0) > 0.95
+    right_of_band = noise.apply(wall(0.4, shape=(200, 400)), FX, rng)[:, 100:]  # the band: f B / z = 85 px
+    assert np.mean(right_of_band > 0) > 0.95
     assert DepthNoise.d415().min_range_m == 0.3
 
 
@@ -225,3 +226,92 @@ def test_seeded_and_deterministic():
 def test_invalid_focal_length_raises():
     with pytest.raises(ValueError, match="fx"):
         DepthNoise.d415().apply(wall(1.0), 0.0, np.random.default_rng(0))
+
+
+# The stereo artefacts. Left camera the reference, the right one B = 0.055 m to its right: a pixel u at depth z
+# lands at u - f B / z in the right image.
+STEREO = DepthNoise(stereo_shadows=True)
+
+
+@pytest.mark.parametrize("z", [0.5, 1.0, 2.0])
+def test_the_left_band_is_f_b_over_z_wide(z):
+    out = STEREO.apply(wall(z, shape=(40, 300)), FX, np.random.default_rng(0))
+    band = FX * 0.055 / z
+    columns = np.arange(300)
+    assert np.all(out[:, columns < band - 0.5] == 0)
+    assert np.all(out[:, columns > band + 0.5] > 0)
+    wider = DepthNoise(stereo_shadows=True, stereo_margin_px=2).apply(wall(z, shape=(40, 300)), FX,
+                                                                      np.random.default_rng(0))
+    assert (wider == 0).sum() == (out == 0).sum() + 2 * 40
+
+
+def near_box(near_m=0.6, far_m=1.0, shape=(60, 300), cols=(150, 220), rows=(20, 40)) -> np.ndarray:
+    depth = np.full(shape, far_m, np.float32)
+    depth[rows[0]:rows[1], cols[0]:cols[1]] = near_m
+    return depth
+
+
+def test_a_nearer_surface_shadows_the_wall_to_its_left_only():
+    depth = near_box()
+    out = STEREO.apply(depth, FX, np.random.default_rng(0))
+    shadow = FX * 0.055 * (1 / 0.6 - 1 / 1.0)  # 22.5 px the right camera cannot see beside the box
+    row = out[30]
+    left = np.arange(150 - 40, 150)
+    assert np.all(row[left[left >= 150 - shadow + 0.5]] == 0)
+    assert np.all(row[left[left < 150 - shadow - 0.5]] > 0)
+    assert np.all(row[150:230] > 0)  # the box, and the wall to its right, are seen by both cameras
+    assert np.all(out[5, 60:] > 0) and np.all(out[50, 60:] > 0)  # rows above and below the box: no shadow
+
+
+def test_edges_widen_by_the_window():
+    depth = near_box()
+    out = DepthNoise(edge_widening_px=1).apply(depth, FX, np.random.default_rng(0))
+    assert np.all(out[20:40, 220] == np.float32(0.6)) and np.all(out[20:40, 221] == np.float32(1.0))
+    assert np.all(out[19, 150:220] == np.float32(0.6)) and np.all(out[18, 150:220] == np.float32(1.0))
+    assert np.array_equal(DepthNoise().apply(depth, FX, np.random.default_rng(0)), depth)
+
+
+@pytest.mark.parametrize("vertical", [False, True])
+def test_thin_bars_lose_their_depth_wider_ones_keep_it(vertical):
+    depth = np.full((80, 120), 1.0, np.float32)
+    thin, wide = np.zeros(depth.shape, bool), np.zeros(depth.shape, bool)
+    thin[10:70, 20:22] = True  # a bar 2 px wide standing 5 cm out of the wall
+    wide[10:70, 60:72] = True  # and one 12 px wide
+    depth, thin, wide = (np.ascontiguousarray(a.T) if vertical else a for a in (depth, thin, wide))
+    depth[thin | wide] = 0.95
+    out = DepthNoise(thin_px=3).apply(depth, FX, np.random.default_rng(0))
+    assert np.all(out[thin] == 0) and np.all(out[wide] > 0) and np.all(out[~thin] > 0)
+
+
+def test_dark_surfaces_far_away_lose_depth_bright_ones_keep_it():
+    noise = DepthNoise(min_return=0.014)
+    rng = np.random.default_rng(0)
+    for z, reflectance, fill in ((1.0, 0.5, 1.0), (2.0, 0.5, 1.0), (0.5, 0.02, 1.0), (2.0, 0.02, 0.0),
+                                 (2.0, 0.056, 0.5)):
+        out = noise.apply(wall(z), FX, rng, reflectance=np.full((200, 200), reflectance, np.float32))
+        assert np.mean(out > 0) == pytest.approx(fill, abs=0.2 if fill == 0.5 else 0.01), (z, reflectance)
+    patchy = noise.apply(wall(2.0), FX, rng, reflectance=np.full((200, 200), 0.056, np.float32)) > 0
+    assert 0.05 < np.mean(patchy[:, 1:] != patchy[:, :-1]) < 0.3  # patches, not salt and pepper
+    assert np.all(noise.apply(wall(2.0), FX, rng) > 0)  # without the infrared return: nothing to go by
+
+
+def test_dark_surfaces_beside_bright_ones_lose_depth():
+    noise = DepthNoise(min_relative_return=0.07)
+    reflectance = np.full((200, 200), 0.02, np.float32)
+    rng = np.random.default_rng(1)
+    alone = noise.apply(wall(1.0), FX, rng, reflectance=reflectance)
+    assert np.all(alone > 0)  # the infrared exposure is set for it
+    reflectance[:, 100:] = 0.8  # the image's mean return: 0.41, 7 % of it 0.029
+    beside = noise.apply(wall(1.0), FX, rng, reflectance=reflectance)
+    assert np.mean(beside[:, :100] > 0) < 0.3 and np.all(beside[:, 100:] > 0)
+    reflectance[:, 100:] = 2.0
+    assert np.mean(noise.apply(wall(1.0), FX, rng, reflectance=reflectance)[:, :100] > 0) < 0.01
+
+
+def test_correlated_noise_keeps_its_sigma():
+    noise = DepthNoise(subpixel=0.085, correlation_px=5)
+    out = noise.apply(wall(1.0, shape=(480, 640)), FX, np.random.default_rng(3)).astype(np.float64)
+    r = (out - 1.0) / noise.sigma_m(1.0, FX)
+    assert r.std() == pytest.approx(1.0, rel=0.1)
+    lag = [np.mean(r[:, k:] * r[:, :r.shape[1] - k]) for k in (1, 2, 5)]
+    assert lag[0] == pytest.approx(0.8, abs=0.1) and lag[1] == pytest.approx(0.6, abs=0.1) and abs(lag[2]) < 0.1

@@ -2,12 +2,24 @@
 
 from __future__ import annotations
 
+import pytest
+
 import deploy.control.stages as stages
 from deploy.bench.open import simulate_episode
+from drivers.camera.depth_noise import DepthNoise
 
 # Test door 44 stands far to one side: a configuration chosen for a straight pull turns the wrist (joint 5) onto
-# its speed limit 7 deg into the arc.
+# its speed limit 7 deg into the arc. That grasp point is where the handle's depth puts it without the D415's
+# stereo artefacts (with them the arm's infrared shadow hides the bar's lower part and the grasp moves up 3 cm,
+# from where a straight pull's configuration happens to get through): the camera here has pixel noise only.
 FAR_DOOR_SEED = 44
+PIXEL_NOISE = DepthNoise(subpixel=0.08, depth_unit_m=0.001, hole_rate=0.01, max_incidence_deg=80.0,
+                         flying_pixel_rate=0.5, min_range_m=0.3, max_range_m=10.0)
+
+
+@pytest.fixture(autouse=True)
+def pixel_noise(monkeypatch):
+    monkeypatch.setattr(DepthNoise, "d415", classmethod(lambda cls: PIXEL_NOISE))
 
 
 def test_a_door_pregrasp_planned_for_the_arc_carries_the_wrist_through_it():

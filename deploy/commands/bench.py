@@ -175,20 +175,57 @@ def bench_open_cmd(
     print_rows(f"{task.value} to {goal:g} {unit} ({split.value}, {policy.value} loop)", data)
 
 
-@app.command("sim")
-def bench_sim_cmd(json_out: JsonOpt = False) -> None:
-    """Physics steps per second, render time per frame and the real-time factor of an opening.
+class SimWorldKind(str, Enum):
+    kitchen = "kitchen"
+    box = "box"
 
-    Example: deploy bench sim --json
+
+@app.command("sim")
+def bench_sim_cmd(
+    world: Annotated[SimWorldKind, typer.Option(
+        help="kitchen: the scenario's cabinet among static units, a floor, a wall and a countertop; box: the "
+             "cabinet alone.")] = SimWorldKind.kitchen,
+    episodes: Annotated[int, typer.Option(min=1, max=20, help="Drawer scenarios (medians are reported).")] = 1,
+    json_out: JsonOpt = False,
+) -> None:
+    """Physics steps per second, a camera frame's cost by step and the real-time factor of an opening.
+
+    The real-time factor is a 10 s scripted opening with 640x480 frames at 10 Hz, with the default depth model (the
+    D415 artefact model), active stereo and exact depth.
+    Example: deploy bench sim --world kitchen --json
     """
     from sim_fallback.bench import bench_sim
 
     with progress_bar("bench sim") as bar:
-        data = bench_sim(progress=bar.describe)
+        data = bench_sim(episodes, world.value, progress=bar.describe)
     if json_out:
         print_json(data)
         return
-    print_rows("simulation speed", data, digits=2)
+    flat = {k: v for k, v in data.items() if not isinstance(v, dict)}
+    for key in ("frame_ms", "frame_ms_stereo"):
+        flat.update({f"{key} {step}": ms for step, ms in data[key].items()})
+    print_rows("simulation speed", flat, digits=2)
+
+
+@app.command("depth")
+def bench_depth_cmd(json_out: JsonOpt = False) -> None:
+    """Fill rate and error of the simulated D415's depth (artefact model and active stereo) on walls facing the
+    camera at 0.5, 1 and 2 m (plain light grey, wood-textured, dark), for comparing with the D415's published
+    figures (docs/simulation.md).
+
+    Example: deploy bench depth --json
+    """
+    from sim_fallback.bench import bench_depth
+
+    with progress_bar("bench depth") as bar:
+        data = bench_depth(progress=bar.describe)
+    if json_out:
+        print_json(data)
+        return
+    rows = [[r["model"], r["surface"], fmt(r["distance_m"]), fmt(r["fill"]), fmt(r["fill_central"]),
+             fmt(r["rms_error_pct"]), fmt(r["left_band_px"]), fmt(r["expected_band_px"])] for r in data["rows"]]
+    print_table("simulated D415 depth on a wall", ["model", "surface", "distance m", "fill", "fill central 80 %",
+                                                    "RMS error % (central)", "left band px", "f B / Z px"], rows)
 
 
 @app.command("perception")
