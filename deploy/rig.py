@@ -248,7 +248,7 @@ def _open_simulated(rig: Rig, stack: ExitStack) -> None:
         return
     rig.arm = build_arm(spec.arm, rig.robot, rig.world)
     stack.callback(rig.arm.disconnect)
-    rig.kin = getattr(rig.arm, "kin", rig.kin)
+    rig.kin = rig.arm.kin
 
 
 def simulated_calibration(T_true: np.ndarray, translation_mm: float, rotation_deg: float,
@@ -272,12 +272,12 @@ def _open_hardware(rig: Rig, stack: ExitStack) -> None:
         camera = CAMERAS.open(spec.camera, **spec.camera_options)
         camera.connect()
         stack.callback(camera.disconnect)
-        rig.serial = getattr(camera, "serial", None) or spec.camera
+        rig.serial = camera.serial or spec.camera
         rig.camera = camera
     if spec.arm is not None:
         rig.arm = build_arm(spec.arm, rig.robot)
         stack.callback(rig.arm.disconnect)
-        rig.kin = getattr(rig.arm, "kin", rig.kin)
+        rig.kin = rig.arm.kin
         if camera is not None:
             rig.camera = PosedCamera(camera, _calibrated_pose(rig), override=spec.calibration is not None)
 

@@ -135,13 +135,13 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
                 # signals are only recorded now, drivers/interrupts.py: a second Ctrl-C cannot cut the folder short)
                 if folder is not None and stop.result is not None:
                     folder.finish(stop.result, evaluation.axis_error if evaluation is not None else None,
-                                  _motor_states(rig.arm))
+                                  rig.arm.motor_states() or None)
                     stop.run_dir = folder.path
                 raise
         data = {**result.to_dict(), "task": request.task, "camera": request.camera,
                 "arm": request.arm, "policy": config.opening.policy, "segmenter": rig.spec.segmenter,
                 "filter": config.filter.used()}
-        if (motors := _motor_states(rig.arm)) is not None:
+        if motors := rig.arm.motor_states():
             data["motors"] = motors
         if evaluation is not None:
             translation_mm, rotation_deg = request.calibration_error
@@ -163,11 +163,6 @@ def _log_config(config: Config) -> None:
              config.acting_estimator, e.joint, e.window, o.task, target, o.policy,
              o.acting_fusion, o.max_steps, o.timeout_s,
              config.perception.object_prompt, config.perception.box)
-
-
-def _motor_states(arm: Any) -> list[dict] | None:
-    """A CAN arm's every motor's final state (name, enabled, status); None for other arms."""
-    return arm.motor_states() if hasattr(arm, "motor_states") else None
 
 
 def _evaluation(rig: Rig):

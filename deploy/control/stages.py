@@ -143,9 +143,7 @@ def _clear_view(episode: Episode) -> np.ndarray | None:
         return int(np.count_nonzero(near & observer.self_filter.mask(observer.first_frame, q, state.gripper_width_m,
                                                                      depth_test=False)))
 
-    guard = getattr(arm, "guard", None)  # the robot config's limits where the arm enforces them, else the URDF's
-    q_min, q_max = (guard.limits.q_min, guard.limits.q_max) if guard is not None else (episode.kin.q_min,
-                                                                                         episode.kin.q_max)
+    q_min, q_max = arm.limits.q_min, arm.limits.q_max
     candidates = [state.q + np.eye(len(state.q))[0] * turn for turn in CLEAR_VIEW_TURNS_RAD]
     candidates = [q for q in candidates if q_min[0] + 0.1 <= q[0] <= q_max[0] - 0.1]
     best = min(candidates, key=hidden, default=None)

@@ -19,17 +19,19 @@ import numpy as np
 import pybullet_data
 from pydantic import Field, ValidationError, model_validator
 
+from drivers.arm.base import GRIP_FORCE_N
 from drivers.arm.damiao.config import GripperConfig, JointConfig, MotorConfig, StrictModel, WatchdogConfig
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.motion import Compliance
 from drivers.arm.robots import RobotSpec
-from drivers.arm.safety import SafetyLimits
+from drivers.arm.safety import SafetyGuard, SafetyLimits
 from drivers.arm.trajectory import MotionLimits
 from drivers.errors import ArmError
 from drivers.toml_file import read_toml
 
 WORKSPACE_REACH_M = 3.0  # |coordinate| of the workspace box (m, base frame); arms reach 0.5-1.8 m
 MIN_CONTROL_RATE_HZ = 100.0  # a safety check at least every 10 ms
+MAX_GRIP_FORCE_N = 500.0  # parallel grippers squeeze 20-200 N
 
 WorkspaceCorner = Annotated[list[Annotated[float, Field(ge=-WORKSPACE_REACH_M, le=WORKSPACE_REACH_M)]],
                             Field(min_length=3, max_length=3)]
@@ -91,6 +93,7 @@ class RobotConfig(StrictModel):
     can: CanConfig = CanConfig()
     watchdog: WatchdogConfig = WatchdogConfig()
     compliance: ComplianceConfig = ComplianceConfig()
+    grip_force_n: float = Field(GRIP_FORCE_N, gt=0, le=MAX_GRIP_FORCE_N)  # the squeeze a grasp closes with
     joints: list[JointConfig] = Field(min_length=1)
     gripper: GripperConfig | None = None
     source: Path | None = None  # the file it was read from (set by load_robot_config)
@@ -193,9 +196,14 @@ class RobotConfig(StrictModel):
         return SafetyLimits(q_min, q_max, v_max, np.array([j.a_max for j in self.joints]),
                             np.array(self.workspace_min), np.array(self.workspace_max))
 
+    def safety_guard(self, kin: Kinematics) -> SafetyGuard:
+        """The check every command of an arm of this config passes (`safety_limits`)."""
+        return SafetyGuard(self.safety_limits(kin), self.joint_names)
+
     def motion_limits(self, kin: Kinematics, fraction: float) -> MotionLimits:
-        """`fraction` of the safety limits (URDF narrowed by the config) for planned moves: they never trip
-        the safety layer."""
+        """The free-space motion limits of any arm of this config, the one place they are computed: `fraction` of
+        the safety limits (URDF narrowed by the config) and of the joints' jerk limits, so planned moves never
+        trip the safety layer."""
         safety = self.safety_limits(kin)
         return MotionLimits(safety.v_max * fraction, safety.a_max * fraction, self.robot_spec().j_max * fraction)
 
