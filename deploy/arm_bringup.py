@@ -33,7 +33,7 @@ from drivers.arm.motion import move_to_joints
 from drivers.arm.motor_channels import MotorChannel, request_feedback
 from drivers.arm.registry import ARMS
 from drivers.arm.robot_config import RobotConfig
-from drivers.arm.trajectory import MotionLimits, joint_trajectory
+from drivers.arm.trajectory import joint_trajectory
 from drivers.errors import ArmError, IKError
 
 if TYPE_CHECKING:
@@ -201,7 +201,7 @@ def plan(arm: Arm, config: RobotConfig, what: str, q_goal: np.ndarray | None = N
     elif what == "move":
         q_goal = _pose_goal(arm, pose, q0)
     _check_goal(arm, what, q_goal, arm.limits)
-    duration = joint_trajectory(q0, q_goal, motion_limits(arm, config)).duration
+    duration = joint_trajectory(q0, q_goal, config.motion_limits(arm.kin, BRINGUP_SPEED)).duration
     return Plan(what, q0, q_goal, duration, kin.fk(q0)[:3, 3], kin.fk(q_goal)[:3, 3])
 
 
@@ -242,17 +242,12 @@ def _check_goal(arm: Arm, what: str, q_goal: np.ndarray, limits) -> None:
                        f"{limits.workspace_min.tolist()} .. {limits.workspace_max.tolist()}: choose another goal")
 
 
-def motion_limits(arm: Arm, config: RobotConfig) -> MotionLimits:
-    """BRINGUP_SPEED of the robot config's limits (the URDF's narrowed by the config's per-joint ones)."""
-    return config.motion_limits(arm.kin, BRINGUP_SPEED)
-
-
 def execute(arm: Arm, config: RobotConfig, p: Plan, hold_s: float = 0.0,
             progress: Callable[[float], None] | None = None) -> dict:
     """Run a planned move (the arm is connected), let it come to rest (SETTLE_S at most), hold `hold_s` s; the
     final joints and tool position. ArmError (the arm then stops) when a measured joint passes its limit or a
     joint ends farther than GOAL_TOLERANCE_RAD from its goal."""
-    limits = motion_limits(arm, config)
+    limits = config.motion_limits(arm.kin, BRINGUP_SPEED)
 
     def on_tick(state, t: float) -> None:
         _check_limits(arm, p, state.q)

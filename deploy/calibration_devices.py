@@ -216,13 +216,8 @@ def open_devices(choice: DeviceChoice, setup: str = "eye-to-hand", board: BoardC
             from sim_fallback.can_motors import motors_on
 
             motors = motors_on(rig.arm.bus_channel)
-        yield Devices(choice, rig.camera, rig.arm, rig.kin, rig.serial, motion_limits(choice.robot, rig.kin),
-                      rig.board, motors)
-
-
-def motion_limits(robot: RobotConfig, kin: Kinematics, fraction: float = SPEED_FRACTION) -> MotionLimits:
-    """`fraction` of the robot's safety limits (URDF narrowed by the config), so no move trips the guard."""
-    return robot.motion_limits(kin, fraction)
+        limits = choice.robot.motion_limits(rig.kin, SPEED_FRACTION)
+        yield Devices(choice, rig.camera, rig.arm, rig.kin, rig.serial, limits, rig.board, motors)
 
 
 def _angle_deg(R: np.ndarray) -> float:

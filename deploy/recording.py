@@ -37,7 +37,7 @@ def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float
     options = stream_options(camera, camera_options or {})
     viewer = None
     if view:
-        from deploy.control.viewer import RerunViewer
+        from deploy.report.viewer import RerunViewer
 
         viewer = RerunViewer(out / VIEW_FILE)
     with open_rig(RigSpec(camera=camera, arm=arm, robot=robot, calibration=calibration,

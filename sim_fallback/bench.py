@@ -8,6 +8,7 @@ from functools import partial
 
 import numpy as np
 
+from drivers.arm.robot_config import panda_sim_config
 from drivers.arm.trajectory import MotionLimits
 from drivers.camera.depth_noise import DepthNoise
 from sim_fallback.arm import SimArm
@@ -74,7 +75,7 @@ def _median_ms(fn, n: int) -> float:
 
 def _opening_real_time_factor(world: SimWorld, arm: SimArm, noise: DepthNoise) -> float:
     """Grasp (untimed), then time a ground-truth opening lasting OPENING_S with frames at 10 Hz."""
-    grasp_handle(world, arm, MotionLimits.for_robot(world.robot_spec, arm.kin, fraction=0.3), OPENING_M)
+    grasp_handle(world, arm, panda_sim_config().motion_limits(arm.kin, 0.3), OPENING_M)
     camera = SimCamera(world, noise=noise, fps=10.0)
     v = OPENING_M / (OPENING_S - 1.0)  # cruise speed; about 1 s goes to speeding up and braking
     limits = MotionLimits(v, 2 * v, 20 * v)

@@ -49,7 +49,8 @@ def open_sim_arm(_argument: str, robot: RobotConfig, world: SimWorld | None = No
     if world is None:
         raise ArmError("arm 'sim' needs a simulated world: use it with --camera sim, or use --arm sim-can")
     _check_panda(robot, world)
-    return SimArm(world, robot.kinematics())
+    kin = robot.kinematics()
+    return SimArm(world, kin, robot.safety_guard(kin))
 
 
 def open_sim_can_arm(_argument: str, robot: RobotConfig, world: SimWorld | None = None) -> CanArm:

@@ -7,18 +7,15 @@ from dataclasses import replace
 import numpy as np
 import pybullet as pb
 import pytest
+from episodes import sim_episode
 
 from deploy.bench.open import bench_open, simulate_episode
 from deploy.config import Config
-from deploy.control import run_episode
-from deploy.control.run_folder import RunFolder
 from deploy.control.session import OpenRequest, open_object
 from deploy.estimate_recording import estimate_recording
 from deploy.perception.oracle import OracleSegmenter
-from sim_fallback.arm import SimArm
-from sim_fallback.camera import SimCamera, d415_intrinsics
+from deploy.report.run_folder import RunFolder
 from sim_fallback.scenario import Scenario
-from sim_fallback.world import SimWorld
 
 STOP_REASONS = {"target reached", "blocked", "grasp lost", "grasp failed", "tracking lost", "ik infeasible",
                 "arm error", "timeout", "max steps", "no handle", "no object"}
@@ -88,30 +85,14 @@ class _LosingSegmenter(OracleSegmenter):
         return np.zeros_like(super().track(frame))
 
 
-def _episode(setup, target=0.15, segmenter=None, scenario=None, folder=None):
-    """run_episode on `scenario` (default drawer seed 0) after `setup(world, arm)`, recording into the run
-    `folder` if given; returns the result and whether the arm stays still afterwards."""
-    with SimWorld(scenario or Scenario.make("drawer", 0, "train")) as world:
-        arm = SimArm(world)
-        camera = SimCamera(world, intrinsics=d415_intrinsics(320, 240), fps=5.0, labels=True, posed=True)
-        setup(world, arm)
-        config = Config().replace(opening={"task": "drawer", "target_distance_m": target})
-        result = run_episode(camera, arm, arm.kin, segmenter or OracleSegmenter(), config, folder=folder)
-        if folder is not None:
-            folder.finish(result)
-        q0 = arm.state().q
-        world.clock.step(120)
-        still = float(np.abs(arm.state().q - q0).max()) < 0.01
-    return result, still
-
-
 def test_locked_drawer_ends_blocked_and_safe():
     def lock(world, arm):
         pb.setJointMotorControl2(world.cabinet_id, world.cabinet_joint, pb.VELOCITY_CONTROL, targetVelocity=0.0,
                                  force=1e5, physicsClientId=world.client)
         arm.grasp_force_limit_n = 1e5  # the grasp holds, so the arm itself feels the lock
 
-    result, still = _episode(lock)
+    ran = sim_episode(setup=lock)
+    result, still = ran.result, ran.still
     assert result.stop_reason == "blocked" and "no more motion" in result.message
     assert not result.success and still
 
@@ -121,7 +102,8 @@ def test_slipping_grasp_regrasps_once_then_fails_clearly(tmp_path):
         arm.grasp_force_limit_n = 0.5
         pb.changeDynamics(world.cabinet_id, world.handle_link, lateralFriction=0.0, physicsClientId=world.client)
 
-    result, still = _episode(weaken, folder=RunFolder(tmp_path / "run"))
+    ran = sim_episode(setup=weaken, folder=RunFolder(tmp_path / "run"))
+    result, still = ran.result, ran.still
     assert result.stop_reason == "grasp lost" and result.regrasped  # held at first, slipped, re-grasped once
     assert result.message.startswith("the handle slipped out of the gripper again during ")
     assert "after one re-grasp: the pull needs more force than the grasp holds" in result.message
@@ -148,7 +130,8 @@ def test_a_slip_is_recovered_by_finding_the_handle_again():
 
         world.clock.add_hook(restore)
 
-    result, still = _episode(slip_once, target=0.15)
+    ran = sim_episode(setup=slip_once, target=0.15)
+    result, still = ran.result, ran.still
     assert result.stop_reason == "target reached" and result.success and still
     assert result.regrasped and result.opened >= 0.15
 
@@ -170,14 +153,16 @@ def test_a_drawer_that_slides_back_after_a_slip_is_found_again_along_its_path():
 
         world.clock.add_hook(hook)
 
-    result, still = _episode(slip_then_slide_back, target=0.30)
+    ran = sim_episode(setup=slip_then_slide_back, target=0.30)
+    result, still = ran.result, ran.still
     assert seen["slid"] and result.regrasped
     assert result.stop_reason == "target reached" and still, result.message
     assert seen["value"] >= 0.30 and abs(result.opened - seen["value"]) < 0.02
 
 
 def test_lost_tracking_stops_safely():
-    result, still = _episode(lambda world, arm: None, segmenter=_LosingSegmenter())
+    ran = sim_episode(segmenter=_LosingSegmenter())
+    result, still = ran.result, ran.still
     assert result.stop_reason == "tracking lost" and "mask shrank to 0 pixels" in result.message
     assert not result.success and still
 
@@ -185,7 +170,8 @@ def test_lost_tracking_stops_safely():
 def test_unreachable_handle_is_refused_before_moving():
     scenario = Scenario.make("drawer", 0, "train")
     far = replace(scenario, cabinet_xy=tuple(1.6 * np.array(scenario.cabinet_xy)))  # the handle ~1 m away
-    result, still = _episode(lambda world, arm: None, target=0.30, scenario=far)
+    ran = sim_episode(target=0.30, scenario=far)
+    result, still = ran.result, ran.still
     assert result.stop_reason == "ik infeasible" and "out of reach" in result.message
     assert result.steps == 0 and still
 

@@ -14,7 +14,7 @@ from deploy.geometry.types import Axis, JointType, NoAxis
 from drivers.arm.base import ArmState
 from drivers.arm.motion import Compliance, follow_cartesian_path, line_path
 from drivers.arm.registry import open_arm
-from drivers.arm.robot_config import load_robot_config
+from drivers.arm.robot_config import load_robot_config, panda_sim_config
 from drivers.arm.trajectory import MotionLimits
 from drivers.arm.wrench import WrenchEstimator
 from sim_fallback.arm import SimArm
@@ -70,7 +70,7 @@ def _pitched_pull(compliance):
     """A drawer grasped along the truth, then pulled 12 cm along a line pitched 5 deg off its axis."""
     with SimWorld(Scenario.make("drawer", 0, "train")) as world:
         arm = SimArm(world)
-        grasp_handle(world, arm, MotionLimits.for_robot(world.robot_spec, arm.kin, 0.3), 0.15)
+        grasp_handle(world, arm, panda_sim_config().motion_limits(arm.kin, 0.3), 0.15)
         truth = world.truth()
         across = np.cross(truth.direction, [0.0, 0.0, 1.0])
         line = Rotation.from_rotvec(np.radians(5.0) * across / np.linalg.norm(across)).apply(truth.direction)
@@ -106,7 +106,7 @@ def test_a_pull_that_makes_no_headway_ends_blocked_even_when_never_held_still_lo
     `stall_s`: with that rule switched off, a locked drawer's pull must still end after `no_progress_s`."""
     with SimWorld(Scenario.make("drawer", 0, "train", condition="locked")) as world:
         arm = SimArm(world)
-        grasp_handle(world, arm, MotionLimits.for_robot(world.robot_spec, arm.kin, 0.3), 0.15)
+        grasp_handle(world, arm, panda_sim_config().motion_limits(arm.kin, 0.3), 0.15)
         compliance = Compliance(force_limit_n=60.0, stall_s=float("inf"), no_progress_s=2.0)
         result = follow_cartesian_path(arm, arm.kin, line_path(arm.kin.fk(arm.state().q), world.truth().direction),
                                        0.12, MotionLimits(0.08, 0.32, 3.2), compliance=compliance)

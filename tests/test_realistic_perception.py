@@ -14,7 +14,7 @@ from deploy.perception.track_health import mask_iou
 from deploy.rig import RigSpec, SimScene, open_rig, simulated_calibration
 from drivers.arm.body import RobotBody
 from drivers.arm.motion import follow_cartesian_path, line_path
-from drivers.arm.robot_config import PANDA_SIM_CONFIG, load_robot_config
+from drivers.arm.robot_config import PANDA_SIM_CONFIG, load_robot_config, panda_sim_config
 from drivers.arm.trajectory import MotionLimits
 from drivers.camera.base import SegLabel
 from sim_fallback.arm import SimArm
@@ -130,7 +130,7 @@ def test_front_box_follows_the_front_plane_where_the_smallest_box_turns():
 
 
 def _gripped(world, arm):
-    grasp_handle(world, arm, MotionLimits.for_robot(world.robot_spec, arm.kin, 0.3), target=0.05)
+    grasp_handle(world, arm, panda_sim_config().motion_limits(arm.kin, 0.3), target=0.05)
     assert arm.state().gripper_width_m > 0.005
     return arm.kin.fk(arm.state().q)
 

@@ -12,6 +12,7 @@ complete examples; docs/arm.md describes every field.
 from __future__ import annotations
 
 import re
+from functools import lru_cache
 from pathlib import Path
 from typing import Annotated
 
@@ -224,6 +225,12 @@ def robot_config_path(spec: str | Path) -> Path:
         return shipped
     raise ArmError(f"robot config {spec} not found: give the path of a TOML file or a shipped config's name "
                    f"({', '.join(shipped_robot_configs())})")
+
+
+@lru_cache(maxsize=1)
+def panda_sim_config() -> RobotConfig:
+    """The simulated Panda's robot config (read once): the limits and grip force of the simulated world's arm."""
+    return load_robot_config(PANDA_SIM_CONFIG)
 
 
 def load_robot_config(spec: str | Path) -> RobotConfig:
