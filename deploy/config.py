@@ -55,7 +55,7 @@ class FilterConfig(_Section):
     `profile` fills in whichever of radius_m / eps is not given; None follows the camera (`Config.for_camera`):
     the paper's real-camera setting "sparse" (r = 1.3 cm, eps = 1) for real cameras and their recordings, its
     simulation setting "sim" (r = 0.05 m, eps = 100) in simulation (and where no camera is known). The radius is
-    in metres whatever the profile: the old unitless `radius` (and `unit`) are refused (`unitless_radius`).
+    in metres whatever the profile: a unitless `radius` (and `unit`) is refused (`unitless_radius`).
     """
 
     profile: Literal["sim", "sparse"] | None = None
@@ -77,7 +77,7 @@ class FilterConfig(_Section):
 
 
 def unitless_radius(data: dict[str, Any]) -> str | None:
-    """The one-line fix when the `[filter]` table of a run's settings `data` still has the old `radius` (whose
+    """The one-line fix when the `[filter]` table of a run's settings `data` has a unitless `radius` (whose
     unit followed the profile: the same number meant m in simulation and cm on a real camera) or `unit`."""
     section = data.get("filter")
     if not isinstance(section, dict) or not ({"radius", "unit"} & set(section)):

@@ -26,12 +26,12 @@ from sim_fallback.cabinet_urdf import write_cabinet_urdf
 from sim_fallback.scenario import Scenario
 
 PHYSICS_HZ = 240
-VISUAL_TRIANGLE_FRACTION = 0.25  # robot visuals: decimated collision meshes (0.1 drops the IoU to 0.9)
+VISUAL_TRIANGLE_FRACTION = 0.25  # robot visuals: decimated collision meshes
 STIFF_FRICTION_FACTOR = 3.0  # condition "stiff": the joint's Coulomb friction times this
 LOCKED_FORCE = 1e5  # condition "locked": the joint's brake (N or N m), far above anything the arm can pull
 SWEEP_STEP = 0.02  # sweep_hits_robot_base: the joint's steps (m or rad)
 BASE_TURNS, SHOULDER_TILTS = 12, 9  # ... and the postures of the first two robot joints tried
-FLOOR_SIZE_M = 4.0  # a floor box: about +15 ms a 640x480 frame (pybullet_data's plane doubles the time)
+FLOOR_SIZE_M = 4.0  # a floor box, cheaper to render than pybullet_data's plane (docs/benchmarks.md)
 
 
 class PhysicsClock:

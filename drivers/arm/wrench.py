@@ -4,7 +4,7 @@ At rest or moving slowly the joint torques balance gravity and the contact: tau 
 [force; moment] the tool applies to what it holds (N, N m; base-aligned axes at the tool origin, the frame of
 `Kinematics.jacobian`). So w = (J^T)^+ (tau - g(q)): Pinocchio's gravity torques of the arm's model and a damped
 pseudo-inverse (least squares on a 7-joint arm, exact on a 6-joint one). Inertial and friction torques are not
-modelled: they are what the low-pass filter is for (noise figures: docs/benchmarks.md, issue 21).
+modelled: they are what the low-pass filter is for (noise figures: docs/benchmarks.md).
 """
 
 from __future__ import annotations

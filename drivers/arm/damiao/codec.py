@@ -101,7 +101,7 @@ class FrameError(ValueError):
 def _to_uint(x: float, lo: float, hi: float, bits: int) -> int:
     """x clamped to [lo, hi], mapped linearly onto 0 .. 2^bits - 1 (rounded to nearest). A non-finite x reads as 0
     (every range holds 0: no position offset, velocity, gain or torque), never as a range end."""
-    x = min(max(float(x), lo), hi) if math.isfinite(x) else 0.0  # scalar clamp (np.clip is 20x slower)
+    x = min(max(float(x), lo), hi) if math.isfinite(x) else 0.0  # a scalar clamp: np.clip is slow on scalars
     return int(round((x - lo) / (hi - lo) * ((1 << bits) - 1)))
 
 
