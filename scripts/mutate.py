@@ -65,7 +65,7 @@ def _safety(name: str, bug: str, old: str, new: str) -> Mutant:
 
 
 def _codec(name: str, bug: str, old: str, new: str) -> Mutant:
-    return Mutant(f"damiao.{name}", bug, "drivers/arm/damiao.py", old, new, CODEC_TESTS)
+    return Mutant(f"damiao.{name}", bug, "drivers/arm/damiao/codec.py", old, new, CODEC_TESTS)
 
 
 def _channel(name: str, bug: str, old: str, new: str) -> Mutant:
