@@ -78,7 +78,9 @@ class Observer:
         self._pending: list[tuple[Frame, ArmState, bool]] = []  # frame, arm state, whether the gripper held
         self._next_frame_t = 0.0
         self._t0 = t0  # arm-clock start of the episode (viewer timeline)
-        self._times = FrameTimes(0.0, [], [])
+        self._seconds = 0.0  # spent segmenting and estimating
+        self._frame_ms: list[float] = []  # per processed frame: self-filter, segmenter and axis pipeline (wall)
+        self._frame_cpu_ms: list[float] = []  # the same frames' CPU time on this thread: one core's work
 
     # --- questions ---------------------------------------------------------------------------------------------
 
@@ -123,7 +125,7 @@ class Observer:
         return int(np.count_nonzero(self._near_object & robot))
 
     def times(self) -> FrameTimes:
-        return self._times
+        return FrameTimes(self._seconds, list(self._frame_ms), list(self._frame_cpu_ms))
 
     # --- acting ------------------------------------------------------------------------------------------------
 
@@ -187,10 +189,9 @@ class Observer:
             if log.isEnabledFor(logging.INFO):  # every frame: no text built unless --verbose shows it
                 log.info("frame %d (t %.2f s): %s", frame.index, state.t - self._t0, _estimate_text(self._vision))
             self._last_seen = frame, mask
-            self._times.frame_ms.append((time.perf_counter() - start) * 1e3)
-            self._times.frame_cpu_ms.append((time.thread_time() - cpu) * 1e3)
-        self._times = FrameTimes(self._times.seconds + time.perf_counter() - clock, self._times.frame_ms,
-                                 self._times.frame_cpu_ms)
+            self._frame_ms.append((time.perf_counter() - start) * 1e3)
+            self._frame_cpu_ms.append((time.thread_time() - cpu) * 1e3)
+        self._seconds += time.perf_counter() - clock
 
     def look(self, state: ArmState) -> tuple[Frame, np.ndarray]:
         """A fresh frame (the arm at `state`, its pixels removed) and its object cloud (base frame), outside any
