@@ -48,7 +48,7 @@ def projection_matrix(intrinsics: Intrinsics, near_m: float = NEAR_M, far_m: flo
 def depth_from_zbuffer(zbuffer: np.ndarray, near_m: float = NEAR_M, far_m: float = FAR_M) -> np.ndarray:
     """Metric depth (along the optical axis) from an OpenGL depth buffer; 0 where nothing was drawn
     (TinyRenderer clears to 1 - 6e-8 in float32, so the far plane itself counts as nothing)."""
-    depth = np.multiply(np.asarray(zbuffer, np.float32), np.float32(near_m - far_m))  # float32 throughout: it runs on every frame
+    depth = np.multiply(np.asarray(zbuffer, np.float32), np.float32(near_m - far_m))  # float32: every frame
     depth += np.float32(far_m)
     np.divide(np.float32(far_m * near_m), depth, out=depth)
     depth[depth >= 0.999 * far_m] = 0.0
