@@ -23,7 +23,7 @@ from deploy.control.state import EpisodeStop, StopReason
 from deploy.control.view import EpisodeView
 from deploy.geometry.estimators.base import Observation
 from deploy.geometry.types import AxisResult, Box, JointType, NoAxis
-from deploy.perception.base import Segmenter
+from deploy.perception.base import Pointer, Segmenter
 from deploy.perception.self_filter import SelfFilter
 from deploy.report.run_folder import RunFolder
 from drivers.arm.base import ArmState
@@ -140,7 +140,8 @@ class Observer:
         state = arm_state()
         frame, robot = self._without_robot(raw, state)
         self._pipeline = AxisPipeline(self._pipeline_config)
-        mask = self._segmenter.start(frame, self._config.perception.object_prompt) & ~robot
+        perception = self._config.perception
+        mask = self._segmenter.start(frame, perception.object_prompt, Pointer.of(perception.point)) & ~robot
         self._mask_pixels = int(np.count_nonzero(mask))
         if self._mask_pixels == 0:
             raise EpisodeStop(StopReason.NO_OBJECT,

@@ -11,15 +11,16 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime
 from pathlib import Path
 from typing import Any, Literal
 
 from deploy.config import CALIBRATION_ERROR, Config, load_config
 from deploy.control.episode import run_episode
-from deploy.control.view import EpisodeView
+from deploy.control.view import EpisodeView, step_log
 from deploy.errors import ConfigError
+from deploy.perception.base import Pointer
 from deploy.perception.registry import default_segmenter
 from deploy.report.run_folder import RunFolder
 from deploy.rig import Rig, RigSpec, SimScene, open_rig
@@ -30,15 +31,17 @@ log = logging.getLogger(__name__)
 
 OPTIONS = {"opening.target_distance_m": "--distance", "opening.target_angle_deg": "--angle",
            "opening.policy": "--policy", "filter.profile": "--filter", "perception.object_prompt": "--prompt",
-           "perception.box": "--box"}  # the command-line options that set these fields (error messages)
+           "perception.box": "--box", "perception.point": "--point"}  # the options that set these fields (errors)
 Setup = Callable[[Any, Any], None]  # (world, arm) -> None: changes a simulated world before the episode (tests)
 
 
 @dataclass(frozen=True)
 class OpenRequest:
     """What the user asked for. task: what the policy is told ("auto" = classify from the probe pull);
-    scene: the simulated object (`--camera sim` only); distance_m / angle_deg / policy: None keeps the
-    config's; config_file: a run's TOML (deploy/config.py); overrides: settings on top, by dotted name
+    scene: the simulated object's kind, in `world` (`--camera sim` only, as `part`, `assets`, `object_id`, `scale`
+    and `condition`: `SimScene`); distance_m / angle_deg / policy: None keeps the config's; point: the pixel (u, v)
+    the user points at on the part in the first frame (None: in simulation the simulated user's, on hardware
+    none); config_file: a run's TOML (deploy/config.py); overrides: settings on top, by dotted name
     ({"opening.max_steps": 3, "filter.profile": "sparse", "perception.object_prompt": "drawer"}). The filter
     profile, unless set, follows the camera (`Config.for_camera`)."""
 
@@ -61,13 +64,24 @@ class OpenRequest:
     resolution: tuple[int, int] = (640, 480)
     calibration_error: tuple[float, float] = CALIBRATION_ERROR
     condition: Literal["normal", "locked", "stiff"] = "normal"  # the simulated object's joint (never told)
+    world: str = "kitchen"
+    part: str | None = None
+    assets: Path | None = None
+    object_id: str | None = None
+    scale: str = "real"
+    point: tuple[float, float] | None = None
     config_file: Path | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
 
     def config(self) -> Config:
+        point = {"perception.point": self.point} if self.point is not None else {}
         return load_config(self.config_file, {
             "opening.task": self.task, "opening.policy": self.policy, "opening.target_distance_m": self.distance_m,
-            "opening.target_angle_deg": self.angle_deg, **self.overrides}, OPTIONS).for_camera(self.camera)
+            "opening.target_angle_deg": self.angle_deg, **point, **self.overrides}, OPTIONS).for_camera(self.camera)
+
+    def sim_scene(self) -> SimScene:
+        return SimScene(self.scene, self.seed, self.split, self.condition, self.world, self.part, self.assets,
+                        self.object_id, self.scale)
 
     def rig_spec(self, config: Config) -> RigSpec:
         simulated = CAMERAS.entry(self.camera)[0].simulated
@@ -75,7 +89,7 @@ class OpenRequest:
         return RigSpec(camera=self.camera, arm=self.arm, robot=self.robot, calibration=self.calibration,
                        segmenter=self.segmenter or default_segmenter(config.perception),
                        perception=config.perception,
-                       scene=SimScene(self.scene, self.seed, self.split, self.condition),
+                       scene=self.sim_scene(),
                        calibration_error=self.calibration_error,
                        camera_options={"width": width, "height": height, "fps": config.opening.camera_hz}
                        if simulated else {})
@@ -114,15 +128,17 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
     changes a simulated world before the episode; keep_run_dir False: no run folder (benchmarks)."""
     wall = time.perf_counter()
     check_request(request)
+    request = _with_object(request)
     config = request.config()
     run_dir = request.folder() if keep_run_dir else None
-    _log_config(config)
-    folder = None if run_dir is None else RunFolder(
-        run_dir, request.camera, CAMERAS.entry(request.camera)[0].simulated, config)
     with open_rig(request.rig_spec(config)) as rig:
         if setup is not None:
             setup(rig.world, rig.arm)
         evaluation = _evaluation(rig)
+        config = _pointed(config, rig, evaluation, request.seed)
+        _log_config(config)
+        scene = _scene(request, rig, config)
+        folder = None if run_dir is None else RunFolder(run_dir, request.camera, rig.simulated, config, scene)
         if rig.real_arm and confirm is not None and not (request.dry_run or request.yes):
             confirm(f"The arm will grasp and pull the {request.task} in view. Area clear, arm supervised?")
         view = _view(request, run_dir, evaluation)
@@ -139,7 +155,7 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
                 raise
         data = {**result.to_dict(), "task": request.task, "camera": request.camera,
                 "arm": request.arm, "policy": config.opening.policy, "segmenter": rig.spec.segmenter,
-                "filter": config.filter.used()}
+                "filter": config.filter.used(), **scene}
         if motors := rig.arm.motor_states():
             data["motors"] = motors
         if evaluation is not None:
@@ -150,6 +166,56 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
     if folder is not None:
         folder.finish(result, evaluation.axis_error if evaluation is not None else None, data.get("motors"))
     return data
+
+
+def _with_object(request: OpenRequest) -> OpenRequest:
+    """`request` with the PartNet-Mobility object its seed opens, when it gives --assets without --object."""
+    if request.assets is None or request.object_id is not None or not CAMERAS.entry(request.camera)[0].simulated:
+        return request
+    from sim_fallback.scenes import task_objects
+
+    return replace(request, object_id=task_objects(request.assets, request.scene, request.scale).for_seed(request.seed))
+
+
+def _pointed(config: Config, rig: Rig, evaluation: Any, seed: int) -> Config:
+    """`config` with the pixel the user points at: --point (refused off the camera's image), else in simulation the
+    simulated user's on the target part's front (said on the step log), else none."""
+    point = config.perception.point
+    intrinsics = rig.camera.intrinsics if rig.camera is not None else None
+    if point is not None and intrinsics is not None and not Pointer.of(point).inside(intrinsics.width,
+                                                                                     intrinsics.height):
+        raise ConfigError(f"--point {point[0]:g} {point[1]:g} is off the camera's {intrinsics.width}x"
+                          f"{intrinsics.height} image: give the pixel (U from 0 to {intrinsics.width - 1}, V from 0 to "
+                          f"{intrinsics.height - 1}) of the part to open in the first frame")
+    if point is not None or evaluation is None:
+        return config
+    user = evaluation.user_point(rig.sim_camera, seed)
+    if user is None:
+        step_log.info("the simulated user sees no pixel of the target part: no --point given to the controller")
+        return config
+    step_log.info("the simulated user points at pixel (%d, %d) on the target part (give --point U V to choose)",
+                  *user)
+    return config.replace(perception={"point": user})
+
+
+def _scene(request: OpenRequest, rig: Rig, config: Config) -> dict:
+    """What the run folder and the JSON record of the scene: the pointer, and in simulation the world, the
+    furniture (with --assets: the folder, object and scale), the part and the sensor models in force."""
+    point = config.perception.point
+    out: dict[str, Any] = {"pointer": None if point is None else {
+        "u": point[0], "v": point[1], "source": "--point" if request.point is not None else "simulated user"}}
+    if rig.world is None:
+        return out
+    from sim_fallback.devices import sensor_models
+    from sim_fallback.scenes import scenario_object
+
+    scenario = rig.world.scenario
+    assets = request.assets is not None
+    return {**out, "world": scenario.world, "furniture": scenario_object(scenario),
+            "assets": str(request.assets) if assets else None,
+            "object": request.object_id,
+            "scale": request.scale if assets else None, "part": scenario.part,
+            "sensors": sensor_models(rig.sim_camera, rig.robot, request.seed)}
 
 
 def _log_config(config: Config) -> None:

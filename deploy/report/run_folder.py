@@ -5,10 +5,12 @@
                      through `deploy axis estimate RUN/frames`
     RUN/config.json  the resolved run config the episode used (every section, the filter profile the camera
                      chose, `filter_used`: the radius in metres and eps, and `acted_with`: the estimator and
-                     fusion the policy acted with), written with the first frame
-    RUN/steps.json   result, axis estimate per step, commanded and measured gripper poses per motion (`t` from the
-                     motion's start, `start_s` on the episode's arm clock, as report.png's opening curve), and a CAN
-                     arm's final motor states (`motors`: name, CAN id, enabled, status)
+                     fusion the policy acted with; `perception.point`: the pixel the user pointed at), written
+                     with the first frame, and `scene`: the pointer and where it came from, in simulation the
+                     world, furniture, assets folder, object, scale, part and the sensor models in force
+    RUN/steps.json   result, the `scene` again, axis estimate per step, commanded and measured gripper poses per
+                     motion (`t` from the motion's start, `start_s` on the episode's arm clock, as report.png's
+                     opening curve), and a CAN arm's final motor states (`motors`: name, CAN id, enabled, status)
     RUN/report.png   axis estimates over the first colour frame, opening vs time, axis error per step
 """
 
@@ -38,11 +40,12 @@ class RunFolder:
     """Writes one episode's run folder as it goes; `finish` adds steps.json and the PNG report."""
 
     def __init__(self, path: Path, camera: str | None = None, simulated: bool = False,
-                 config: Config | None = None) -> None:
+                 config: Config | None = None, scene: dict | None = None) -> None:
         """`camera`: the camera spec, and whether it is `simulated`, stored with the frames (they pick the
         recording's filter profile when it is replayed); `config`: the resolved run config, kept as
-        config.json."""
-        self.camera, self.simulated = camera, simulated
+        config.json; `scene`: what the episode was given and met (JSON values), kept in config.json and
+        steps.json."""
+        self.camera, self.simulated, self.scene = camera, simulated, scene or {}
         self.path = Path(path)
         self.path.mkdir(parents=True, exist_ok=True)
         self._writer: FramesWriter | None = None
@@ -53,7 +56,8 @@ class RunFolder:
         """RUN/config.json: `config` as the episode used it (JSON: no value is left out, None is null)."""
         used = config.filter.resolve()
         data = {**config.model_dump(mode="json"), "filter_used": {"radius_m": used.radius_m, "eps": used.eps},
-                "acted_with": {"estimator": config.acting_estimator, "fusion": config.opening.acting_fusion}}
+                "acted_with": {"estimator": config.acting_estimator, "fusion": config.opening.acting_fusion},
+                "scene": self.scene}
         (self.path / CONFIG_FILE).write_text(json.dumps(data, indent=1) + "\n")
         self._config = None
 
@@ -87,7 +91,7 @@ class RunFolder:
         steps = [{**e, "axis_angle_error_deg": None if err is None else err[0],
                   "axis_position_error_m": None if err is None else err[1]}
                  for e, err in zip(result.estimates, errors, strict=True)]
-        data = {"result": result.to_dict(), "steps": steps, "motions": self.motions}
+        data = {"result": result.to_dict(), "scene": self.scene, "steps": steps, "motions": self.motions}
         if motors:
             data["motors"] = motors
         (self.path / "steps.json").write_text(json.dumps(data, indent=1) + "\n")
