@@ -145,7 +145,7 @@ def test_axis_demo_prints_every_estimator(capsys):
 
 
 def test_open_drawer_in_simulation_json(capsys, tmp_path):
-    code, out, err = run(capsys, "open-drawer", "--seed", "1", "--distance", "0.15", "--run-dir",
+    code, out, err = run(capsys, "open-drawer", "--world", "box", "--seed", "1", "--distance", "0.15", "--run-dir",
                          str(tmp_path / "run"), "--view", "--json")
     data = json.loads(out)
     lines = [line for line in err.splitlines() if line.startswith("step ")]
@@ -169,8 +169,8 @@ def test_open_door_that_falls_short_exits_non_zero(capsys, tmp_path):
     text = PANDA_SIM_CONFIG.read_text()
     robot.write_text(text.replace('name = "panda_joint1"\n', 'name = "panda_joint1"\nq_min = -0.25\n')
                      .replace("q_ready = [-0.4458,", "q_ready = [-0.2,"))  # the start within the narrowed range
-    code, out, _ = run(capsys, "open-door", "--seed", "0", "--angle", "45", "--arm", "sim-can", "--robot", str(robot),
-                       "--run-dir", str(tmp_path / "run"), "--json")
+    code, out, _ = run(capsys, "open-door", "--world", "box", "--seed", "0", "--angle", "45", "--arm", "sim-can",
+                       "--robot", str(robot), "--run-dir", str(tmp_path / "run"), "--json")
     data = json.loads(out)
     assert code == 1 and not data["success"] and data["stop_reason"] == StopReason.ARM_ERROR
     assert data["message"].startswith("safety stop: joint panda_joint1 position -0.25")
@@ -214,14 +214,14 @@ def test_bench_open_warns_when_workers_exceed_the_cores(monkeypatch, caplog, wor
 
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
     monkeypatch.setattr(bench, "make_executor", lambda workers, ray_address: _NoEpisodes())
-    data = bench.bench_open("drawer", 0.3, episodes=episodes, workers=workers, segmenter="rgbd")
+    data = bench.bench_open("drawer", 0.3, episodes=episodes, workers=workers, segmenter="rgbd", world="box")
     assert data["workers"] == workers
     lines = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
     assert lines == ([f"--workers {workers} is above this machine's 2 cores: episodes wait for a core, so their "
                       "seconds and frame times include that waiting; give --workers 2 or fewer for timings"]
                      if warned else [])
     assert bench.bench_open("drawer", 0.3, episodes=episodes, workers=workers, segmenter="rgbd",
-                            ray_address="local")["workers"] is None
+                            ray_address="local", world="box")["workers"] is None
 
 
 def test_bench_help_offers_only_what_the_command_takes(capsys):
