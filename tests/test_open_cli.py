@@ -79,7 +79,7 @@ def test_hardware_path_on_a_recording_with_the_kinematic_arm(capsys, tmp_path):
     (("--camera", "d415", "--arm", "ideal", "--robot", ROBOT, "--segmenter", "oracle"),
      "no RealSense camera is connected"),
     (("--camera", "d415", "--arm", "ideal", "--robot", ROBOT, "--condition", "locked"),
-     "--condition locked is for a simulated object"),
+     "--condition locked is for a simulated scene"),
 ])
 def test_bad_combinations_are_one_clear_error(capsys, args, text):
     code, _, err = run(capsys, "open-drawer", *args)

@@ -11,7 +11,17 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from deploy.commands.options import JsonOpt, RobotOpt, SimFaultOpt, above, kind_option, overwrite_option, view_option
+from deploy.commands.options import (
+    JsonOpt,
+    RobotOpt,
+    SimFaultOpt,
+    WorldChoice,
+    WorldOpt,
+    above,
+    kind_option,
+    overwrite_option,
+    view_option,
+)
 from deploy.commands.output import console, print_json, print_table, progress_bar
 from drivers.arm.registry import ARMS
 from drivers.camera.registry import CAMERAS
@@ -22,7 +32,7 @@ if TYPE_CHECKING:
 app = typer.Typer(help="RealSense cameras: discovery and snapshots.", no_args_is_help=True)
 top_level = typer.Typer()  # its commands sit directly under `deploy`
 
-CameraSpecOpt = kind_option(CAMERAS, "--camera", " sim: a simulated drawer, seed 0.")
+CameraSpecOpt = kind_option(CAMERAS, "--camera", " sim: a simulated drawer, seed 0 (of --world, where given).")
 WidthOpt = Annotated[int | None, typer.Option(min=1, max=8192, show_default=False, help=(
     "Image width (d415: 640, 848 or 1280; sim: any) \\[default: 640; a replay: the recording's, which it keeps]."))]
 HeightOpt = Annotated[int | None, typer.Option(min=1, max=8192, show_default=False, help=(
@@ -141,6 +151,7 @@ def record_cmd(
     view: ViewOpt = False,
     overwrite: OverwriteOpt = False,
     sim_fault: SimFaultOpt = None,
+    world: WorldOpt = WorldChoice.kitchen,
     json_out: JsonOpt = False,
 ) -> None:
     """Record a camera to a frames directory, flushing every frame (Ctrl-C keeps what was recorded); with
@@ -164,7 +175,7 @@ def record_cmd(
           progress_bar("record", frames, *columns) as bar):
         summary = record_rig(camera, out, frames, seconds, arm, robot, {"width": width, "height": height,
                                                                         "fps": fps}, bar.advance, view,
-                              calibration, sim_faults=faults)
+                              calibration, sim_faults=faults, world=world.value)
     if json_out:
         print_json(summary)
     else:

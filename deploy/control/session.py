@@ -135,9 +135,9 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
         if setup is not None:
             setup(rig.world, rig.arm)
         evaluation = _evaluation(rig)
-        config = _pointed(config, rig, evaluation, request.seed)
+        config, pointer = _pointed(config, rig, evaluation, request.seed)
         _log_config(config)
-        scene = _scene(request, rig, config)
+        scene = _scene(request, rig, pointer)
         folder = None if run_dir is None else RunFolder(run_dir, request.camera, rig.simulated, config, scene)
         if rig.real_arm and confirm is not None and not (request.dry_run or request.yes):
             confirm(f"The arm will grasp and pull the {request.task} in view. Area clear, arm supervised?")
@@ -177,9 +177,10 @@ def _with_object(request: OpenRequest) -> OpenRequest:
     return replace(request, object_id=task_objects(request.assets, request.scene, request.scale).for_seed(request.seed))
 
 
-def _pointed(config: Config, rig: Rig, evaluation: Any, seed: int) -> Config:
-    """`config` with the pixel the user points at: --point (refused off the camera's image), else in simulation the
-    simulated user's on the target part's front (said on the step log), else none."""
+def _pointed(config: Config, rig: Rig, evaluation: Any, seed: int) -> tuple[Config, dict | None]:
+    """`config` with the pixel the user points at: --point (or the config's; refused off the camera's image), else in
+    simulation the simulated user's on the target part's front (said on the step log), else none; and the pointer
+    as the run records it (u, v, source)."""
     point = config.perception.point
     intrinsics = rig.camera.intrinsics if rig.camera is not None else None
     if point is not None and intrinsics is not None and not Pointer.of(point).inside(intrinsics.width,
@@ -187,23 +188,22 @@ def _pointed(config: Config, rig: Rig, evaluation: Any, seed: int) -> Config:
         raise ConfigError(f"--point {point[0]:g} {point[1]:g} is off the camera's {intrinsics.width}x"
                           f"{intrinsics.height} image: give the pixel (U from 0 to {intrinsics.width - 1}, V from 0 to "
                           f"{intrinsics.height - 1}) of the part to open in the first frame")
-    if point is not None or evaluation is None:
-        return config
-    user = evaluation.user_point(rig.sim_camera, seed)
+    if point is not None:
+        return config, {"u": point[0], "v": point[1], "source": "--point"}
+    user = evaluation.user_point(rig.sim_camera, seed) if evaluation is not None else None
     if user is None:
-        step_log.info("the simulated user sees no pixel of the target part: no --point given to the controller")
-        return config
+        if evaluation is not None:
+            step_log.info("the simulated user sees no pixel of the target part: the controller gets no pointer")
+        return config, None
     step_log.info("the simulated user points at pixel (%d, %d) on the target part (give --point U V to choose)",
                   *user)
-    return config.replace(perception={"point": user})
+    return config.replace(perception={"point": user}), {"u": user[0], "v": user[1], "source": "simulated user"}
 
 
-def _scene(request: OpenRequest, rig: Rig, config: Config) -> dict:
+def _scene(request: OpenRequest, rig: Rig, pointer: dict | None) -> dict:
     """What the run folder and the JSON record of the scene: the pointer, and in simulation the world, the
     furniture (with --assets: the folder, object and scale), the part and the sensor models in force."""
-    point = config.perception.point
-    out: dict[str, Any] = {"pointer": None if point is None else {
-        "u": point[0], "v": point[1], "source": "--point" if request.point is not None else "simulated user"}}
+    out: dict[str, Any] = {"pointer": pointer}
     if rig.world is None:
         return out
     from sim_fallback.devices import sensor_models
@@ -224,10 +224,10 @@ def _log_config(config: Config) -> None:
     target = (f"{o.target_distance_m:g} m" if o.task == "drawer" else f"{o.target_angle_deg:g} deg" if o.task == "door"
               else f"{o.target_distance_m:g} m or {o.target_angle_deg:g} deg")
     log.info("run config: filter %s (%s); estimator %s, joint %s, window %d; opening %s to %s, policy %s, fusion "
-             "%s, max %d steps, timeout %g s; prompt %r, box %s", config.filter.profile, config.filter.resolve(),
-             config.acting_estimator, e.joint, e.window, o.task, target, o.policy,
+             "%s, max %d steps, timeout %g s; prompt %r, box %s, point %s", config.filter.profile,
+             config.filter.resolve(), config.acting_estimator, e.joint, e.window, o.task, target, o.policy,
              o.acting_fusion, o.max_steps, o.timeout_s,
-             config.perception.object_prompt, config.perception.box)
+             config.perception.object_prompt, config.perception.box, config.perception.point)
 
 
 def _evaluation(rig: Rig):
