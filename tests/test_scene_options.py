@@ -87,15 +87,17 @@ def test_sim_show_lists_the_objects_parts_and_renders_the_one_asked_for(capsys, 
     assert data["world"] == "kitchen" and data["task"] == "door" and data["part"] == "door"
     assert data["furniture"] == "partnet 12" and png.stat().st_size > 10_000
     [entry] = data["objects"]
-    assert entry["id"] == "12" and entry["problem"] is None
+    assert entry["id"] == "12" and entry["problem"] is None and entry["unusable_for"] == {}
     assert [(p["name"], p["kind"], p["link"], p["unit"]) for p in entry["parts"]] == [
         ("drawer", "drawer", "link_1", "m"), ("door", "door", "link_2", "deg")]
     assert all(p["range"][0] == 0 and p["range"][1] > 0 for p in entry["parts"])
     code, out, _ = run(capsys, "sim", "show", "--assets", assets, "--task", "drawer", "--seed", "1", "--out", png,
                        "--overwrite", "--json")
-    listed = {e["id"]: e["problem"] for e in json.loads(out)["objects"]}
-    assert code == 0 and listed["12"] is None
-    assert "partnet 40 has no drawer within the robot's reach: its grips stand above the floor" in listed["40"]
+    listed = {e["id"]: e for e in json.loads(out)["objects"]}
+    assert code == 0 and listed["12"]["unusable_for"] == {} and listed["40"]["problem"] is None
+    assert list(listed["40"]["unusable_for"]) == ["drawer"]
+    assert "partnet 40 has no drawer within the robot's reach: its grips stand above the floor" in (
+        listed["40"]["unusable_for"]["drawer"])
 
 
 def test_a_kitchen_recording_of_a_partnet_object_opens_the_named_part(capsys, tmp_path, assets):

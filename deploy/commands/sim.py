@@ -79,26 +79,29 @@ def sim_show(
                           for p in entry.get("parts", []))
         console.print(f"object {entry['id']} ({entry['category'] or 'no category'}): "
                       f"{entry['problem'] or parts}", soft_wrap=True)
+        for kind, why in entry["unusable_for"].items():
+            console.print(f"  not usable for a {kind}: {why}", soft_wrap=True)
     console.print(f"wrote {out}: {data['furniture']}, {data['part']} ({data['world']}, seed {seed})", soft_wrap=True)
 
 
 def _listing(assets: Path, object_id: str | None, task: Task | None, scale: ScaleChoice) -> dict:
-    """`sim show --assets`: every object of the folder (or --object alone) with its parts, each that cannot be used
-    for the task with its one line, and the scale."""
-    from sim_fallback.partnet import find_object, list_objects
+    """`sim show --assets`: every object of the folder (or --object alone) with its parts, the one line that says
+    why it does not load (`problem`) and, per task (--task, else both), why it cannot serve it (`unusable_for`)."""
+    from sim_fallback.partnet import PartNetError, find_object, list_objects
     from sim_fallback.scenes import task_objects
 
     folder = find_object(assets, object_id) if object_id is not None else assets
     objects = [entry.describe() for entry in list_objects(folder, scale.value)]
-    if task is not None:
-        from sim_fallback.partnet import PartNetError
-
+    for entry in objects:
+        entry["unusable_for"] = {}
+    for kind in [task.value] if task is not None else ["drawer", "door"]:
         try:
-            problems = task_objects(folder, task.value, scale.value).problems
-        except PartNetError as exc:
+            problems = task_objects(folder, kind, scale.value).problems
+        except PartNetError as exc:  # none can serve it: each object's reason is in the one line
             problems = {entry["id"]: str(exc) for entry in objects}
         for entry in objects:
-            entry["problem"] = entry["problem"] or problems.get(entry["id"])
+            if entry["id"] in problems and entry["problem"] is None:
+                entry["unusable_for"][kind] = problems[entry["id"]]
     return {"assets": str(assets), "scale": scale.value, "objects": objects}
 
 
