@@ -154,10 +154,6 @@ class CanArm(Arm):
             width = gripper_width(self.gripper, self.config.gripper) if self.gripper is not None else 0.0
             return ArmState(self.loop.now(), q, dq, tau, width)
 
-    def commanded_q(self) -> np.ndarray:
-        with self._lock:
-            return self._q_cmd.copy()
-
     def command(self, q: np.ndarray, dq: np.ndarray | None = None) -> None:
         self._raise_if_not_running()
         q = np.asarray(q, float)
