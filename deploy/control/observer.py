@@ -134,11 +134,13 @@ class Observer:
         """The joint the probe pull classified: the pipeline cuts a door's moving part out of a deeper box."""
         self._pipeline.joint = joint
 
-    def first(self, arm_state: Callable[[], ArmState]) -> FirstLook:
-        """Read and segment the first frame (the arm's state read after it), fix the body box; what it showed.
-        Called again, it starts over (a new body box)."""
+    def first(self, arm_state: Callable[[], ArmState], commanded: Callable[[], np.ndarray | None] | None = None
+              ) -> FirstLook:
+        """Read and segment the first frame (the arm's state, and `commanded()` joints, read after it), fix the body
+        box; what it showed. Called again, it starts over (a new body box)."""
         raw = self._camera.read()
         state = arm_state()
+        q_commanded = None if commanded is None else commanded()
         frame, robot = self._without_robot(raw, state)
         self._pipeline = AxisPipeline(self._pipeline_config)
         mask = self._segmenter.start(frame, self._config.perception.object_prompt) & ~robot
@@ -147,7 +149,7 @@ class Observer:
             raise EpisodeStop(StopReason.NO_OBJECT,
                               "the segmenter found no object on the first frame: point the camera at it")
         self._pipeline.update_frame(frame, mask, None)  # before any grasp: the gripper's pose is not the part's
-        self._log(raw, mask, state, self._kin.fk(state.q), first=True, grasped=False)
+        self._log(raw, mask, state, self._kin.fk(state.q), first=True, grasped=False, commanded=q_commanded)
         points = self.points(frame, mask)
         self._first = FirstLook(frame, mask, robot, points, self._pipeline.body_box, self._pipeline.handle_points)
         kernel = np.ones((NEAR_OBJECT_PX, NEAR_OBJECT_PX), np.uint8)

@@ -110,7 +110,7 @@ def _vec(v: np.ndarray) -> str:
 
 def _find_handle(episode: Episode) -> Handle | None:
     observer = episode.observer
-    look = observer.first(episode.arm.state)
+    look = observer.first(episode.arm.state, episode.arm.commanded_q)
     points = observer.handle_points()
     return None if look.body_box is None else find_handle(
         points, look.points, look.body_box, viewpoint(look.frame), episode.state.joint is JointType.REVOLUTE)
