@@ -86,7 +86,7 @@ def check_dataset(root: Path) -> dict:
     assert np.abs(data.column("timestamp").to_numpy() - frame_index / fps).max() <= TIMESTAMP_TOLERANCE_S
 
     stats = json.loads((root / "meta" / "stats.json").read_text())
-    for name, ft in features.items():
+    for name in features:
         assert set(STATS) <= set(stats[name]), name
         assert stats[name]["count"] == [info["total_frames"]]
         if name in videos:

@@ -61,8 +61,11 @@ class Folder:
 
 
 def folder_kind(src: Path) -> str | None:
-    """"tum" (rgb.txt and depth.txt), "open3d" (depth/ beside color/, image/ or rgb/), or None."""
+    """"tum" (rgb.txt and depth.txt), "open3d" (depth/ beside color/, image/ or rgb/), or None (a frames directory,
+    whose meta.json sets it apart, among others)."""
     src = Path(src)
+    if (src / "meta.json").is_file():
+        return None
     if (src / "rgb.txt").is_file() and (src / "depth.txt").is_file():
         return "tum"
     if (src / "depth").is_dir() and any((src / name).is_dir() for name in OPEN3D_COLOR_DIRS):
