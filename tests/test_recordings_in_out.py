@@ -38,8 +38,7 @@ def write_run(path, masks=True):
             mask[10:30, 20:50] = True
             q = np.linspace(-1, 1, 7) + 0.05 * i
             w.write(Frame(i, t, color, depth, INTR, pose(i), mask=mask if masks else None), joint_positions=q,
-                    joint_commands=q + 0.01, gripper_width_m=0.08 - 0.01 * i, ee_pose=pose(i) @ np.diag([1, 1, 1, 1.0]),
-                    grasped=i > 0)
+                    joint_commands=q + 0.01, gripper_width_m=0.08 - 0.01 * i, ee_pose=pose(i), grasped=i > 0)
 
 
 @pytest.mark.parametrize("fmt, unit", [("tum", 1 / 5000), ("open3d", 1 / 1000)])
@@ -73,7 +72,8 @@ def test_convert_reads_the_tum_benchmark_layout(capsys, tmp_path):
     src = tmp_path / "rgbd_dataset_freiburg1_desk"
     (src / "rgb").mkdir(parents=True)
     (src / "depth").mkdir()
-    rgb, depth, truth = ["# color images", "# timestamp filename"], ["# depth maps"], ["# timestamp tx ty tz qx qy qz qw"]
+    rgb, depth = ["# color images", "# timestamp filename"], ["# depth maps"]
+    truth = ["# timestamp tx ty tz qx qy qz qw"]
     for i in range(5):
         t = 1305031102.175304 + 0.033 * i
         cv2.imwrite(str(src / "rgb" / f"{t:.6f}.png"), np.full((480, 640, 3), 20 * i, np.uint8))
