@@ -48,11 +48,18 @@ def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float
         latest: dict[str, np.ndarray] = {}  # the arm's last reading: the tool pose shown with its frame
         faults = _sim_faults_by_frame(rig, sim_faults or [])
 
+        robot_shown: list[bool] = []
+
         def each(frame: Frame) -> None:
             if faults is not None:
                 faults(frame)
-            if viewer is not None:
+            if viewer is not None:  # its file goes into the recording's folder: opened once the recording is there
+                if "q" in latest and not robot_shown:
+                    viewer.robot(rig.robot.urdf_path(), rig.robot.joint_names, rig.robot.locked_joints)
+                    robot_shown.append(True)
                 viewer.frame(frame.t, frame, frame.mask, latest.get("tool"))
+                if "q" in latest:
+                    viewer.arm(frame.t, latest["q"])
             if progress is not None:
                 progress(frame)
 
@@ -60,7 +67,7 @@ def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float
         simulated = simulated_source(camera)
         try:
             summary = record(rig.camera, out, frames, seconds, progress=each, source=camera, simulated=simulated,
-                             arm=reading)
+                             arm=reading, robot=rig.robot.reference if arm is not None else None)
         finally:
             if viewer is not None:
                 viewer.close()
@@ -110,7 +117,7 @@ def _arm_reading(rig: Rig, latest: dict[str, np.ndarray]) -> ArmReading:
     def read() -> tuple[np.ndarray, np.ndarray]:
         arm.probe()  # a CAN arm asks every motor for one feedback frame
         q = np.asarray(arm.state().q, float)
-        latest["tool"] = kin.fk(q)
+        latest["tool"], latest["q"] = kin.fk(q), q
         return q, latest["tool"]
 
     return read

@@ -114,8 +114,10 @@ def test_rerun_viewer_saves_the_camera_in_3d_the_axes_and_the_truth(tmp_path):
     found = entities(tmp_path / "view.rrd")
     assert {"Pinhole:image_from_camera", "Pinhole:resolution"} <= found["/world/camera/image"]["components"]
     assert "Transform3D:translation" in found["/world/camera"]["components"]
-    for name in ("color", "depth", "mask"):
-        assert found[f"/world/camera/image/{name}"]["rows"] == 3
+    for entity, component in (("image/color", "EncodedImage:blob"), ("depth/image", "EncodedDepthImage:blob"),
+                              ("image/mask", "LineStrips2D:strips")):  # compressed colour, depth as depth, outline
+        assert found[f"/world/camera/{entity}"]["rows"] == 3 and component in found[f"/world/camera/{entity}"][
+            "components"]
     assert found["/world/axis/estimated"]["rows"] == 3 and found["/world/axis/true"]["rows"] == 1
     assert found["/opening"]["rows"] == 3 and found["/world/gripper"]["rows"] == 3
 

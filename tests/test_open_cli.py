@@ -40,7 +40,7 @@ def test_dry_run_plans_moves_nothing_and_views(capsys, tmp_path):
     assert (tmp_path / "run" / "episode.rrd").stat().st_size > 10_000  # frame, cloud and gripper pose logged
     found = entities(tmp_path / "run" / "episode.rrd")
     assert "Pinhole:image_from_camera" in found["/world/camera/image"]["components"]  # images sit in 3D
-    assert found["/world/axis/true"]["rows"] == 1 and "/world/object" in found
+    assert found["/world/axis/true"]["rows"] == 1 and "/world/object/first" in found
 
 
 def test_sim_can_arm_opens_through_the_can_driver(capsys, tmp_path):

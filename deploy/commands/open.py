@@ -103,6 +103,9 @@ def _print_episode(data: dict, json_out: bool) -> None:
     rows = {k: data[k] for k in keys if k in data}
     used = data["filter"]
     rows["filter"] = f"{used['profile']}: radius {used['radius_m']:g} m, eps {used['eps']}"
+    if "rrd" in data:  # --view
+        shown = "shown live" if data["rrd"]["live"] else "no viewer opened (no display): open it with rerun FILE"
+        rows["rrd"] = f"{data['rrd']['path']} ({shown})"
     print_rows(f"{data['task']} episode ({where}, {data['policy']} loop)", rows)
 
 

@@ -32,6 +32,7 @@ log = logging.getLogger(__name__)
 OPTIONS = {"opening.target_distance_m": "--distance", "opening.target_angle_deg": "--angle",
            "opening.policy": "--policy", "filter.profile": "--filter", "perception.object_prompt": "--prompt",
            "perception.box": "--box", "perception.point": "--point"}  # the options that set these fields (errors)
+VIEW_FILE = "episode.rrd"  # the run folder's rerun recording, with --view
 Setup = Callable[[Any, Any], None]  # (world, arm) -> None: changes a simulated world before the episode (tests)
 
 
@@ -138,10 +139,11 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
         config, pointer = _pointed(config, rig, evaluation, request.seed)
         _log_config(config)
         scene = _scene(request, rig, pointer)
-        folder = None if run_dir is None else RunFolder(run_dir, request.camera, rig.simulated, config, scene)
+        folder = None if run_dir is None else RunFolder(run_dir, request.camera, rig.simulated, config, scene,
+                                                        rig.robot.reference)
         if rig.real_arm and confirm is not None and not (request.dry_run or request.yes):
             confirm(f"The arm will grasp and pull the {request.task} in view. Area clear, arm supervised?")
-        view = _view(request, run_dir, evaluation)
+        view = _view(request, run_dir, evaluation, rig)
         with rig.arm:
             try:
                 result = run_episode(rig.camera, rig.arm, rig.segmenter, config, rig.robot, folder, view,
@@ -158,6 +160,8 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
                 "filter": config.filter.used(), **scene}
         if motors := rig.arm.motor_states():
             data["motors"] = motors
+        if (rrd := view.saved_to()) is not None:
+            data["rrd"] = rrd
         if evaluation is not None:
             translation_mm, rotation_deg = request.calibration_error
             data.update({"seed": request.seed, "split": request.split, "task": request.scene,
@@ -238,13 +242,15 @@ def _evaluation(rig: Rig):
     return Evaluation(rig.world)
 
 
-def _view(request: OpenRequest, run_dir: Path | None, evaluation: Any) -> EpisodeView:
-    """The episode's step lines, and with --view the rerun viewer (RUN/episode.rrd) showing the true axis too."""
+def _view(request: OpenRequest, run_dir: Path | None, evaluation: Any, rig: Rig) -> EpisodeView:
+    """The episode's step lines, and with --view the rerun viewer (RUN/episode.rrd) showing the robot from its URDF
+    and, in simulation, the true axis too."""
     viewer = None
     if request.view and run_dir is not None:
         from deploy.report.viewer import RerunViewer
 
-        viewer = RerunViewer(run_dir / "episode.rrd")
+        viewer = RerunViewer(run_dir / VIEW_FILE)
+        viewer.robot(rig.robot.urdf_path(), rig.robot.joint_names, rig.robot.locked_joints)
     view = EpisodeView(viewer)
     if evaluation is not None:
         view.true_axis(evaluation.true_axis())
