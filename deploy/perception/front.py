@@ -1,0 +1,244 @@
+"""The front a user pointed at: its plane from the depth around the pixel, its rectangle in the plane (gaps between
+fronts, where its surface ends) and its pixels.
+
+Pure functions of one frame (colour, depth, intrinsics, the calibrated camera pose), the arm's pixels (the
+self-filter's mask) and the user's pixel. Base frame, metres, z up.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import open3d as o3d
+
+from deploy.errors import PointerError
+from deploy.geometry.cloud import depth_to_points
+from deploy.perception.front_extent import Extent, front_extent
+from deploy.perception.handle_blobs import Blob, bounds, handle_blobs, segment_distance
+from deploy.perception.plane_view import D415, NOISE_SIGMAS, QUANTUM_M, UP, PlaneFrame, PlaneView, rectify
+from drivers.camera.base import Frame
+
+SEED_RADII_PX = (12, 24, 48)  # the plane at the pixel is fitted to the depth this close to it (the first with enough)
+MIN_SEED_POINTS = 60
+FRONT_TILT_DEG = 15.0  # fronts are vertical: the calibration's 0.5 deg and the fit's error stay well inside this
+FLAT_TILT_DEG = 45.0  # a surface tilted more than this from vertical faces up or down: floor, counter, shelf
+REFINE_RADIUS_M = 0.5  # the plane is refined over the surface this far around the pixel (neighbouring fronts are
+# coplanar and help) ...
+REFINE_SLOPES_DEG = (5.0, 2.0, 0.5)  # ... keeping points within the noise plus these slopes of their distance
+MAX_FRONT_WIDTH_M = 1.2  # the widest drawer or door fronts of real furniture
+MAX_FRONT_HEIGHT_M = 2.4  # the tallest (a tall unit's door)
+
+
+@dataclass(frozen=True)
+class Front:
+    """The pointed front. `plane`: its frame, origin at the front's centre, normal out of the front (toward the
+    camera), `right` and `up` along its sides; `width_m` x `height_m`; `corners` (4, 3) base frame, as seen facing
+    it: top left, top right, bottom right, bottom left; `mask` (H, W) its pixels (not its handle); `ended` what
+    ended each side ("gap", "surface", "view": the image's border, the side is cut and the front may be larger);
+    `view` and `extent` the rectified view and the rectangle's cells in it (for the handle search)."""
+
+    plane: PlaneFrame
+    width_m: float
+    height_m: float
+    corners: np.ndarray
+    mask: np.ndarray
+    ended: dict[str, str]
+    view: PlaneView
+    extent: Extent
+
+    @property
+    def cut(self) -> tuple[str, ...]:
+        """The sides whose edge the camera did not see."""
+        return tuple(side for side, why in self.ended.items() if why == "view")
+
+
+def pixel_ray(frame: Frame, u: float, v: float) -> tuple[np.ndarray, np.ndarray]:
+    """The camera's centre and the unit direction of the ray through pixel (u, v), base frame."""
+    T = np.asarray(frame.T_base_camera, float)
+    d = T[:3, :3] @ np.linalg.solve(frame.intrinsics.K, [u, v, 1.0])
+    return T[:3, 3].copy(), d / np.linalg.norm(d)
+
+
+def seed_plane(frame: Frame, robot: np.ndarray, u: int, v: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """(point, unit normal, depth at the pixel) of the surface at pixel (u, v): RANSAC over the depth close to it,
+    within the D415's noise. Raises PointerError when there is no depth around the pixel."""
+    h, w = frame.depth_m.shape
+    for radius in SEED_RADII_PX:
+        window = np.zeros((h, w), bool)
+        window[max(v - radius, 0):v + radius + 1, max(u - radius, 0):u + radius + 1] = True
+        window &= ~robot & (frame.depth_m > 0)
+        if np.count_nonzero(window) >= MIN_SEED_POINTS:
+            break
+    else:
+        raise PointerError(f"pixel ({u}, {v}) has no depth within {SEED_RADII_PX[-1]} px (too close, too far, or a "
+                           "dark or shiny surface): point at the front's panel where the depth image shows it")
+    points = depth_to_points(frame.depth_m, frame.intrinsics.K, window, frame.T_base_camera)
+    depth = float(np.median(frame.depth_m[window]))
+    tolerance = NOISE_SIGMAS * float(D415.sigma_m(depth, frame.intrinsics.fx)) + QUANTUM_M / 2
+    o3d.utility.random.seed(0)
+    _, inliers = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points)).segment_plane(tolerance, 3, 200)
+    inside = points[inliers]
+    centre = inside.mean(axis=0)
+    return centre, np.linalg.svd(inside - centre, full_matrices=False)[2][2], depth
+
+
+def tilt_deg(normal: np.ndarray) -> float:
+    """How far a surface with `normal` is tilted from vertical (deg)."""
+    return float(np.degrees(np.arcsin(min(abs(float(normal @ UP)) / np.linalg.norm(normal), 1.0))))
+
+
+def refine_plane(frame: Frame, robot: np.ndarray, point: np.ndarray, normal: np.ndarray,
+                 depth: float) -> tuple[np.ndarray, np.ndarray]:
+    """The vertical plane through the surface around `point` fitted to the depth within REFINE_RADIUS_M: each round
+    keeps the points within the noise plus a slope (REFINE_SLOPES_DEG) of their distance, and refits (least squares,
+    the normal horizontal: fronts are vertical, and the calibration's up is good to its 0.5 deg)."""
+    K = frame.intrinsics
+    reach_px = int(K.fx * REFINE_RADIUS_M / depth)
+    T_inv = np.linalg.inv(np.asarray(frame.T_base_camera, float))
+    pc = T_inv[:3, :3] @ point + T_inv[:3, 3]
+    u, v = int(pc[0] / pc[2] * K.fx + K.cx), int(pc[1] / pc[2] * K.fy + K.cy)
+    h, w = frame.depth_m.shape
+    window = np.zeros((h, w), bool)
+    window[max(v - reach_px, 0):v + reach_px + 1:2, max(u - reach_px, 0):u + reach_px + 1:2] = True
+    window &= ~robot & (frame.depth_m > 0)
+    points = depth_to_points(frame.depth_m, K.K, window, frame.T_base_camera)
+    if len(points) < MIN_SEED_POINTS:
+        return point, normal
+    camera = np.asarray(frame.T_base_camera, float)[:3, 3]
+    z = np.linalg.norm(points - camera, axis=1)
+    noise = NOISE_SIGMAS * D415.sigma_m(z, K.fx) + QUANTUM_M
+    for slope in REFINE_SLOPES_DEG:
+        distance = np.linalg.norm(points - point, axis=1)
+        keep = (distance < REFINE_RADIUS_M) & (np.abs((points - point) @ normal) < noise + distance * np.tan(
+            np.radians(slope)))
+        if np.count_nonzero(keep) < MIN_SEED_POINTS:
+            break
+        centre = points[keep].mean(axis=0)
+        fitted = np.zeros(3)  # fronts are vertical: the normal is horizontal, the line the points make seen from above
+        fitted[:2] = np.linalg.svd((points[keep] - centre)[:, :2], full_matrices=False)[2][1]
+        normal = fitted if fitted @ normal >= 0 else -fitted
+        point = point - ((point - centre) @ normal) * normal  # the seed's point, moved onto the new plane
+    return point, normal
+
+
+def visible_range(frame: Frame, plane: PlaneFrame) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The plane coordinates (s, z) the image can show, within the largest front's size either way of the origin."""
+    h, w = frame.depth_m.shape
+    border = np.concatenate([np.stack([np.linspace(0, w - 1, 33), np.full(33, y)], 1) for y in (0, h - 1)]
+                            + [np.stack([np.full(25, x), np.linspace(0, h - 1, 25)], 1) for x in (0, w - 1)])
+    T = np.asarray(frame.T_base_camera, float)
+    rays = (T[:3, :3] @ np.linalg.solve(frame.intrinsics.K, np.c_[border, np.ones(len(border))].T)).T
+    camera = T[:3, 3]
+    along = rays @ plane.normal
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = ((plane.origin - camera) @ plane.normal) / along
+    limits = np.array([MAX_FRONT_WIDTH_M, MAX_FRONT_HEIGHT_M])
+    hits = t > 0
+    if not hits.all():  # some of the image's border never meets the plane: the view reaches the limits there
+        return (-limits[0], limits[0]), (-limits[1], limits[1])
+    sz = plane.coordinates(camera + t[:, None] * rays)[:, :2]
+    lo, hi = np.maximum(sz.min(axis=0), -limits), np.minimum(sz.max(axis=0), limits)
+    return (float(lo[0]), float(hi[0])), (float(lo[1]), float(hi[1]))
+
+
+def front_plane(frame: Frame, robot: np.ndarray, u: int, v: int) -> tuple[PlaneFrame, float]:
+    """The plane frame of the vertical surface at pixel (u, v) (origin where the pixel's ray meets it) and the depth
+    there; PointerError for a surface that is not vertical (the floor, a counter top, a slanted face)."""
+    point, normal, depth = seed_plane(frame, robot, u, v)
+    tilt = tilt_deg(normal)
+    if tilt > FLAT_TILT_DEG:
+        where = "below" if point[2] < 0 else "above"
+        raise PointerError(f"pixel ({u}, {v}) is on a horizontal surface {abs(point[2]):.2f} m {where} the arm's base "
+                           f"(tilted {tilt:.0f} deg from vertical: the floor, a counter or a shelf top), not on a "
+                           "front: point at the drawer's or door's front panel")
+    if tilt > FRONT_TILT_DEG:
+        raise PointerError(f"pixel ({u}, {v}) is on a surface tilted {tilt:.0f} deg from vertical, not on a front "
+                           f"(fronts are vertical, within {FRONT_TILT_DEG:.0f} deg): point at the drawer's or door's "
+                           "front panel")
+    normal = np.array([normal[0], normal[1], 0.0]) / np.linalg.norm(normal[:2])
+    point, normal = refine_plane(frame, robot, point, normal, depth)
+    camera, ray = pixel_ray(frame, u, v)
+    origin = camera + ray * ((point - camera) @ normal) / (ray @ normal)
+    return PlaneFrame.facing(origin, normal, camera), depth
+
+
+def find_front(frame: Frame, robot: np.ndarray, u: int, v: int) -> Front:
+    """The front at pixel (u, v) (see the module docstring)."""
+    plane, depth = front_plane(frame, robot, u, v)
+    s_range, z_range = visible_range(frame, plane)
+    res_m = depth / frame.intrinsics.fx  # a cell is about a pixel at the seed
+    view = rectify(frame, robot, plane, s_range, z_range, res_m)
+    seed = (int(view.row(0.0)), int(view.col(0.0)))
+    extent = front_extent(view, seed)
+    extent = split_by_handles(view, extent, handle_blobs(view, extent, frame.T_base_camera, frame.intrinsics.K))
+    s0, s1 = view.s(extent.left - 0.5), view.s(extent.right + 0.5)
+    z1, z0 = view.z(extent.top - 0.5), view.z(extent.bottom + 0.5)
+    centre = plane.point((s0 + s1) / 2, (z0 + z1) / 2)
+    centred = PlaneFrame(centre, plane.normal, plane.right, plane.up)
+    corners = plane.point(np.array([s0, s1, s1, s0]), np.array([z1, z1, z0, z0]))
+    mask = front_pixels(frame, robot, plane, (s0, s1), (z0, z1))
+    return Front(centred, float(s1 - s0), float(z1 - z0), corners, mask, dict(extent.ended), view, extent)
+
+
+def front_pixels(frame: Frame, robot: np.ndarray, plane: PlaneFrame, s_range: tuple[float, float],
+                 z_range: tuple[float, float]) -> np.ndarray:
+    """The image's pixels whose ray meets the plane inside the rectangle and whose depth lies on the plane (or is
+    missing, or lies behind it: a pocket of the front), not the arm's: the front's pixels, its handle left out."""
+    h, w = frame.depth_m.shape
+    K = frame.intrinsics
+    T = np.asarray(frame.T_base_camera, float)
+    n_cam = T[:3, :3].T @ plane.normal
+    o_cam = T[:3, :3].T @ (plane.origin - T[:3, 3])
+    r_cam, u_cam = T[:3, :3].T @ plane.right, T[:3, :3].T @ plane.up
+    x = (np.arange(w) - K.cx) / K.fx
+    y = (np.arange(h) - K.cy) / K.fy
+    along = n_cam[0] * x[None, :] + n_cam[1] * y[:, None] + n_cam[2]  # n . ray per unit depth
+    with np.errstate(divide="ignore", invalid="ignore"):
+        zp = (o_cam @ n_cam) / along  # the plane's depth along each pixel's ray
+        s = (x[None, :] * zp - o_cam[0]) * r_cam[0] + (y[:, None] * zp - o_cam[1]) * r_cam[1] + (zp - o_cam[2]) * r_cam[2]
+        z = (x[None, :] * zp - o_cam[0]) * u_cam[0] + (y[:, None] * zp - o_cam[1]) * u_cam[1] + (zp - o_cam[2]) * u_cam[2]
+        inside = (zp > 0) & (s >= s_range[0]) & (s <= s_range[1]) & (z >= z_range[0]) & (z <= z_range[1])
+        depth = frame.depth_m
+        tolerance = NOISE_SIGMAS * D415.sigma_m(zp, K.fx) + QUANTUM_M
+        not_in_front = (depth <= 0) | (depth >= zp - tolerance)
+    return inside & not_in_front & ~robot
+
+
+def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Extent:
+    """The rectangle cut between the seed's handle and every other handle inside it: each front carries one, so a
+    rectangle holding several spans more than one front (the gaps between them were not seen). The cut runs midway
+    between the two handles, across the direction that separates them; the seed (the view's origin) stays inside."""
+    inside = [b for b in blobs if b.inside and b.firm and b.length_m < 0.95 * _span(view, extent, b.axis)]
+    if len(inside) < 2:
+        return extent
+    seed = np.zeros(2)
+    own = min(inside, key=lambda b: segment_distance(b, seed))
+    top, bottom, left, right = extent.top, extent.bottom, extent.left, extent.right
+    ended = dict(extent.ended)
+    s0, s1, z0, z1 = bounds(own, view)
+    for other in inside:
+        if other is own:
+            continue
+        o0, o1, p0, p1 = bounds(other, view)
+        apart_s, apart_z = max(o0 - s1, s0 - o1), max(p0 - z1, z0 - p1)
+        mid = (own.centre + other.centre) / 2
+        if apart_s >= apart_z:  # side by side: a vertical cut
+            col = int(view.col(mid[0]))
+            if other.centre[0] > own.centre[0] and col > view.col(0.0):
+                right, ended["right"] = min(right, col), "handle"
+            elif other.centre[0] < own.centre[0] and col < view.col(0.0):
+                left, ended["left"] = max(left, col), "handle"
+        else:
+            row = int(view.row(mid[1]))
+            if other.centre[1] > own.centre[1] and row < view.row(0.0):
+                top, ended["top"] = max(top, row), "handle"
+            elif other.centre[1] < own.centre[1] and row > view.row(0.0):
+                bottom, ended["bottom"] = min(bottom, row), "handle"
+    return Extent(top, bottom, left, right, ended)
+
+
+def _span(view: PlaneView, extent: Extent, axis: np.ndarray) -> float:
+    """The rectangle's size (m) along a direction (s, z) in the plane."""
+    width, height = (extent.right - extent.left + 1) * view.res_m, (extent.bottom - extent.top + 1) * view.res_m
+    return float(abs(axis[0]) * width + abs(axis[1]) * height)

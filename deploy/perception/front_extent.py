@@ -1,0 +1,138 @@
+"""Where a front ends, in its rectified view: the rectangle around the user's pixel bounded by the gaps between
+fronts and by the places where the front's surface stops.
+
+Fronts are rectangles in a vertical plane. From the seed cell the rectangle grows one side at a time, along the
+profile of the cells of that side's band (the rows or columns the rectangle spans so far), until one of:
+- a gap: a thin line (at most GAP_LINE_M wide) darker or lighter than the surface on both sides, along most of the
+  band (the slit between two fronts);
+- the surface ends: more than HANDLE_BAND_M of cells off the plane (a counter's overhang, a plinth, the floor, a
+  wall, a neighbour standing out). Shorter stretches are a handle, its shadow or a pocket, and are crossed;
+- the view ends (the image's border): the side is marked cut.
+Cells the camera does not see (the arm, no depth) are neither surface nor boundary: they are crossed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from deploy.perception.plane_view import PlaneView
+
+GAP_LINE_M = 0.006  # a gap between fronts is 2-4 mm; with a pixel of blur either side it stays under this
+GAP_CONTRAST = 0.02  # a gap line differs from the surface on both sides by at least this (of full scale, averaged
+# along it): a slit in shadow, or a lit carcass edge behind it; 2 % is five 8-bit levels, above the sensor's noise
+GAP_SEGMENT_M = 0.03  # the line is judged per stretch of this length along it ...
+GAP_SHARE = 0.5  # ... and must show in at least this share of the stretches the band sees (a handle may hide it)
+HANDLE_BAND_M = 0.10  # the widest stretch across a front that is not its surface: a handle, its shadow, a pocket
+RESUME_M = 0.03  # past a handle the front's surface goes on for at least this (a surface crossing the plane, such as
+# the floor at a plinth's foot, lies on it only for a narrow band)
+SURFACE_SHARE = 0.5  # a line of the band is the front's surface when at least this share of its seen cells are
+MIN_SEEN_SHARE = 0.2  # a line with fewer of its cells seen says nothing
+START_HALF_M = 0.08  # the first band: this far either side of the seed (half the narrowest drawer's width)
+
+
+@dataclass(frozen=True)
+class Extent:
+    """A front's rectangle in its view's grid: rows [top, bottom] and columns [left, right] (inclusive), and what
+    ended each side: "gap", "surface" (the surface stopped) or "view" (the image's border: the side is cut)."""
+
+    top: int
+    bottom: int
+    left: int
+    right: int
+    ended: dict[str, str]
+
+
+def front_extent(view: PlaneView, seed: tuple[int, int]) -> Extent:
+    """The front's rectangle around the seed cell (row, col) of `view` (see the module docstring)."""
+    surface = np.where(view.on_plane, 1.0, np.where(view.seen & ~np.isnan(view.offset_m), 0.0, np.nan))
+    half = max(int(round(START_HALF_M / view.res_m)), 2)
+    r, c = seed
+    rows, cols = (r, r), (c - half, c + half)
+    ended: dict[str, str] = {}
+    for _ in range(2):
+        (top, ended["top"]), (bottom, ended["bottom"]) = _grow(view, surface, view.gray, seed, cols, axis=0)
+        rows = (top, bottom)
+        (left, ended["left"]), (right, ended["right"]) = _grow(view, surface, view.gray, seed, rows, axis=1)
+        cols = (left, right)
+    return Extent(rows[0], rows[1], cols[0], cols[1], ended)
+
+
+def _grow(view: PlaneView, surface: np.ndarray, gray: np.ndarray, seed: tuple[int, int], band: tuple[int, int],
+          axis: int) -> tuple[tuple[int, str], tuple[int, str]]:
+    """Both ends along `axis` (0: rows, up and down; 1: columns) of the front through `seed`, judged over the
+    cells `band` (inclusive) across it."""
+    lo, hi = max(band[0], 0), min(band[1], surface.shape[1 - axis] - 1)
+    if axis == 0:
+        cells, grey = surface[:, lo:hi + 1], gray[:, lo:hi + 1]
+    else:
+        cells, grey = surface[lo:hi + 1].T, gray[lo:hi + 1].T
+    seen = np.sum(~np.isnan(cells), axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = np.where(seen >= MIN_SEEN_SHARE * cells.shape[1], np.nansum(cells, axis=1) / seen, np.nan)
+    lines = gap_lines(grey, cells == 1.0, view.res_m)
+    start = seed[axis]
+    return _walk(share, lines, start, -1, view.res_m), _walk(share, lines, start, 1, view.res_m)
+
+
+def _walk(share: np.ndarray, lines: np.ndarray, start: int, step: int, res_m: float) -> tuple[int, str]:
+    """From `start` in direction `step`: the last line of the front's surface before a gap, the surface's end or the
+    profile's end, and which of these ended it."""
+    band_limit = int(np.ceil(HANDLE_BAND_M / res_m))
+    resume = int(np.ceil(RESUME_M / res_m))
+    last, off, on = start, 0, resume
+    i = start + step
+    while 0 <= i < len(share):
+        if lines[i]:
+            return last, "gap"
+        if np.isnan(share[i]):
+            i += step
+            continue
+        if share[i] < SURFACE_SHARE:
+            off, on = off + 1, 0
+            if off > band_limit:
+                return last, "surface"
+        else:
+            on += 1
+            if on >= resume:  # the surface goes on (not a surface crossing the plane: the floor, a shelf)
+                off, last = 0, i
+        i += step
+    return last, "view"
+
+
+def gap_lines(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
+    """Bool per line (row of `grey`): a gap line runs along it (see GAP_*). `surface`: the cells of the front's
+    surface, the only ones judged."""
+    n_lines, length = grey.shape
+    widest = max(int(round(GAP_LINE_M / res_m)), 1)
+    segment = max(int(round(GAP_SEGMENT_M / res_m)), 4)
+    n_seg = max(length // segment, 1)
+    usable = min(n_seg * segment, length)
+    reach = widest + 2  # the line's sides must be the front's surface this far out: not a handle's or a shadow's edge
+    judged = cv2.erode(surface.astype(np.uint8), np.ones((2 * reach + 1, 1), np.uint8)).astype(bool)
+    g = np.where(surface, grey, np.nan)[:, :usable]
+    g_judged = judged[:, :usable]
+    best = np.zeros(n_lines, bool)
+    for k in range(1, widest + 1):  # the line's half-width plus one: its sides are k lines away
+        before, after = np.full_like(g, np.nan), np.full_like(g, np.nan)
+        before[k:], after[:-k] = g[:-k], g[k:]
+        for sign in (1.0, -1.0):  # darker or lighter than both sides
+            response = np.where(g_judged, np.fmin(sign * (before - g), sign * (after - g)), np.nan)
+            with np.errstate(invalid="ignore"):
+                per_segment = _segment_means(response, n_seg)
+                shown = np.sum(per_segment >= GAP_CONTRAST, axis=1)
+                judged = np.sum(~np.isnan(per_segment), axis=1)
+            best |= (judged > 0) & (shown >= GAP_SHARE * np.maximum(judged, 1))
+    return best
+
+
+def _segment_means(response: np.ndarray, n_seg: int) -> np.ndarray:
+    """Mean of `response` over each of `n_seg` equal stretches of every line (NaN where a stretch has no value)."""
+    n_lines, length = response.shape
+    parts = response.reshape(n_lines, n_seg, length // n_seg)
+    counts = np.sum(~np.isnan(parts), axis=2)
+    sums = np.nansum(parts, axis=2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(counts >= 2, sums / counts, np.nan)
