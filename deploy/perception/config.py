@@ -16,7 +16,7 @@ class PerceptionConfig(BaseModel):
 
     detector / tracker: a local directory or a Hugging Face repo id looked up in the local cache
     (never downloaded here: fetch with `hf download REPO_ID`). box: first-frame box (x0, y0, x1, y1)
-    in pixels; with it the detector is skipped.
+    in pixels; point: a first-frame pixel (u, v) on the part; with either the object's detection is skipped.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -29,6 +29,8 @@ class PerceptionConfig(BaseModel):
     box_threshold: float = Field(default=0.25, ge=0, le=1)
     text_threshold: float = Field(default=0.3, ge=0, le=1)
     box: tuple[float, float, float, float] | None = None
+    point: tuple[float, float] | None = Field(default=None, description="first-frame pixel (u, v) on the part the user "
+                                              "means: gdino-sam2 prompts the tracker with it (with `box` if given)")
     min_area_ratio: float = Field(default=0.3, ge=0, le=1, description="lost below this x the first mask's area")
     min_iou: float = Field(default=0.3, ge=0, le=1, description="lost below this IoU with the previous mask")
     max_redetections: int = Field(default=3, ge=0, description="re-detection attempts on a lost frame before stopping")

@@ -242,3 +242,18 @@ def _span(view: PlaneView, extent: Extent, axis: np.ndarray) -> float:
     """The rectangle's size (m) along a direction (s, z) in the plane."""
     width, height = (extent.right - extent.left + 1) * view.res_m, (extent.bottom - extent.top + 1) * view.res_m
     return float(abs(axis[0]) * width + abs(axis[1]) * height)
+
+
+def plane_coordinates(plane: PlaneFrame, depth_m: np.ndarray, K: np.ndarray,
+                      T_base_camera: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(s, z, offset) images (m) of every pixel's measured point in `plane`'s frame (NaN where there is no depth)."""
+    h, w = depth_m.shape
+    T = np.asarray(T_base_camera, float)
+    depth = np.where(depth_m > 0, depth_m, np.nan).astype(np.float64)
+    x = (np.arange(w) - K[0, 2]) / K[0, 0]
+    y = (np.arange(h) - K[1, 2]) / K[1, 1]
+    out = []
+    for axis in (plane.right, plane.up, plane.normal):
+        a = T[:3, :3].T @ axis  # the axis in the camera frame
+        out.append(depth * (a[0] * x[None, :] + a[1] * y[:, None] + a[2]) + (T[:3, 3] - plane.origin) @ axis)
+    return out[0], out[1], out[2]

@@ -47,7 +47,7 @@ class Extent:
 
 def front_extent(view: PlaneView, seed: tuple[int, int]) -> Extent:
     """The front's rectangle around the seed cell (row, col) of `view` (see the module docstring)."""
-    surface = np.where(view.on_plane, 1.0, np.where(view.seen & ~np.isnan(view.offset_m), 0.0, np.nan))
+    surface = _surface(view)
     half = max(int(round(START_HALF_M / view.res_m)), 2)
     r, c = seed
     rows, cols = (r, r), (c - half, c + half)
@@ -75,6 +75,22 @@ def _grow(view: PlaneView, surface: np.ndarray, gray: np.ndarray, seed: tuple[in
     lines = gap_lines(grey, cells == 1.0, view.res_m)
     start = seed[axis]
     return _walk(share, lines, start, -1, view.res_m), _walk(share, lines, start, 1, view.res_m)
+
+
+def surface_walk(view: PlaneView, extent: Extent) -> tuple[tuple[int, str], tuple[int, str]]:
+    """(row, what ended it) above and below `extent` where the surface of its columns ends, gaps crossed: the top and
+    bottom of the face the front is part of."""
+    surface = _surface(view)[:, extent.left:extent.right + 1]
+    seen = np.sum(~np.isnan(surface), axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = np.where(seen >= MIN_SEEN_SHARE * surface.shape[1], np.nansum(surface, axis=1) / seen, np.nan)
+    none = np.zeros(len(share), bool)
+    return _walk(share, none, extent.top, -1, view.res_m), _walk(share, none, extent.bottom, 1, view.res_m)
+
+
+def _surface(view: PlaneView) -> np.ndarray:
+    """Per cell: 1 on the plane's surface, 0 off it, NaN unknown (not seen, no depth)."""
+    return np.where(view.on_plane, 1.0, np.where(view.seen & ~np.isnan(view.offset_m), 0.0, np.nan))
 
 
 def _walk(share: np.ndarray, lines: np.ndarray, start: int, step: int, res_m: float) -> tuple[int, str]:
