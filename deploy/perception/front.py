@@ -26,6 +26,8 @@ FLAT_TILT_DEG = 45.0  # a surface tilted more than this from vertical faces up o
 REFINE_RADIUS_M = 0.5  # the plane is refined over the surface this far around the pixel (neighbouring fronts are
 # coplanar and help) ...
 REFINE_SLOPES_DEG = (5.0, 2.0, 0.5)  # ... keeping points within the noise plus these slopes of their distance
+FLOOR_STEP_M = 0.05  # a horizontal surface with things more than this below it is not the floor ...
+FLOOR_SHARE = 0.02  # ... when they fill at least this share of the view (more than depth noise and flying pixels)
 MAX_FRONT_WIDTH_M = 1.2  # the widest drawer or door fronts of real furniture
 MAX_FRONT_HEIGHT_M = 2.4  # the tallest (a tall unit's door)
 
@@ -36,7 +38,8 @@ class Front:
     camera), `right` and `up` along its sides; `width_m` x `height_m`; `corners` (4, 3) base frame, as seen facing
     it: top left, top right, bottom right, bottom left; `mask` (H, W) its pixels (not its handle); `ended` what
     ended each side ("gap", "surface", "view": the image's border, the side is cut and the front may be larger);
-    `view` and `extent` the rectified view and the rectangle's cells in it (for the handle search)."""
+    `view` and `extent` the rectified view and the rectangle's cells in it (for the handle search). Sides also end at
+    "handle" (cut between two handles: the gap was not seen) and "box" (the user's box)."""
 
     plane: PlaneFrame
     width_m: float
@@ -86,6 +89,15 @@ def seed_plane(frame: Frame, robot: np.ndarray, u: int, v: int) -> tuple[np.ndar
 def tilt_deg(normal: np.ndarray) -> float:
     """How far a surface with `normal` is tilted from vertical (deg)."""
     return float(np.degrees(np.arcsin(min(abs(float(normal @ UP)) / np.linalg.norm(normal), 1.0))))
+
+
+def _flat_surface(frame: Frame, robot: np.ndarray, point: np.ndarray) -> str:
+    """What a horizontal surface at `point` is: the floor when almost nothing in view lies lower, else a counter, a
+    table or a shelf top."""
+    points = depth_to_points(frame.depth_m[::4, ::4], np.diag([0.25, 0.25, 1.0]) @ frame.intrinsics.K,
+                             ~robot[::4, ::4], frame.T_base_camera)
+    lower = np.count_nonzero(points[:, 2] < point[2] - FLOOR_STEP_M)
+    return "the floor" if lower < FLOOR_SHARE * max(len(points), 1) else "a counter, table or shelf top"
 
 
 def refine_plane(frame: Frame, robot: np.ndarray, point: np.ndarray, normal: np.ndarray,
@@ -149,9 +161,9 @@ def front_plane(frame: Frame, robot: np.ndarray, u: int, v: int) -> tuple[PlaneF
     tilt = tilt_deg(normal)
     if tilt > FLAT_TILT_DEG:
         where = "below" if point[2] < 0 else "above"
-        raise PointerError(f"pixel ({u}, {v}) is on a horizontal surface {abs(point[2]):.2f} m {where} the arm's base "
-                           f"(tilted {tilt:.0f} deg from vertical: the floor, a counter or a shelf top), not on a "
-                           "front: point at the drawer's or door's front panel")
+        raise PointerError(f"pixel ({u}, {v}) is on {_flat_surface(frame, robot, point)} ({abs(point[2]):.2f} m "
+                           f"{where} the arm's base, tilted {tilt:.0f} deg from vertical), not on a front: point at "
+                           "the drawer's or door's front panel")
     if tilt > FRONT_TILT_DEG:
         raise PointerError(f"pixel ({u}, {v}) is on a surface tilted {tilt:.0f} deg from vertical, not on a front "
                            f"(fronts are vertical, within {FRONT_TILT_DEG:.0f} deg): point at the drawer's or door's "
@@ -163,8 +175,9 @@ def front_plane(frame: Frame, robot: np.ndarray, u: int, v: int) -> tuple[PlaneF
     return PlaneFrame.facing(origin, normal, camera), depth
 
 
-def find_front(frame: Frame, robot: np.ndarray, u: int, v: int) -> Front:
-    """The front at pixel (u, v) (see the module docstring)."""
+def find_front(frame: Frame, robot: np.ndarray, u: int, v: int,
+               box: tuple[float, float, float, float] | None = None) -> Front:
+    """The front at pixel (u, v) (see the module docstring), within the user's `box` (pixels) when given."""
     plane, depth = front_plane(frame, robot, u, v)
     s_range, z_range = visible_range(frame, plane)
     res_m = depth / frame.intrinsics.fx  # a cell is about a pixel at the seed
@@ -172,6 +185,8 @@ def find_front(frame: Frame, robot: np.ndarray, u: int, v: int) -> Front:
     seed = (int(view.row(0.0)), int(view.col(0.0)))
     extent = front_extent(view, seed)
     extent = split_by_handles(view, extent, handle_blobs(view, extent, frame.T_base_camera, frame.intrinsics.K))
+    if box is not None:
+        extent = _clipped(frame, view, extent, box)
     s0, s1 = view.s(extent.left - 0.5), view.s(extent.right + 0.5)
     z1, z0 = view.z(extent.top - 0.5), view.z(extent.bottom + 0.5)
     centre = plane.point((s0 + s1) / 2, (z0 + z1) / 2)
@@ -179,6 +194,32 @@ def find_front(frame: Frame, robot: np.ndarray, u: int, v: int) -> Front:
     corners = plane.point(np.array([s0, s1, s1, s0]), np.array([z1, z1, z0, z0]))
     mask = front_pixels(frame, robot, plane, (s0, s1), (z0, z1))
     return Front(centred, float(s1 - s0), float(z1 - z0), corners, mask, dict(extent.ended), view, extent)
+
+
+def _clipped(frame: Frame, view: PlaneView, extent: Extent, box: tuple[float, float, float, float]) -> Extent:
+    """`extent` within the user's box: the box's corners seen on the plane bound it (sides the box cuts end "box")."""
+    x0, y0, x1, y1 = box
+    corners = []
+    for x, y in ((x0, y0), (x1, y0), (x1, y1), (x0, y1)):
+        camera, ray = pixel_ray(frame, x, y)
+        along = ray @ view.plane.normal
+        if along >= -1e-6:  # a corner's ray misses the plane: the box does not bound it there
+            return extent
+        corners.append(camera + ray * ((view.plane.origin - camera) @ view.plane.normal) / along)
+    sz = view.plane.coordinates(np.array(corners))
+    cols = view.col(np.array([sz[:, 0].min(), sz[:, 0].max()]))
+    rows = view.row(np.array([sz[:, 1].max(), sz[:, 1].min()]))
+    ended = dict(extent.ended)
+    top, bottom, left, right = extent.top, extent.bottom, extent.left, extent.right
+    if rows[0] > top:
+        top, ended["top"] = int(rows[0]), "box"
+    if rows[1] < bottom:
+        bottom, ended["bottom"] = int(rows[1]), "box"
+    if cols[0] > left:
+        left, ended["left"] = int(cols[0]), "box"
+    if cols[1] < right:
+        right, ended["right"] = int(cols[1]), "box"
+    return Extent(top, bottom, left, right, ended)
 
 
 def front_pixels(frame: Frame, robot: np.ndarray, plane: PlaneFrame, s_range: tuple[float, float],
@@ -196,8 +237,9 @@ def front_pixels(frame: Frame, robot: np.ndarray, plane: PlaneFrame, s_range: tu
     along = n_cam[0] * x[None, :] + n_cam[1] * y[:, None] + n_cam[2]  # n . ray per unit depth
     with np.errstate(divide="ignore", invalid="ignore"):
         zp = (o_cam @ n_cam) / along  # the plane's depth along each pixel's ray
-        s = (x[None, :] * zp - o_cam[0]) * r_cam[0] + (y[:, None] * zp - o_cam[1]) * r_cam[1] + (zp - o_cam[2]) * r_cam[2]
-        z = (x[None, :] * zp - o_cam[0]) * u_cam[0] + (y[:, None] * zp - o_cam[1]) * u_cam[1] + (zp - o_cam[2]) * u_cam[2]
+        d = (x[None, :] * zp - o_cam[0], y[:, None] * zp - o_cam[1], zp - o_cam[2])  # from the origin, camera frame
+        s = d[0] * r_cam[0] + d[1] * r_cam[1] + d[2] * r_cam[2]
+        z = d[0] * u_cam[0] + d[1] * u_cam[1] + d[2] * u_cam[2]
         inside = (zp > 0) & (s >= s_range[0]) & (s <= s_range[1]) & (z >= z_range[0]) & (z <= z_range[1])
         depth = frame.depth_m
         tolerance = NOISE_SIGMAS * D415.sigma_m(zp, K.fx) + QUANTUM_M

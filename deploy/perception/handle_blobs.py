@@ -89,7 +89,8 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     offset, tolerance = view.smooth_m[sl], view.tolerance_m[sl]
     inner = int(np.ceil(POCKET_INSET_M / view.res_m))
     inside = np.zeros(offset.shape, bool)
-    inside[extent.top - r0 + inner:extent.bottom - r0 + 1 - inner, extent.left - c0 + inner:extent.right - c0 + 1 - inner] = True
+    inside[extent.top - r0 + inner:extent.bottom - r0 + 1 - inner,
+           extent.left - c0 + inner:extent.right - c0 + 1 - inner] = True
     with np.errstate(invalid="ignore"):
         out = (offset > tolerance) & (offset <= MAX_STANDOFF_M)
         pocket = inside & (offset < -tolerance) & (offset >= -MAX_POCKET_M)
@@ -97,16 +98,21 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     candidate = _without_structure((out | pocket | other) & view.seen[sl], view.seen[sl])
     join = max(int(round(JOIN_M / view.res_m)), 1)
     joined = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
-    count, labels = cv2.connectedComponents(joined, connectivity=8)
-    surface = view.on_plane[sl]
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
+    surface, seen = view.on_plane[sl], view.seen[sl]
     ring_kernel = np.ones((2 * join + 1, 2 * join + 1), np.uint8)
+    smallest = MIN_SIZE_M / view.res_m
     blobs = []
     for label in range(1, count):
-        member = labels == label
-        rows, cols = np.nonzero(member & candidate)
-        ring = cv2.dilate(member.astype(np.uint8), ring_kernel).astype(bool) & ~member & view.seen[sl]
-        rim = float(np.count_nonzero(ring & surface)) / max(np.count_nonzero(ring), 1)
-        blob = _blob(view, rows + r0, cols + c0, extent, camera_to_base, K, rim)
+        x, y, bw, bh, _ = stats[label]
+        if max(bw, bh) < smallest:
+            continue
+        box = (slice(max(y - join, 0), y + bh + join), slice(max(x - join, 0), x + bw + join))
+        member = labels[box] == label
+        rows, cols = np.nonzero(member & candidate[box])
+        ring = cv2.dilate(member.astype(np.uint8), ring_kernel).astype(bool) & ~member & seen[box]
+        rim = float(np.count_nonzero(ring & surface[box])) / max(np.count_nonzero(ring), 1)
+        blob = _blob(view, rows + r0 + box[0].start, cols + c0 + box[1].start, extent, camera_to_base, K, rim)
         if blob is not None:
             blobs.append(blob)
     return blobs

@@ -13,6 +13,7 @@ camera than the plane) and the D415's depth noise there.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -68,8 +69,8 @@ class PlaneView:
     res_m: float
     s_min: float
     z_max: float
+    color: np.ndarray  # (rows, cols, 3) uint8 RGB
     gray: np.ndarray  # float32, 0-1
-    lab: np.ndarray  # (rows, cols, 3) float32, OpenCV's 8-bit Lab scale
     seen: np.ndarray  # inside the image and not the arm
     offset_m: np.ndarray  # float32, NaN where there is no depth
     smooth_m: np.ndarray  # float32, the offset averaged over SMOOTH_CELLS (NaN where a cell has no depth)
@@ -100,24 +101,29 @@ class PlaneView:
         cam = np.stack([(uv[:, 0] - K[0, 2]) / K[0, 0] * depth, (uv[:, 1] - K[1, 2]) / K[1, 1] * depth, depth], 1)
         return self.plane.coordinates(cam @ camera_to_base[:3, :3].T + camera_to_base[:3, 3])
 
-    @property
+    @cached_property
+    def lab(self) -> np.ndarray:
+        """(rows, cols, 3) float32 colour in OpenCV's 8-bit Lab scale."""
+        return cv2.cvtColor(self.color, cv2.COLOR_RGB2LAB).astype(np.float32)
+
+    @cached_property
     def on_plane(self) -> np.ndarray:
         """Cells whose depth lies on the plane within the sensor's noise."""
         with np.errstate(invalid="ignore"):
             return self.seen & (np.abs(self.smooth_m) <= self.tolerance_m)
 
-    @property
+    @cached_property
     def in_front(self) -> np.ndarray:
         """Cells whose depth lies nearer the camera than the plane, beyond the noise."""
         with np.errstate(invalid="ignore"):
             return self.seen & (self.smooth_m > self.tolerance_m)
 
-    @property
+    @cached_property
     def behind(self) -> np.ndarray:
         with np.errstate(invalid="ignore"):
             return self.seen & (self.smooth_m < -self.tolerance_m)
 
-    @property
+    @cached_property
     def no_depth(self) -> np.ndarray:
         return self.seen & np.isnan(self.offset_m)
 
@@ -134,14 +140,14 @@ def rectify(frame: Frame, robot: np.ndarray, plane: PlaneFrame, s_range: tuple[f
     h, w = frame.depth_m.shape
     cols = max(int(np.ceil((s_range[1] - s_range[0]) / res_m)), 1)
     rows = max(int(np.ceil((z_range[1] - z_range[0]) / res_m)), 1)
-    s = s_range[0] + np.arange(cols) * res_m
-    z = z_range[1] - np.arange(rows) * res_m
+    s = (s_range[0] + np.arange(cols) * res_m).astype(np.float32)
+    z = (z_range[1] - np.arange(rows) * res_m).astype(np.float32)
     T = image_to_camera(frame)
     K = frame.intrinsics
     # camera coordinates of every cell, built from the plane's axes in the camera frame (no (rows, cols, 3) temporaries
     # beyond the three coordinates)
     o, r, u = T[:3, :3] @ plane.origin + T[:3, 3], T[:3, :3] @ plane.right, T[:3, :3] @ plane.up
-    cam = [o[i] + s[None, :] * r[i] + z[:, None] * u[i] for i in range(3)]
+    cam = [np.float32(o[i]) + s[None, :] * np.float32(r[i]) + z[:, None] * np.float32(u[i]) for i in range(3)]
     zc = np.maximum(cam[2], 1e-6)
     map_u = (cam[0] / zc * K.fx + K.cx).astype(np.float32)
     map_v = (cam[1] / zc * K.fy + K.cy).astype(np.float32)
@@ -150,19 +156,19 @@ def rectify(frame: Frame, robot: np.ndarray, plane: PlaneFrame, s_range: tuple[f
     nearest = dict(interpolation=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
     robot_here = cv2.remap(robot.astype(np.uint8), map_u, map_v, **nearest).astype(bool)
     seen = inside & ~robot_here
-    color = np.ascontiguousarray(frame.color)
-    lab = cv2.remap(cv2.cvtColor(color, cv2.COLOR_RGB2LAB), map_u, map_v, cv2.INTER_LINEAR).astype(np.float32)
-    gray = cv2.remap(cv2.cvtColor(color, cv2.COLOR_RGB2GRAY), map_u, map_v, cv2.INTER_LINEAR).astype(np.float32) / 255
+    color = cv2.remap(np.ascontiguousarray(frame.color), map_u, map_v, cv2.INTER_LINEAR)
+    gray = cv2.cvtColor(color, cv2.COLOR_RGB2GRAY).astype(np.float32) / 255
     depth = cv2.remap(np.asarray(frame.depth_m, np.float32), map_u, map_v, **nearest)
     with np.errstate(invalid="ignore", divide="ignore"):
         n_cam = T[:3, :3] @ plane.normal
-        ray = [(map_u - K.cx) / K.fx, (map_v - K.cy) / K.fy]
-        along = np.abs(n_cam[0] * ray[0] + n_cam[1] * ray[1] + n_cam[2])  # |n . ray| per unit of depth
+        along = np.abs(np.float32(n_cam[0] / K.fx) * (map_u - np.float32(K.cx))
+                       + np.float32(n_cam[1] / K.fy) * (map_v - np.float32(K.cy)) + np.float32(n_cam[2]))  # |n . ray|
         offset = np.where(seen & (depth > 0), (zc - depth) * along, np.nan).astype(np.float32)
-        tolerance = (NOISE_SIGMAS * SMOOTH_NOISE * D415.sigma_m(zc, K.fx) * along + QUANTUM_M).astype(np.float32)
+        noise = np.float32(NOISE_SIGMAS * SMOOTH_NOISE * D415.subpixel / (K.fx * D415.baseline_m))  # sigma_z / z^2
+        tolerance = noise * zc * zc * along + np.float32(QUANTUM_M)
         valid = (~np.isnan(offset)).astype(np.float32)
         box = dict(ksize=(SMOOTH_CELLS, SMOOTH_CELLS), normalize=False, borderType=cv2.BORDER_CONSTANT)
         smooth = cv2.boxFilter(np.nan_to_num(offset), -1, **box) / cv2.boxFilter(valid, -1, **box)
         smooth[np.isnan(offset)] = np.nan
-    return PlaneView(plane, res_m, float(s_range[0]), float(z_range[1]), gray, lab, seen, offset, smooth,
+    return PlaneView(plane, res_m, float(s_range[0]), float(z_range[1]), color, gray, seen, offset, smooth,
                      np.where(seen, depth, 0.0).astype(np.float32), tolerance, np.stack([map_u, map_v], axis=-1))
