@@ -9,13 +9,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
-import open3d as o3d
 
 from deploy.errors import PointerError
 from deploy.geometry.cloud import depth_to_points
+from deploy.geometry.planes import dominant_plane
 from deploy.perception.front_extent import Extent, front_extent
-from deploy.perception.handle_blobs import Blob, bounds, handle_blobs, segment_distance
+from deploy.perception.handle_blobs import MAX_POCKET_M, Blob, bounds, handle_blobs, segment_distance
 from deploy.perception.plane_view import D415, NOISE_SIGMAS, QUANTUM_M, UP, PlaneFrame, PlaneView, rectify
 from drivers.camera.base import Frame
 
@@ -79,11 +80,37 @@ def seed_plane(frame: Frame, robot: np.ndarray, u: int, v: int) -> tuple[np.ndar
     points = depth_to_points(frame.depth_m, frame.intrinsics.K, window, frame.T_base_camera)
     depth = float(np.median(frame.depth_m[window]))
     tolerance = NOISE_SIGMAS * float(D415.sigma_m(depth, frame.intrinsics.fx)) + QUANTUM_M / 2
-    o3d.utility.random.seed(0)
-    _, inliers = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points)).segment_plane(tolerance, 3, 200)
-    inside = points[inliers]
+    inside = points[dominant_plane(points, tolerance)]
     centre = inside.mean(axis=0)
     return centre, np.linalg.svd(inside - centre, full_matrices=False)[2][2], depth
+
+
+def box_seed(frame: Frame, robot: np.ndarray, box: tuple[float, float, float, float]) -> tuple[int, int]:
+    """The pixel to look for the front from when the user drew a box around it: the pixel nearest the box's centre
+    on the box's dominant plane (RANSAC over its depth: a box drawn around a front is mostly that front; its centre
+    may be on the handle)."""
+    h, w = frame.depth_m.shape
+    x0, y0, x1, y1 = (int(round(c)) for c in box)
+    window = np.zeros((h, w), bool)
+    window[max(y0, 0):max(min(y1, h), 0), max(x0, 0):max(min(x1, w), 0)] = True
+    window &= ~robot & (frame.depth_m > 0)
+    v, u = np.nonzero(window)
+    centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
+    if len(u) < MIN_SEED_POINTS:
+        return int(centre[0]), int(centre[1])
+    step = max(len(u) // 4000, 1)  # a few thousand pixels fit the plane as well as all of them
+    points = depth_to_points(frame.depth_m, frame.intrinsics.K, window, frame.T_base_camera)[::step]
+    depth = float(np.median(frame.depth_m[window]))
+    tolerance = NOISE_SIGMAS * float(D415.sigma_m(depth, frame.intrinsics.fx)) + QUANTUM_M / 2
+    inliers = dominant_plane(points, tolerance)
+    plane = np.zeros((h, w), np.uint8)
+    plane[v[::step][inliers], u[::step][inliers]] = 1
+    size = 2 * SEED_RADII_PX[0] + 1  # the pixel's surroundings, where its plane is fitted, on that plane too
+    plane = cv2.dilate(plane, np.ones((step, step), np.uint8)) if step > 1 else plane
+    inside = cv2.erode(plane, np.ones((size, size), np.uint8))
+    rows, cols = np.nonzero(inside if inside.any() else plane)
+    best = int(np.argmin(np.hypot(cols - centre[0], rows - centre[1])))
+    return int(cols[best]), int(rows[best])
 
 
 def tilt_deg(normal: np.ndarray) -> float:
@@ -225,7 +252,7 @@ def _clipped(frame: Frame, view: PlaneView, extent: Extent, box: tuple[float, fl
 def front_pixels(frame: Frame, robot: np.ndarray, plane: PlaneFrame, s_range: tuple[float, float],
                  z_range: tuple[float, float]) -> np.ndarray:
     """The image's pixels whose ray meets the plane inside the rectangle and whose depth lies on the plane (or is
-    missing, or lies behind it: a pocket of the front), not the arm's: the front's pixels, its handle left out."""
+    missing, or lies at most a pull's pocket behind it), not the arm's: the front's pixels, its handle left out."""
     h, w = frame.depth_m.shape
     K = frame.intrinsics
     T = np.asarray(frame.T_base_camera, float)
@@ -243,8 +270,8 @@ def front_pixels(frame: Frame, robot: np.ndarray, plane: PlaneFrame, s_range: tu
         inside = (zp > 0) & (s >= s_range[0]) & (s <= s_range[1]) & (z >= z_range[0]) & (z <= z_range[1])
         depth = frame.depth_m
         tolerance = NOISE_SIGMAS * D415.sigma_m(zp, K.fx) + QUANTUM_M
-        not_in_front = (depth <= 0) | (depth >= zp - tolerance)
-    return inside & not_in_front & ~robot
+        on_front = (depth <= 0) | ((depth >= zp - tolerance) & (depth <= zp + tolerance + MAX_POCKET_M / np.abs(along)))
+    return inside & on_front & ~robot
 
 
 def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Extent:

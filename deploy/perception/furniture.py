@@ -3,8 +3,8 @@ part, the paper's box baseline, the grasp's collision checks and reports.
 
 A unit's fronts stack in a column (drawers, a drawer over a door): the furniture is the column of the front's face
 above and below it, as far as the face's surface goes (to the counter's overhang or the unit's top, to its plinth),
-and, within that column's width, the carcass around it: the plinth, the rail above the fronts, a free-standing unit's
-top. The floor, the counter (its overhang stands in front of the face), the wall, what stands on or before the unit,
+with what stands out of it (handles) or sinks into it (pockets), and, within that column's width, the carcass around
+it: the plinth, the rail above the fronts, a free-standing unit's top. The floor, the counter (its overhang stands in front of the face), the wall, what stands on or before the unit,
 and the units beside the column stay out. Units side by side whose gaps the camera does not see (a pair of doors)
 are not told apart: the column is the pointed front's width.
 """
@@ -17,7 +17,7 @@ import numpy as np
 
 from deploy.perception.front import Front, plane_coordinates
 from deploy.perception.front_extent import Extent, surface_walk
-from deploy.perception.handle_blobs import MAX_STANDOFF_M
+from deploy.perception.handle_blobs import MAX_POCKET_M, MAX_STANDOFF_M
 
 UNIT_DEPTH_M = 0.9  # furniture reaches at most this far behind its fronts (base units 0.6 m, free-standing 0.8 m)
 SIDE_PANEL_M = 0.025  # a carcass side stands this far beside its fronts (a panel's thickness and a reveal)
@@ -46,7 +46,7 @@ def find_furniture(front: Front, depth_m: np.ndarray, K: np.ndarray, T_base_came
     s, z, offset = plane_coordinates(front.view.plane, depth_m, K, T_base_camera)
     seen = (depth_m > 0) & ~robot
     column = seen & (s >= s0 - SIDE_PANEL_M) & (s <= s1 + SIDE_PANEL_M)
-    face = column & (offset >= -UNIT_DEPTH_M) & (offset <= MAX_STANDOFF_M) & (z >= z_bottom) & (z <= z_top)
+    face = column & (offset >= -MAX_POCKET_M) & (offset <= MAX_STANDOFF_M) & (z >= z_bottom) & (z <= z_top)
     below = column & (z < z_bottom) & (offset < 0)  # the plinth, recessed under the fronts
     floor = _floor_height(z[column & (z < z_bottom) & (offset > 0)])
     if floor is not None:

@@ -8,7 +8,7 @@ close along (across the handle, in the front's plane), `normal` out of the front
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -19,6 +19,8 @@ SNAP_DEG = 20.0  # handles run horizontal or vertical: an axis within this of ei
 BAR_ELONGATION = 3.0  # a bar is at least this many times longer than thick (real bars 8-40x; cups 2-3x)
 KNOB_MAX_M = 0.06  # a knob is at most this wide (real knobs 20-50 mm)
 EDGE_BAND_M = 0.02  # a pull standing on the front's top or bottom edge is an edge pull
+COLOUR_ONLY_RELIEF_M = 0.03  # a handle without depth is taken to stand this far out: the middle of real bar and knob
+# handles' 25-40 mm
 OUTER_LAYER_M = 0.008  # a handle's front surface: its points this close to its outermost (a bar's radius)
 POCKET_LIP_M = 0.01  # a recessed pull is held at its lip, this far inside the pocket's mouth
 FINGER_REACH_M = 0.01  # the fingertips must pass this far behind the grip centre to hold it (half a pad)
@@ -78,8 +80,10 @@ def own_blob(blobs: list[Blob], view: PlaneView, rows: tuple[int, int], cols: tu
     return min(on_top or found, key=lambda b: segment_distance(b, np.zeros(2)))
 
 
-def describe(blob: Blob, view: PlaneView, rows: tuple[int, int], gripper: GripperSize) -> Handle:
-    """The grip of the handle `blob` on the front spanning `rows` of `view`."""
+def describe(blob: Blob, view: PlaneView, rows: tuple[int, int], gripper: GripperSize,
+             camera: np.ndarray) -> Handle:
+    """The grip of the handle `blob` on the front spanning `rows` of `view`, seen from `camera` (its centre, base
+    frame)."""
     plane = view.plane
     axis = _snapped(blob.axis)
     across = np.array([-axis[1], axis[0]])
@@ -87,13 +91,17 @@ def describe(blob: Blob, view: PlaneView, rows: tuple[int, int], gripper: Grippe
     kind = _kind(blob, view, rows)
     thickness = _thickness(blob, axis, across, view.res_m)
     outer = float(np.percentile(points[:, 2], 90)) if len(points) else 0.0
-    if kind == "edge pull":  # a tab out of the edge: the grip halfway out
+    if blob.seen_in_colour_only:  # no depth on it: where its line of sight stands the usual standoff out
+        centre = _along_sight(plane.point(blob.centre[0], blob.centre[1]), camera, plane, COLOUR_ONLY_RELIEF_M)
+        blob = replace(blob, centre=plane.coordinates(centre[None])[0, :2])
+        relief = clearance = COLOUR_ONLY_RELIEF_M
+    elif kind == "edge pull":  # a tab out of the edge: the grip halfway out
         relief = outer / 2
     elif kind == "recessed pull":  # its lip, just inside the pocket's mouth (the pocket's back is what depth sees)
         relief, clearance = -POCKET_LIP_M, -outer - POCKET_LIP_M
     else:  # the fingers close around its middle, half its thickness behind its front surface
         relief = outer - thickness / 2
-    if kind != "recessed pull":
+    if kind not in ("recessed pull",) and not blob.seen_in_colour_only:
         clearance = relief
     bar = axis[0] * plane.right + axis[1] * plane.up
     close = across[0] * plane.right + across[1] * plane.up
@@ -103,6 +111,13 @@ def describe(blob: Blob, view: PlaneView, rows: tuple[int, int], gripper: Grippe
     style = {"bar": "bar", "knob": "knob"}.get(kind, "pull")
     return Handle(style, kind, centre, bar, close, plane.normal.copy(), blob.length_m, thickness, relief, clearance,
                   score, hidden, reason)
+
+
+def _along_sight(on_plane: np.ndarray, camera: np.ndarray, plane, offset: float) -> np.ndarray:
+    """The point of the line of sight from `camera` to `on_plane` (a point of `plane`) that stands `offset` out of
+    the plane."""
+    ray = on_plane - camera
+    return on_plane - ray * offset / float((camera - on_plane) @ plane.normal)
 
 
 def _snapped(axis: np.ndarray) -> np.ndarray:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from deploy.perception.front_extent import Extent
+from deploy.perception.front_extent import COLOUR_DELTA_E, Extent, colour_distance
 from deploy.perception.plane_view import QUANTUM_M, SMOOTH_NOISE, PlaneView
 
 MAX_STANDOFF_M = 0.10  # handles stand at most this far out of their front (real bars 25-50 mm, knobs up to 40 mm)
@@ -22,8 +22,6 @@ MAX_ACROSS_M = 0.10  # across its length a handle, or a pull's pocket, is at mos
 MAX_LENGTH_M = 1.2  # along it, at most a wide front's width
 STRUCTURE_SHARE = 0.8  # a row or column standing out along this share of the search region (a front and a margin
 # either side) is the structure around the front (a counter's edge, the floor), not a handle, which is shorter
-COLOUR_DELTA_E = 15.0  # a colour this far (CIE76 Delta E) from the front's is another material: the handle's, or
-# its shadow's; shadows keep depth on the plane and are never taken for a handle
 JOIN_M = 0.01  # pieces of one handle closer than this are one (a bar, its posts and its depth holes)
 POCKET_INSET_M = 0.02  # a pocket is cut into the panel, with material around it: at least this far inside its edges
 EDGE_REACH_M = 0.05  # an edge pull stands out of its front's edge: blobs this close outside the rectangle count
@@ -31,6 +29,7 @@ EDGE_REACH_M = 0.05  # an edge pull stands out of its front's edge: blobs this c
 
 MIN_RELIEF_M = 0.01  # a handle stands at least this far out of its front (bars 25-50 mm, knobs and cups 20-40 mm,
 # edge pulls 15-30 mm), or a pocket sinks at least this far in
+MIN_POINTS = 8  # a candidate with fewer measured points is seen in colour only
 FIRM_LENGTH_M = 0.025  # the smallest real knob's diameter
 RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it is the front's surface
 
@@ -56,11 +55,16 @@ class Blob:
         return float(np.median(self.points[:, 2])) if len(self.points) else 0.0
 
     @property
+    def seen_in_colour_only(self) -> bool:
+        """Whether the D415 measured (almost) none of it: a thin, dark or shiny handle found by its colour."""
+        return len(self.points) < MIN_POINTS
+
+    @property
     def firm(self) -> bool:
-        """Whether it is certainly a handle (not depth noise, not a neighbour's edge): large enough, standing clearly
-        out of (or into) the front, with the front around it."""
-        return (self.length_m >= FIRM_LENGTH_M and abs(self.relief_m) >= MIN_RELIEF_M
-                and self.rim >= RIM_SHARE)
+        """Whether it is certainly a handle (not depth noise, not a neighbour's edge): large enough, with the front
+        around it, standing clearly out of (or into) the front, or of another colour where depth has a hole."""
+        relief = self.seen_in_colour_only or abs(self.relief_m) >= MIN_RELIEF_M
+        return self.length_m >= FIRM_LENGTH_M and relief and self.rim >= RIM_SHARE
 
     @property
     def elongation(self) -> float:
@@ -72,12 +76,6 @@ def front_colour(view: PlaneView, extent: Extent) -> np.ndarray:
     sl = (slice(extent.top, extent.bottom + 1), slice(extent.left, extent.right + 1))
     cells = view.lab[sl][view.on_plane[sl]]
     return np.median(cells, axis=0) if len(cells) else np.median(view.lab[sl].reshape(-1, 3), axis=0)
-
-
-def colour_distance(lab: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """CIE76 Delta E between OpenCV 8-bit Lab colours."""
-    d = (lab - reference) * np.array([100.0 / 255.0, 1.0, 1.0], np.float32)
-    return np.sqrt(np.sum(d * d, axis=-1))
 
 
 def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K: np.ndarray) -> list[Blob]:
@@ -94,7 +92,8 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     with np.errstate(invalid="ignore"):
         out = (offset > tolerance) & (offset <= MAX_STANDOFF_M)
         pocket = inside & (offset < -tolerance) & (offset >= -MAX_POCKET_M)
-    other = view.no_depth[sl] & (colour_distance(view.lab[sl], front_colour(view, extent)) > COLOUR_DELTA_E)
+    other = view.no_depth[sl] & (colour_distance(view.lab[sl], front_colour(view, extent)) > COLOUR_DELTA_E)  # a
+    # hole of another colour than the front's: a handle the D415 lost (shadows keep their depth on the plane)
     candidate = _without_structure((out | pocket | other) & view.seen[sl], view.seen[sl])
     join = max(int(round(JOIN_M / view.res_m)), 1)
     joined = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))

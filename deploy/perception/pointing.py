@@ -14,7 +14,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from deploy.errors import PointerError
-from deploy.perception.front import MAX_FRONT_HEIGHT_M, MAX_FRONT_WIDTH_M, Front, find_front, plane_coordinates
+from deploy.perception.front import (
+    MAX_FRONT_HEIGHT_M,
+    MAX_FRONT_WIDTH_M,
+    Front,
+    box_seed,
+    find_front,
+    plane_coordinates,
+)
 from deploy.perception.furniture import Furniture, find_furniture
 from deploy.perception.handle import GripperSize, Handle, describe, own_blob
 from deploy.perception.handle_blobs import handle_blobs
@@ -67,6 +74,8 @@ def point_at(frame: Frame, robot: np.ndarray, pointer: Pointer, reach_m: float |
         raise PointerError(f"frame {frame.index} has no camera pose: finding the pointed part needs the camera's "
                            "calibration (`deploy calibrate hand-eye`, or --calibration)")
     u, v = seed_pixel(frame, pointer)
+    if pointer.box is not None:
+        u, v = box_seed(frame, robot, pointer.box)
     if robot[v, u]:
         raise PointerError(f"{pointer}: pixel ({u}, {v}) is on the arm, which hides the part there: move the arm out "
                            "of the view (the episode swings it aside) or point at a part of the front it does not hide")
@@ -75,10 +84,14 @@ def point_at(frame: Frame, robot: np.ndarray, pointer: Pointer, reach_m: float |
     except PointerError as e:
         raise PointerError(f"{pointer}: {e}") from None
     timings["front"] = _lap(clock)
-    _check_is_front(frame, robot, front, pointer, (u, v))
-    timings["checks"] = _lap(clock) - timings["front"]
-    handle = find_handle(front, frame, gripper or GripperSize(), pointer)
-    timings["handle"] = _lap(clock) - sum(timings.values())
+    _check_seen(front, pointer, (u, v))
+    _check_not_wall(frame, robot, front, pointer, (u, v))
+    try:
+        handle = find_handle(front, frame, gripper or GripperSize(), pointer)
+    except PointerError:
+        _check_is_front(front, pointer, (u, v))  # no handle: is it a front at all?
+        raise
+    timings["handle"] = _lap(clock) - timings["front"]
     if reach_m is not None and np.linalg.norm(handle.centre) > reach_m:
         p = handle.centre
         raise PointerError(f"{pointer}: the {handle.kind} at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m is "
@@ -112,9 +125,31 @@ def seed_pixel(frame: Frame, pointer: Pointer) -> tuple[int, int]:
     return int(u), int(v)
 
 
-def _check_is_front(frame: Frame, robot: np.ndarray, front: Front, pointer: Pointer, pixel: tuple[int, int]) -> None:
-    """PointerError when the vertical surface at the pixel is not a front: wider or taller than furniture fronts are,
-    a narrow band (a counter's edge), the farthest surface in view (a wall), or hidden by the arm."""
+def _check_seen(front: Front, pointer: Pointer, pixel: tuple[int, int]) -> None:
+    """PointerError when the arm hides most of the pointed front."""
+    e = front.extent
+    seen = front.view.seen[e.top:e.bottom + 1, e.left:e.right + 1]
+    if seen.mean() < MIN_SEEN_SHARE:
+        raise PointerError(f"{pointer}: pixel ({pixel[0]}, {pixel[1]}): the arm hides {100 * (1 - seen.mean()):.0f} % "
+                           "of the pointed front: move the arm out of the view (the episode swings it aside) and look "
+                           "again")
+
+
+def _check_not_wall(frame: Frame, robot: np.ndarray, front: Front, pointer: Pointer, pixel: tuple[int, int]) -> None:
+    """PointerError when nothing in view lies behind the pointed surface's plane: furniture stands out of the room's
+    walls (a counter's top, a unit's top, the wall above or beside it lie behind its fronts), a wall does not."""
+    _, _, offset = plane_coordinates(front.plane, frame.depth_m, frame.intrinsics.K, frame.T_base_camera)
+    with np.errstate(invalid="ignore"):
+        behind = np.count_nonzero((offset < -WALL_BEHIND_M) & ~robot)
+    if behind < WALL_SHARE * np.count_nonzero(frame.depth_m > 0):
+        raise PointerError(f"{pointer}: pixel ({pixel[0]}, {pixel[1]}) is on the farthest vertical surface in view "
+                           f"({front.width_m:.2f} x {front.height_m:.2f} m, nothing seen behind it): a wall, not a "
+                           "front; point at the drawer's or door's front")
+
+
+def _check_is_front(front: Front, pointer: Pointer, pixel: tuple[int, int]) -> None:
+    """PointerError when the vertical surface at the pixel, with no handle on it, is not a front: wider or taller
+    than furniture fronts are, or a narrow band (a counter's edge)."""
     at = f"{pointer}: pixel ({pixel[0]}, {pixel[1]})"
     size = f"{front.width_m:.2f} x {front.height_m:.2f} m"
     if front.width_m > MAX_FRONT_WIDTH_M or front.height_m > MAX_FRONT_HEIGHT_M:
@@ -123,17 +158,6 @@ def _check_is_front(frame: Frame, robot: np.ndarray, front: Front, pointer: Poin
     if min(front.width_m, front.height_m) < MIN_FRONT_M and not front.cut:
         raise PointerError(f"{at} is on a narrow vertical band ({size}): a counter's or a shelf's edge, not a front; "
                            "point at the drawer's or door's front below or above it")
-    _, _, offset = plane_coordinates(front.plane, frame.depth_m, frame.intrinsics.K, frame.T_base_camera)
-    with np.errstate(invalid="ignore"):
-        behind = np.count_nonzero((offset < -WALL_BEHIND_M) & ~robot)
-    if behind < WALL_SHARE * np.count_nonzero(frame.depth_m > 0):
-        raise PointerError(f"{at} is on the farthest vertical surface in view ({size}, nothing seen behind it): a "
-                           "wall, not a front; point at the drawer's or door's front")
-    e = front.extent
-    seen = front.view.seen[e.top:e.bottom + 1, e.left:e.right + 1]
-    if seen.mean() < MIN_SEEN_SHARE:
-        raise PointerError(f"{at}: the arm hides {100 * (1 - seen.mean()):.0f} % of the pointed front: move the arm "
-                           "out of the view (the episode swings it aside) and look again")
 
 
 def find_handle(front: Front, frame: Frame, gripper: GripperSize, pointer: Pointer | str = "") -> Handle:
@@ -147,4 +171,4 @@ def find_handle(front: Front, frame: Frame, gripper: GripperSize, pointer: Point
             else ": a push-to-open front needs a push first (not supported); point at a front with a handle"
         raise PointerError(f"{pointer}: the pointed front ({front.width_m:.2f} x {front.height_m:.2f} m) shows no "
                            f"handle, knob or pull{hidden}")
-    return describe(blob, front.view, (e.top, e.bottom), gripper)
+    return describe(blob, front.view, (e.top, e.bottom), gripper, np.asarray(frame.T_base_camera)[:3, 3])
