@@ -15,7 +15,7 @@ import numpy as np
 from deploy.errors import PointerError
 from deploy.geometry.cloud import depth_to_points
 from deploy.geometry.planes import dominant_plane
-from deploy.perception.front_extent import Extent, front_extent
+from deploy.perception.front_extent import Extent, front_extent, gap_line_shares
 from deploy.perception.handle_blobs import MAX_POCKET_M, Blob, bounds, handle_blobs, segment_distance
 from deploy.perception.plane_view import D415, NOISE_SIGMAS, QUANTUM_M, UP, PlaneFrame, PlaneView, rectify
 from drivers.camera.base import Frame
@@ -29,6 +29,8 @@ REFINE_RADIUS_M = 0.5  # the plane is refined over the surface this far around t
 REFINE_SLOPES_DEG = (5.0, 2.0, 0.5)  # ... keeping points within the noise plus these slopes of their distance
 FLOOR_STEP_M = 0.05  # a horizontal surface with things more than this below it is not the floor ...
 FLOOR_SHARE = 0.02  # ... when they fill at least this share of the view (more than depth noise and flying pixels)
+WEAK_GAP_SHARE = 0.25  # between two handles a line showing a gap along this share of its length is the gap
+HANDLE_CLEARANCE_M = 0.02  # ... at least this far from either handle (its edge, its shadow)
 MAX_FRONT_WIDTH_M = 1.2  # the widest drawer or door fronts of real furniture
 MAX_FRONT_HEIGHT_M = 2.4  # the tallest (a tall unit's door)
 
@@ -276,35 +278,73 @@ def front_pixels(frame: Frame, robot: np.ndarray, plane: PlaneFrame, s_range: tu
 
 def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Extent:
     """The rectangle cut between the seed's handle and every other handle inside it: each front carries one, so a
-    rectangle holding several spans more than one front (the gaps between them were not seen). The cut runs midway
-    between the two handles, across the direction that separates them; the seed (the view's origin) stays inside."""
+    rectangle holding several spans more than one front (the gaps between them were not seen). Each cut runs across
+    the direction that separates two handles, along the faint gap between them if one shows, else midway; the seed's
+    handle is the nearest one on the seed's (the view's origin's) side of every cut."""
     inside = [b for b in blobs if b.inside and b.firm and b.length_m < 0.95 * _span(view, extent, b.axis)]
     if len(inside) < 2:
         return extent
     seed = np.zeros(2)
-    own = min(inside, key=lambda b: segment_distance(b, seed))
+    ranked = sorted(inside, key=lambda b: segment_distance(b, seed))
+    for own in ranked:
+        cuts = [_handle_cut(view, extent, own, other) for other in inside if other is not own]
+        if all(_seed_side(view, side, line) for side, line in cuts):
+            break
+    else:
+        return extent
     top, bottom, left, right = extent.top, extent.bottom, extent.left, extent.right
     ended = dict(extent.ended)
-    s0, s1, z0, z1 = bounds(own, view)
-    for other in inside:
-        if other is own:
-            continue
-        o0, o1, p0, p1 = bounds(other, view)
-        apart_s, apart_z = max(o0 - s1, s0 - o1), max(p0 - z1, z0 - p1)
-        mid = (own.centre + other.centre) / 2
-        if apart_s >= apart_z:  # side by side: a vertical cut
-            col = int(view.col(mid[0]))
-            if other.centre[0] > own.centre[0] and col > view.col(0.0):
-                right, ended["right"] = min(right, col), "handle"
-            elif other.centre[0] < own.centre[0] and col < view.col(0.0):
-                left, ended["left"] = max(left, col), "handle"
-        else:
-            row = int(view.row(mid[1]))
-            if other.centre[1] > own.centre[1] and row < view.row(0.0):
-                top, ended["top"] = max(top, row), "handle"
-            elif other.centre[1] < own.centre[1] and row > view.row(0.0):
-                bottom, ended["bottom"] = min(bottom, row), "handle"
+    for side, line in cuts:
+        if side == "right" and line < right:
+            right, ended["right"] = line, "handle"
+        elif side == "left" and line > left:
+            left, ended["left"] = line, "handle"
+        elif side == "top" and line > top:
+            top, ended["top"] = line, "handle"
+        elif side == "bottom" and line < bottom:
+            bottom, ended["bottom"] = line, "handle"
     return Extent(top, bottom, left, right, ended)
+
+
+def _handle_cut(view: PlaneView, extent: Extent, own: Blob, other: Blob) -> tuple[str, int]:
+    """(the side of `own`'s front the cut bounds, the cut's row or column) between handles `own` and `other`."""
+    s0, s1, z0, z1 = bounds(own, view)
+    o0, o1, p0, p1 = bounds(other, view)
+    mid = (own.centre + other.centre) / 2
+    if max(o0 - s1, s0 - o1) >= max(p0 - z1, z0 - p1):  # side by side: a vertical cut
+        right = other.centre[0] > own.centre[0]
+        col = _cut(view, (extent.top, extent.bottom), (s1, o0) if right else (o1, s0), mid[0], 1)
+        return ("right" if right else "left"), col
+    above = other.centre[1] > own.centre[1]
+    row = _cut(view, (extent.left, extent.right), (p0, z1) if above else (z0, p1), mid[1], 0)
+    return ("top" if above else "bottom"), row
+
+
+def _seed_side(view: PlaneView, side: str, line: int) -> bool:
+    """Whether the seed lies on the front's side of a cut bounding its `side`."""
+    row, col = int(view.row(0.0)), int(view.col(0.0))
+    return {"right": col < line, "left": col > line, "top": row > line, "bottom": row < line}[side]
+
+
+def _cut(view: PlaneView, band: tuple[int, int], between: tuple[float, float], middle: float, axis: int) -> int:
+    """Where to cut between two handles: the line (a row for axis 0, a column for 1, over the cells `band` across
+    it) between the handles' facing edges (`between`, plane coordinates) most of whose length shows a gap, at least
+    WEAK_GAP_SHARE of it; else the line through `middle` (handles sit mid-front or alike on neighbouring fronts)."""
+    index = view.row if axis == 0 else view.col
+    a, b = sorted(int(i) for i in index(np.array(between)))
+    margin = max(int(round(HANDLE_CLEARANCE_M / view.res_m)), 1)  # not a handle's own edge or shadow
+    a, b = a + margin, b - margin
+    if b <= a:
+        return int(index(middle))
+    lo, hi = max(band[0], 0), band[1] + 1
+    surface = view.on_plane[:, lo:hi] if axis == 0 else view.on_plane[lo:hi].T
+    grey = view.gray[:, lo:hi] if axis == 0 else view.gray[lo:hi].T
+    pad = min(a, 8)  # the lines beyond either end give the first and last lines their sides
+    shares = gap_line_shares(grey[a - pad:b + 8], surface[a - pad:b + 8], view.res_m)[pad:pad + b - a]
+    if len(shares) == 0:
+        return int(index(middle))
+    best = int(np.argmax(shares))
+    return a + best if shares[best] >= WEAK_GAP_SHARE else int(index(middle))
 
 
 def _span(view: PlaneView, extent: Extent, axis: np.ndarray) -> float:

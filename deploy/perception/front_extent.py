@@ -13,9 +13,8 @@ Cells the camera does not see (the arm, no depth) are neither surface nor bounda
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import warnings
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -36,7 +35,8 @@ SURFACE_SHARE = 0.5  # a line of the band is the front's surface when at least t
 MIN_SEEN_SHARE = 0.2  # a line with fewer of its cells seen says nothing
 COLOUR_DELTA_E = 15.0  # a colour this far (CIE76 Delta E) from the front's is another surface's (a neighbour of
 # another finish, a counter's edge) ...
-TEXTURE_SPREAD = 1.5  # ... or this many times farther than the front's own texture (wood grain) spreads
+TEXTURE_SPREAD = 2.0  # ... or this many times farther than the front's own texture (wood grain) spreads (its 80th
+# percentile Delta E)
 START_HALF_M = 0.08  # the first band: this far either side of the seed (half the narrowest drawer's width)
 
 
@@ -89,13 +89,13 @@ def _grow(view: PlaneView, surface: np.ndarray, depth_surface: np.ndarray, seed:
 
 def same_colour(view: PlaneView, patch: tuple[slice, slice]) -> np.ndarray:
     """Per cell, 1.0 where its colour is the front's: within the larger of COLOUR_DELTA_E and TEXTURE_SPREAD times
-    the front's own spread (its 95th percentile Delta E around the seed, `patch`) of the front's median colour."""
+    the front's own spread (its 80th percentile Delta E around the seed, `patch`) of the front's median colour."""
     lab = view.lab
     cells = lab[patch][view.on_plane[patch]]
     if len(cells) < 10:
         return np.ones(view.shape)
     reference = np.median(cells, axis=0)
-    spread = float(np.percentile(colour_distance(cells, reference), 95))
+    spread = float(np.percentile(colour_distance(cells, reference), 80))  # a handle's shadow may take a fifth
     return (colour_distance(lab, reference) <= max(COLOUR_DELTA_E, TEXTURE_SPREAD * spread)).astype(float)
 
 
@@ -166,6 +166,12 @@ def _walk(share: np.ndarray, lines: np.ndarray, start: int, step: int, res_m: fl
 def gap_lines(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
     """Bool per line (row of `grey`): a gap line runs along it (see GAP_*). `surface`: the cells of the front's
     surface, the only ones judged."""
+    return gap_line_shares(grey, surface, res_m) >= GAP_SHARE
+
+
+def gap_line_shares(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
+    """Per line (row of `grey`): the share of its judged stretches (GAP_SEGMENT_M long) along which a thin line of
+    GAP_CONTRAST runs (0 where none is judged). `surface`: the cells of the front's surface, the only ones judged."""
     n_lines, length = grey.shape
     widest = max(int(round(GAP_LINE_M / res_m)), 1)
     segment = max(int(round(GAP_SEGMENT_M / res_m)), 4)
@@ -175,7 +181,7 @@ def gap_lines(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray
     judged = cv2.erode(surface.astype(np.uint8), np.ones((2 * reach + 1, 1), np.uint8)).astype(bool)
     g = np.where(surface, grey, np.nan)[:, :usable]
     g_judged = judged[:, :usable]
-    best = np.zeros(n_lines, bool)
+    best = np.zeros(n_lines)
     for k in range(1, widest + 1):  # the line's half-width plus one: its sides are k lines away
         before, after = np.full_like(g, np.nan), np.full_like(g, np.nan)
         before[k:], after[:-k] = g[:-k], g[k:]
@@ -184,8 +190,8 @@ def gap_lines(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray
             with np.errstate(invalid="ignore"):
                 per_segment = _segment_means(response, n_seg)
                 shown = np.sum(per_segment >= GAP_CONTRAST, axis=1)
-                judged = np.sum(~np.isnan(per_segment), axis=1)
-            best |= (judged > 0) & (shown >= GAP_SHARE * np.maximum(judged, 1))
+                judged_segments = np.sum(~np.isnan(per_segment), axis=1)
+            best = np.maximum(best, shown / np.maximum(judged_segments, 1))
     return best
 
 

@@ -4,9 +4,10 @@ part, the paper's box baseline, the grasp's collision checks and reports.
 A unit's fronts stack in a column (drawers, a drawer over a door): the furniture is the column of the front's face
 above and below it, as far as the face's surface goes (to the counter's overhang or the unit's top, to its plinth),
 with what stands out of it (handles) or sinks into it (pockets), and, within that column's width, the carcass around
-it: the plinth, the rail above the fronts, a free-standing unit's top. The floor, the counter (its overhang stands in front of the face), the wall, what stands on or before the unit,
-and the units beside the column stay out. Units side by side whose gaps the camera does not see (a pair of doors)
-are not told apart: the column is the pointed front's width.
+it: the plinth, the rail above the fronts, a free-standing unit's top. The floor, the counter (its overhang stands in
+front of the face), the wall, what stands on or before the unit, and the units beside the column stay out. Units
+side by side whose gaps the camera does not see (a pair of doors) are not told apart: the column is the pointed
+front's width.
 """
 
 from __future__ import annotations

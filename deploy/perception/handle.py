@@ -23,6 +23,7 @@ COLOUR_ONLY_RELIEF_M = 0.03  # a handle without depth is taken to stand this far
 # handles' 25-40 mm
 OUTER_LAYER_M = 0.008  # a handle's front surface: its points this close to its outermost (a bar's radius)
 POCKET_LIP_M = 0.01  # a recessed pull is held at its lip, this far inside the pocket's mouth
+HIDDEN_REACH_M = 0.02  # the arm's pixels this close beyond a handle's end may hide more of it
 FINGER_REACH_M = 0.01  # the fingertips must pass this far behind the grip centre to hold it (half a pad)
 FINGER_SPAN_M = 0.025  # two fingertips across a handle add this to its thickness (their own thickness, a margin)
 
@@ -161,14 +162,21 @@ def _thickness(blob: Blob, axis: np.ndarray, across: np.ndarray, res_m: float) -
 
 
 def _hidden_share(blob: Blob, view: PlaneView, axis: np.ndarray) -> float:
-    """The share of the handle's length whose continuation the camera does not see (the arm over it): unseen cells
-    right beyond either end of it, along its axis."""
+    """How much of the handle the arm may hide: half for each end of it that the arm's pixels (unseen cells inside
+    the image) meet within HIDDEN_REACH_M along its axis."""
     ends = []
-    for sign in (-1.0, 1.0):
-        tip = blob.centre + sign * axis * (blob.length_m / 2 + 2 * view.res_m)
-        r, c = int(view.row(tip[1])), int(view.col(tip[0]))
-        inside = 0 <= r < view.shape[0] and 0 <= c < view.shape[1]
-        ends.append(inside and not view.seen[r, c] and bool(np.any(view.map_uv[r, c] > 0)))
+    h, w = view.shape
+    cells = np.stack([view.s(blob.cols), view.z(blob.rows)], axis=1)  # where it is seen in the view (with parallax)
+    middle = cells.mean(axis=0)
+    along = (cells - middle) @ axis
+    for sign, end in ((-1.0, along.min()), (1.0, along.max())):
+        hidden = False
+        for step in np.arange(1, int(np.ceil(HIDDEN_REACH_M / view.res_m)) + 1):
+            tip = middle + axis * (end + sign * step * view.res_m)
+            r, c = int(view.row(tip[1])), int(view.col(tip[0]))
+            inside_image = 0 <= r < h and 0 <= c < w and 0 <= view.map_uv[r, c, 0] and 0 <= view.map_uv[r, c, 1]
+            hidden |= inside_image and not view.seen[r, c]
+        ends.append(hidden)
     return 0.5 * sum(ends)
 
 

@@ -30,8 +30,11 @@ EDGE_REACH_M = 0.05  # an edge pull stands out of its front's edge: blobs this c
 MIN_RELIEF_M = 0.01  # a handle stands at least this far out of its front (bars 25-50 mm, knobs and cups 20-40 mm,
 # edge pulls 15-30 mm), or a pocket sinks at least this far in
 MIN_POINTS = 8  # a candidate with fewer measured points is seen in colour only
+RELIEF_NOISE = 1.2  # ... and at least this many times the depth noise band there (points just outside the band
+# are noise as often as not)
 FIRM_LENGTH_M = 0.025  # the smallest real knob's diameter
-RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it is the front's surface
+RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured)
+# is the front's surface
 
 
 @dataclass(frozen=True)
@@ -48,6 +51,7 @@ class Blob:
     across_m: float
     inside: bool
     rim: float  # the share of the ring around it that is the front's surface
+    noise_m: float  # the D415's noise band there (NOISE_SIGMAS sigmas of one measurement)
 
     @property
     def relief_m(self) -> float:
@@ -63,7 +67,7 @@ class Blob:
     def firm(self) -> bool:
         """Whether it is certainly a handle (not depth noise, not a neighbour's edge): large enough, with the front
         around it, standing clearly out of (or into) the front, or of another colour where depth has a hole."""
-        relief = self.seen_in_colour_only or abs(self.relief_m) >= MIN_RELIEF_M
+        relief = self.seen_in_colour_only or abs(self.relief_m) >= max(MIN_RELIEF_M, RELIEF_NOISE * self.noise_m)
         return self.length_m >= FIRM_LENGTH_M and relief and self.rim >= RIM_SHARE
 
     @property
@@ -98,7 +102,7 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     join = max(int(round(JOIN_M / view.res_m)), 1)
     joined = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
     count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
-    surface, seen = view.on_plane[sl], view.seen[sl]
+    surface, measured = view.on_plane[sl], view.seen[sl] & ~view.no_depth[sl]
     ring_kernel = np.ones((2 * join + 1, 2 * join + 1), np.uint8)
     smallest = MIN_SIZE_M / view.res_m
     blobs = []
@@ -109,8 +113,8 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
         box = (slice(max(y - join, 0), y + bh + join), slice(max(x - join, 0), x + bw + join))
         member = labels[box] == label
         rows, cols = np.nonzero(member & candidate[box])
-        ring = cv2.dilate(member.astype(np.uint8), ring_kernel).astype(bool) & ~member & seen[box]
-        rim = float(np.count_nonzero(ring & surface[box])) / max(np.count_nonzero(ring), 1)
+        ring = cv2.dilate(member.astype(np.uint8), ring_kernel).astype(bool) & ~member & measured[box]
+        rim = float(np.count_nonzero(ring & surface[box])) / np.count_nonzero(ring) if ring.any() else 0.0
         blob = _blob(view, rows + r0 + box[0].start, cols + c0 + box[1].start, extent, camera_to_base, K, rim)
         if blob is not None:
             blobs.append(blob)
@@ -124,8 +128,8 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
         return None
     with_depth = view.depth_m[rows, cols] > 0
     points = view.points(rows[with_depth], cols[with_depth], camera_to_base, K)
-    raw_noise = (view.tolerance_m[rows, cols][with_depth] - QUANTUM_M) / SMOOTH_NOISE + QUANTUM_M
-    points = points[np.abs(points[:, 2]) > raw_noise]  # its own points, not the front's around it
+    raw_noise = (view.tolerance_m[rows, cols] - QUANTUM_M) / SMOOTH_NOISE + QUANTUM_M
+    points = points[np.abs(points[:, 2]) > raw_noise[with_depth]]  # its own points, not the front's around it
     cells = np.stack([view.s(cols), view.z(rows)], axis=1)
     where = np.concatenate([points[:, :2], cells[~with_depth]]) if len(points) else cells
     centred = where - where.mean(axis=0)
@@ -140,7 +144,7 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
     centre = where.mean(axis=0) + axis * (lo + hi) / 2
     r, c = int(view.row(centre[1])), int(view.col(centre[0]))
     inside = extent.top <= r <= extent.bottom and extent.left <= c <= extent.right
-    return Blob(rows, cols, points, centre, axis, length, width, inside, rim)
+    return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)))
 
 
 def segment_distance(blob: Blob, point: np.ndarray) -> float:
