@@ -33,11 +33,17 @@ def bench_scene(task: str, seed: int, split: str, target=None, part: str | None 
     """One scene's scores (see the module docstring)."""
     from deploy.rig import simulated_calibration
     from sim_fallback.camera import SimCamera
+    from sim_fallback.errors import SceneError
     from sim_fallback.scenario import make_scenario
     from sim_fallback.user import user_pixel
     from sim_fallback.world import SimWorld
 
-    scenario = make_scenario("kitchen", task, seed, split, part=part, target=target)  # type: ignore[arg-type]
+    row = {"task": task, "seed": seed, "split": split, "part": part or "", "source": getattr(target, "source",
+                                                                                           "procedural")}
+    try:
+        scenario = make_scenario("kitchen", task, seed, split, part=part, target=target)  # type: ignore[arg-type]
+    except SceneError as e:  # a part out of the robot's reach, say
+        return {**row, "error": f"no scene: {e}", "scene_error": True}
     names = [shape.name for shape in scenario.build_layout().statics]
     with SimWorld(scenario) as world:
         camera = SimCamera(world, seed=seed)
@@ -52,8 +58,7 @@ def bench_scene(task: str, seed: int, split: str, target=None, part: str | None 
     body, link = links[..., 0], links[..., 1]
     front_truth = (body == truth.body_id) & (link == truth.links[0]) & ~robot
     furniture_truth = (body == truth.body_id) & ~robot
-    row = {"task": task, "seed": seed, "split": split, "part": truth.part, "style": style,
-           "source": getattr(target, "source", "procedural")}
+    row = {**row, "part": truth.part, "style": style}
     if pixel is None:
         return {**row, "error": "the target part is not seen"}
     start = time.perf_counter()
@@ -125,8 +130,10 @@ def _iou(a: np.ndarray, b: np.ndarray) -> float:
 def summary(rows: list[dict]) -> dict:
     """Median, p90 (or p10 for IoUs), worst and failure causes over `rows`."""
     done = [r for r in rows if "front_iou" in r]
-    out: dict = {"scenes": len(rows), "found": len(done),
-                 "refused": {r["part"] + f" seed {r['seed']}": r["error"] for r in rows if "error" in r}}
+    scenes = [r for r in rows if not r.get("scene_error")]
+    out: dict = {"scenes": len(scenes), "found": len(done),
+                 "refused": {f"{r['source']} {r['part']} seed {r['seed']}": r["error"] for r in scenes if "error" in r},
+                 "no_scene": {f"{r['source']} {r['part']}": r["error"] for r in rows if r.get("scene_error")}}
     for key, low_is_bad in (("front_iou", True), ("furniture_iou", True), ("handle_error_m", False), ("ms", False)):
         values = np.array([r[key] for r in done], float)
         if len(values):
@@ -174,8 +181,8 @@ def main(argv: list[str] | None = None) -> None:
             results[task] = {"summary": summary(rows), "rows": rows}
             print(task, json.dumps(results[task]["summary"], indent=1))
     else:
-        rows = [bench_scene(kind, 0, args.split, target=furniture, part=part)
-                for furniture, part, kind in partnet_targets(args.assets)]
+        rows = [bench_scene(kind, k, args.split, target=furniture, part=part)
+                for k, (furniture, part, kind) in enumerate(partnet_targets(args.assets))]
         results["partnet"] = {"summary": summary(rows), "rows": rows}
         print("partnet", json.dumps(results["partnet"]["summary"], indent=1))
         for r in rows:
