@@ -23,6 +23,11 @@ class PerceptionError(AxisloopError):
     """Segmentation or tracking failed, or a model is missing."""
 
 
+class PointerError(PerceptionError):
+    """The user's pointer (a pixel, a box) does not lead to a front with a handle the arm can open: what was seen there
+    and what to do."""
+
+
 class ModelError(PerceptionError):
     """A model checkpoint that is missing, incomplete or does not load."""
 
@@ -36,6 +41,6 @@ class JobError(AxisloopError):
 USER_ERRORS = (AxisloopError, DriverError)
 
 __all__ = [
-    "AxisloopError", "ConfigError", "PerceptionError", "ModelError", "JobError", "CalibrationError",
+    "AxisloopError", "ConfigError", "PerceptionError", "PointerError", "ModelError", "JobError", "CalibrationError",
     "ArmError", "IKError", "CanBusError", "CameraError", "DriverError", "RecordingError", "USER_ERRORS",
 ]

@@ -197,3 +197,41 @@ def test_track_cli_writes_masks_and_overlay(checkpoints, sequence, tmp_path, cap
     recording = FramesRecording(out)
     assert recording.has_masks and len(recording) == len(sequence.frames)
     assert (out / "overlay.png").stat().st_size > 0 and (out / "truth.json").exists()
+
+
+def test_tracker_takes_point_prompts_alone_or_with_boxes(checkpoints, sequence):
+    tracker = StreamingTracker(*load_tracker(str(checkpoints[1])))
+    color = sequence.frames[0].color
+    alone = tracker.start(color, {}, {1: [(75.0, 60.0)]})
+    assert set(alone) == {1} and alone[1].shape == (SMALL.height, SMALL.width)
+    both = tracker.start(color, {2: (60.0, 40.0, 90.0, 60.0)}, {1: [(75.0, 60.0), (70.0, 50.0)]})
+    assert set(both) == {1, 2}
+    assert tracker.track(sequence.frames[1].color).keys() == {1, 2}
+    with pytest.raises(ValueError, match="at least one box or point"):
+        tracker.start(color, {})
+
+
+def test_the_users_point_prompts_the_tracker_without_detecting_the_object(checkpoints, sequence, monkeypatch):
+    config = _config(checkpoints, point=(75.0, 60.0), handle_prompt=None, min_area_ratio=0.0, min_iou=0.0)
+    segmenter = make_segmenter("gdino-sam2", config)
+    assert segmenter.detector is None  # the point names the object: no detector loaded
+    prompts = []
+    start = segmenter.tracker.start
+    monkeypatch.setattr(segmenter.tracker, "start", lambda color, boxes, points=None: prompts.append(
+        (dict(boxes), dict(points or {}))) or start(color, boxes, points))
+    mask = segmenter.start(sequence.frames[0])
+    assert prompts == [({}, {1: [(75.0, 60.0)]})]
+    assert mask.shape == (SMALL.height, SMALL.width)
+    with pytest.raises(PerceptionError, match=r"--point 400 60 is outside the 160x120 image"):
+        make_segmenter("gdino-sam2", _config(checkpoints, point=(400.0, 60.0), handle_prompt=None)).start(
+            sequence.frames[0])
+
+
+def test_a_point_with_a_handle_prompt_looks_for_the_handle_in_the_points_mask(checkpoints, sequence):
+    config = _config(checkpoints, point=(75.0, 60.0), box_threshold=0.0, text_threshold=0.0, min_area_ratio=0.0,
+                     min_iou=0.0)
+    segmenter = make_segmenter("gdino-sam2", config)
+    mask = segmenter.start(sequence.frames[0])
+    assert mask.shape == (SMALL.height, SMALL.width)
+    handle = segmenter.handle_mask(sequence.frames[0])
+    assert handle is None or handle.shape == mask.shape

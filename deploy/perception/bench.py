@@ -46,7 +46,7 @@ def missing_weights(segmenter: str, config: PerceptionConfig) -> list[str]:
     if not needs(segmenter, "weights"):
         return []
     needed = [("tracker", config.tracker)]
-    if config.box is None or config.handle_prompt:  # as GdinoSam2Segmenter.from_config
+    if (config.box is None and config.point is None) or config.handle_prompt:  # as GdinoSam2Segmenter.from_config
         needed.insert(0, ("detector", config.detector))
     missing = []
     for role, source in needed:

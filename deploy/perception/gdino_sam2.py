@@ -48,7 +48,7 @@ class GdinoSam2Segmenter(Segmenter):
 
         device, dtype = choose_device(config.device)
         tracker = StreamingTracker(*load_tracker(config.tracker, device, dtype))
-        needs_detector = config.box is None or bool(config.handle_prompt)
+        needs_detector = (config.box is None and config.point is None) or bool(config.handle_prompt)
         detector = None
         if needs_detector:
             detector = GroundingDinoDetector(*load_detector(config.detector, device, dtype),
@@ -56,23 +56,32 @@ class GdinoSam2Segmenter(Segmenter):
         return cls(tracker, detector, config)
 
     def start(self, frame: Frame, prompt: str | None = None, pointer: Pointer | None = None) -> np.ndarray:
-        """The object `prompt` names in the configured box, else the best detection (among those holding the
-        `pointer`'s pixel, when any does), tracked from here."""
+        """The object's first mask: prompted by the user's point (`pointer`, else the configured one) and/or box
+        when given (the detector is then skipped for the object), else by the detected box of `prompt`."""
         self.prompt = prompt or self.config.object_prompt
-        box = self.config.box or self._detect(frame, None, pointer)
-        if box is None:
+        point = (pointer.u, pointer.v) if pointer is not None else self.config.point
+        if point is not None:
+            h, w = frame.color.shape[:2]
+            if not (0 <= point[0] < w and 0 <= point[1] < h):
+                raise PerceptionError(f"--point {point[0]:g} {point[1]:g} is outside the {w}x{h} image: give a pixel "
+                                      "on the part's front (`deploy cameras snapshot` shows the image)")
+        box = self.config.box or (None if point is not None else self._detect(frame, None))
+        if box is None and point is None:
             raise PerceptionError(
                 f"no {self.prompt!r} found on frame {frame.index} above box threshold {self.config.box_threshold}: "
                 "check the camera sees the object, change --prompt, lower the threshold, or pass --box X0 Y0 X1 Y1"
             )
-        masks = self._prompt(frame, box)
-        log.info("gdino-sam2: %r at box %s px on frame %d (%s)%s", self.prompt, _fmt(box), frame.index,
-                 "given --box" if self.config.box else "detected", ", handle too" if HANDLE_ID in masks else "")
+        masks = self._prompt(frame, box, point)
+        given = " and ".join(n for n, v in (("--point", point), ("--box", self.config.box)) if v is not None)
+        log.info("gdino-sam2: %r from %s on frame %d%s", self.prompt,
+                 f"box {_fmt(box)} px" if box is not None and not given else given or "?", frame.index,
+                 ", handle too" if HANDLE_ID in masks else "")
         self._reference_area = int(np.count_nonzero(masks[OBJECT_ID]))
         if self._reference_area == 0:
+            where = f"at {given}" if given else f"in box {_fmt(box)}"  # type: ignore[arg-type]
             raise PerceptionError(
-                f"the tracker returned an empty mask for {self.prompt!r} in box {_fmt(box)} on frame {frame.index}: "
-                "check the box covers the object (pass a tighter --box) and the tracker checkpoint"
+                f"the tracker returned an empty mask for {self.prompt!r} {where} on frame {frame.index}: "
+                "check the point lies on the part (or the box covers it) and the tracker checkpoint"
             )
         self._good, self.redetections = masks[OBJECT_ID], 0
         return masks[OBJECT_ID]
@@ -109,26 +118,28 @@ class GdinoSam2Segmenter(Segmenter):
             "restart (a tighter --box or a better prompt helps)"
         )
 
-    def _prompt(self, frame: Frame, box: Box) -> dict[int, np.ndarray]:
-        """(Re)start the tracker on `frame` with the object box and, if found inside it, the handle box."""
-        boxes = {OBJECT_ID: box}
+    def _prompt(self, frame: Frame, box: Box | None, point: tuple[float, float] | None = None) -> dict[int, np.ndarray]:
+        """(Re)start the tracker on `frame` with the object's box and/or point and, if found inside the object's box
+        (with a point only: the box of its first mask), the handle's box."""
+        boxes: dict[int, Box] = {} if box is None else {OBJECT_ID: box}
+        points = {} if point is None else {OBJECT_ID: [point]}
+        masks = self.tracker.start(frame.color, boxes, points) if box is None else {}
         if self.detector is not None and self.config.handle_prompt:
-            handles = self.detector.detect(frame.color, self.config.handle_prompt, within=box)
+            within = box if box is not None else (box_of(masks[OBJECT_ID]) if masks[OBJECT_ID].any() else None)
+            handles = [] if within is None else self.detector.detect(frame.color, self.config.handle_prompt,
+                                                                      within=within)
             if handles:
                 boxes[HANDLE_ID] = handles[0].box
-        masks = self.tracker.start(frame.color, boxes)
+                masks = {}
+        masks = masks or self.tracker.start(frame.color, boxes, points)
         self._handle = masks.get(HANDLE_ID)
         return masks
 
-    def _detect(self, frame: Frame, near: Box | None, pointer: Pointer | None = None) -> Box | None:
-        """The best-scoring box of the object prompt (the best overlapping `near`, or holding `pointer`'s pixel,
-        when given and any does)."""
+    def _detect(self, frame: Frame, near: Box | None) -> Box | None:
+        """The best-scoring box of the object prompt (the best overlapping `near`, when given and any does)."""
         if self.detector is None:
             return None
         found = self.detector.detect(frame.color, self.prompt)
-        if pointer is not None:
-            found = [d for d in found if d.box[0] <= pointer.u <= d.box[2] and d.box[1] <= pointer.v <= d.box[3]] \
-                or found
         if near is not None:
             overlapping = [d for d in found if box_iou(d.box, near) > 0.1]
             found = overlapping or found

@@ -1,4 +1,5 @@
-"""SAM2 (or EdgeTAM) video tracking in streaming mode: one session, box prompts, then one call per new frame.
+"""SAM2 (or EdgeTAM) video tracking in streaming mode: one session, box and point prompts, then one call per new
+frame.
 
 The session is opened without a video; frames are added as the camera delivers them. Memory stays
 bounded: after each frame, the processed frames and per-frame outputs older than the model's own memory
@@ -12,6 +13,7 @@ from typing import Any
 import numpy as np
 
 Box = tuple[float, float, float, float]
+Point = tuple[float, float]
 
 
 class StreamingTracker:
@@ -28,20 +30,30 @@ class StreamingTracker:
         self.session: Any = None
         self.frame_idx = -1
 
-    def start(self, color: np.ndarray, boxes: dict[int, Box]) -> dict[int, np.ndarray]:
-        """Open a new session on `color` (RGB) with one box per object id; the first masks by id."""
-        if not boxes:
-            raise ValueError("StreamingTracker.start needs at least one box")
+    def start(self, color: np.ndarray, boxes: dict[int, Box],
+              points: dict[int, list[Point]] | None = None) -> dict[int, np.ndarray]:
+        """Open a new session on `color` (RGB) with, per object id, a box and/or points on the object (positive
+        clicks, pixels (x, y)); the first masks by id."""
+        points = points or {}
+        if not boxes and not points:
+            raise ValueError("StreamingTracker.start needs at least one box or point")
         self.session = self.processor.init_video_session(
             inference_device=self.model.device, dtype=self.model.dtype
         )
         self.frame_idx = 0
         inputs = self.processor(images=color, return_tensors="pt")
-        ids = list(boxes)
-        self.processor.add_inputs_to_inference_session(
-            self.session, frame_idx=0, obj_ids=ids, input_boxes=[[list(map(float, boxes[i])) for i in ids]],
-            original_size=inputs["original_sizes"][0],
-        )
+        size = inputs["original_sizes"][0]
+        ids = list(dict.fromkeys([*boxes, *points]))
+        for obj_id in ids:  # one call per object: each has its own kind of prompt
+            prompt: dict[str, Any] = {}
+            if obj_id in boxes:
+                prompt["input_boxes"] = [[list(map(float, boxes[obj_id]))]]
+            if obj_id in points:
+                clicks = [[float(x), float(y)] for x, y in points[obj_id]]
+                prompt["input_points"], prompt["input_labels"] = [[clicks]], [[[1] * len(clicks)]]
+            self.processor.add_inputs_to_inference_session(self.session, frame_idx=0, obj_ids=[obj_id],
+                                                           original_size=size, **prompt)
+        self.session.obj_with_new_inputs = ids  # each call names only its own object: the first frame runs them all
         return self._step(inputs)
 
     def track(self, color: np.ndarray) -> dict[int, np.ndarray]:

@@ -1,0 +1,205 @@
+"""Where a front ends, in its rectified view: the rectangle around the user's pixel bounded by the gaps between
+fronts and by the places where the front's surface stops.
+
+Fronts are rectangles in a vertical plane. From the seed cell the rectangle grows one side at a time, along the
+profile of the cells of that side's band (the rows or columns the rectangle spans so far), until one of:
+- a gap: a thin line (at most GAP_LINE_M wide) darker or lighter than the surface on both sides, along most of the
+  band (the slit between two fronts);
+- the surface ends: more than HANDLE_BAND_M of cells off the plane (a counter's overhang, a plinth, the floor, a
+  wall, a neighbour standing out). Shorter stretches are a handle, its shadow or a pocket, and are crossed;
+- the view ends (the image's border): the side is marked cut.
+Cells the camera does not see (the arm, no depth) are neither surface nor boundary: they are crossed.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from deploy.perception.plane_view import PlaneView
+
+GAP_LINE_M = 0.006  # a gap between fronts is 2-4 mm; with a pixel of blur either side it stays under this
+GAP_CONTRAST = 0.02  # a gap line differs from the surface on both sides by at least this (of full scale, averaged
+# along it): a slit in shadow, or a lit carcass edge behind it; 2 % is five 8-bit levels, above the sensor's noise
+GAP_SEGMENT_M = 0.03  # the line is judged per stretch of this length along it ...
+GAP_SHARE = 0.5  # ... and must show in at least this share of the stretches the band sees (a handle may hide it)
+HANDLE_BAND_M = 0.10  # the widest stretch across a front that is not its surface: a handle, its shadow, a pocket
+RESUME_M = 0.04  # past a handle the front's surface goes on for at least this, or up to a gap (a surface crossing
+# the plane, such as the floor at a plinth's foot, lies on it within the D415's noise for a narrower band)
+MAX_SLOPE = 0.3  # a front is parallel to its plane: a surface whose offset changes faster than this (17 deg) is not
+SLOPE_BASE_M = 0.01  # ... measured between lines this far either side
+SURFACE_SHARE = 0.5  # a line of the band is the front's surface when at least this share of its seen cells are
+MIN_SEEN_SHARE = 0.2  # a line with fewer of its cells seen says nothing
+COLOUR_DELTA_E = 15.0  # a colour this far (CIE76 Delta E) from the front's is another surface's (a neighbour of
+# another finish, a counter's edge) ...
+TEXTURE_SPREAD = 2.0  # ... or this many times farther than the front's own texture (wood grain) spreads (its 80th
+# percentile Delta E)
+START_HALF_M = 0.08  # the first band: this far either side of the seed (half the narrowest drawer's width)
+
+
+@dataclass(frozen=True)
+class Extent:
+    """A front's rectangle in its view's grid: rows [top, bottom] and columns [left, right] (inclusive), and what
+    ended each side: "gap", "surface" (the surface stopped) or "view" (the image's border: the side is cut)."""
+
+    top: int
+    bottom: int
+    left: int
+    right: int
+    ended: dict[str, str]
+
+
+def front_extent(view: PlaneView, seed: tuple[int, int]) -> Extent:
+    """The front's rectangle around the seed cell (row, col) of `view` (see the module docstring)."""
+    half = max(int(round(START_HALF_M / view.res_m)), 2)
+    r, c = seed
+    depth_surface = _surface(view)
+    same = same_colour(view, (slice(max(r - half, 0), r + half + 1), slice(max(c - half, 0), c + half + 1)))
+    # the front's cells: on its plane and of its colour; a hole of another colour is not the front, one of its colour
+    # is not known (a pale wall and a dark front alike lose the D415's dots)
+    surface = np.where(np.isnan(depth_surface) & view.seen, np.where(same > 0, np.nan, 0.0), depth_surface * same)
+    rows, cols = (r, r), (c - half, c + half)
+    ended: dict[str, str] = {}
+    for _ in range(2):
+        (top, ended["top"]), (bottom, ended["bottom"]) = _grow(view, surface, depth_surface, seed, cols, axis=0)
+        rows = (top, bottom)
+        (left, ended["left"]), (right, ended["right"]) = _grow(view, surface, depth_surface, seed, rows, axis=1)
+        cols = (left, right)
+    return Extent(rows[0], rows[1], cols[0], cols[1], ended)
+
+
+def _grow(view: PlaneView, surface: np.ndarray, depth_surface: np.ndarray, seed: tuple[int, int],
+          band: tuple[int, int], axis: int) -> tuple[tuple[int, str], tuple[int, str]]:
+    """Both ends along `axis` (0: rows, up and down; 1: columns) of the front through `seed`, judged over the
+    cells `band` (inclusive) across it: `surface` the front's cells (1, 0, NaN unknown); gaps are looked for between
+    cells of the plane's surface in depth (`depth_surface`), whatever their colour."""
+    lo, hi = max(band[0], 0), min(band[1], surface.shape[1 - axis] - 1)
+    if axis == 0:
+        cells, flat, grey = surface[:, lo:hi + 1], depth_surface[:, lo:hi + 1], view.gray[:, lo:hi + 1]
+    else:
+        cells, flat, grey = surface[lo:hi + 1].T, depth_surface[lo:hi + 1].T, view.gray[lo:hi + 1].T
+    share = _share(cells, None, view.res_m)
+    lines = gap_lines(grey, flat == 1.0, view.res_m)
+    start = seed[axis]
+    return _walk(share, lines, start, -1, view.res_m), _walk(share, lines, start, 1, view.res_m)
+
+
+def same_colour(view: PlaneView, patch: tuple[slice, slice]) -> np.ndarray:
+    """Per cell, 1.0 where its colour is the front's: within the larger of COLOUR_DELTA_E and TEXTURE_SPREAD times
+    the front's own spread (its 80th percentile Delta E around the seed, `patch`) of the front's median colour."""
+    lab = view.lab
+    cells = lab[patch][view.on_plane[patch]]
+    if len(cells) < 10:
+        return np.ones(view.shape)
+    reference = np.median(cells, axis=0)
+    spread = float(np.percentile(colour_distance(cells, reference), 80))  # a handle's shadow may take a fifth
+    return (colour_distance(lab, reference) <= max(COLOUR_DELTA_E, TEXTURE_SPREAD * spread)).astype(float)
+
+
+def colour_distance(lab: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """CIE76 Delta E between OpenCV 8-bit Lab colours."""
+    d = (lab - reference) * np.array([100.0 / 255.0, 1.0, 1.0], np.float32)
+    return np.sqrt(np.sum(d * d, axis=-1))
+
+
+def surface_walk(view: PlaneView, extent: Extent) -> tuple[tuple[int, str], tuple[int, str]]:
+    """(row, what ended it) above and below `extent` where the surface of its columns ends, gaps crossed: the top and
+    bottom of the face the front is part of."""
+    cols = slice(extent.left, extent.right + 1)
+    share = _share(_surface(view)[:, cols], view.smooth_m[:, cols], view.res_m)
+    none = np.zeros(len(share), bool)
+    return _walk(share, none, extent.top, -1, view.res_m), _walk(share, none, extent.bottom, 1, view.res_m)
+
+
+def _share(cells: np.ndarray, offsets: np.ndarray | None, res_m: float) -> np.ndarray:
+    """Per line of `cells` (1 surface, 0 not, NaN unknown): the share of its known cells that are the surface; 0
+    where the offset from the plane of the line's surface cells (`offsets`, when given: walking up and down a whole
+    face, where horizontal surfaces cross the plane) changes along the walk faster than MAX_SLOPE (the floor at a
+    plinth's foot lies on the plane only over a band); NaN where too few cells are known."""
+    seen = np.sum(~np.isnan(cells), axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = np.where(seen >= MIN_SEEN_SHARE * cells.shape[1], np.nansum(cells, axis=1) / seen, np.nan)
+    if offsets is None:
+        return share
+    k = max(int(round(SLOPE_BASE_M / res_m)), 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # lines with no depth at all
+        level = np.nanmedian(np.where(cells == 1.0, offsets, np.nan), axis=1)  # of its surface cells only
+    slope = np.full(len(level), np.nan)
+    slope[k:-k] = np.abs(level[2 * k:] - level[:-2 * k]) / (2 * k * res_m)
+    return np.where(slope > MAX_SLOPE, 0.0, share)
+
+
+def _surface(view: PlaneView) -> np.ndarray:
+    """Per cell: 1 on the plane's surface, 0 off it, NaN unknown (not seen, no depth)."""
+    return np.where(view.on_plane, 1.0, np.where(view.seen & ~np.isnan(view.offset_m), 0.0, np.nan))
+
+
+def _walk(share: np.ndarray, lines: np.ndarray, start: int, step: int, res_m: float) -> tuple[int, str]:
+    """From `start` in direction `step`: the last line of the front's surface before a gap, the surface's end or the
+    profile's end, and which of these ended it."""
+    band_limit = int(np.ceil(HANDLE_BAND_M / res_m))
+    resume = int(np.ceil(RESUME_M / res_m))
+    last, off, on = start, 0, resume
+    i = start + step
+    while 0 <= i < len(share):
+        if lines[i]:  # the surface went on up to its gap
+            return (i - step if on > 0 else last), "gap"
+        if np.isnan(share[i]):
+            i += step
+            continue
+        if share[i] < SURFACE_SHARE:
+            off, on = off + 1, 0
+            if off > band_limit:
+                return last, "surface"
+        else:
+            on += 1
+            if on >= resume:  # the surface goes on (not a surface crossing the plane: the floor, a shelf)
+                off, last = 0, i
+        i += step
+    return last, "view"
+
+
+def gap_lines(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
+    """Bool per line (row of `grey`): a gap line runs along it (see GAP_*). `surface`: the cells of the front's
+    surface, the only ones judged."""
+    return gap_line_shares(grey, surface, res_m) >= GAP_SHARE
+
+
+def gap_line_shares(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
+    """Per line (row of `grey`): the share of its judged stretches (GAP_SEGMENT_M long) along which a thin line of
+    GAP_CONTRAST runs (0 where none is judged). `surface`: the cells of the front's surface, the only ones judged."""
+    n_lines, length = grey.shape
+    widest = max(int(round(GAP_LINE_M / res_m)), 1)
+    segment = max(int(round(GAP_SEGMENT_M / res_m)), 4)
+    n_seg = max(length // segment, 1)
+    usable = min(n_seg * segment, length)
+    reach = widest + 2  # the line's sides must be the front's surface this far out: not a handle's or a shadow's edge
+    judged = cv2.erode(surface.astype(np.uint8), np.ones((2 * reach + 1, 1), np.uint8)).astype(bool)
+    g = np.where(surface, grey, np.nan)[:, :usable]
+    g_judged = judged[:, :usable]
+    best = np.zeros(n_lines)
+    for k in range(1, widest + 1):  # the line's half-width plus one: its sides are k lines away
+        before, after = np.full_like(g, np.nan), np.full_like(g, np.nan)
+        before[k:], after[:-k] = g[:-k], g[k:]
+        for sign in (1.0, -1.0):  # darker or lighter than both sides
+            response = np.where(g_judged, np.fmin(sign * (before - g), sign * (after - g)), np.nan)
+            with np.errstate(invalid="ignore"):
+                per_segment = _segment_means(response, n_seg)
+                shown = np.sum(per_segment >= GAP_CONTRAST, axis=1)
+                judged_segments = np.sum(~np.isnan(per_segment), axis=1)
+            best = np.maximum(best, shown / np.maximum(judged_segments, 1))
+    return best
+
+
+def _segment_means(response: np.ndarray, n_seg: int) -> np.ndarray:
+    """Mean of `response` over each of `n_seg` equal stretches of every line (NaN where a stretch has no value)."""
+    n_lines, length = response.shape
+    parts = response.reshape(n_lines, n_seg, length // n_seg)
+    counts = np.sum(~np.isnan(parts), axis=2)
+    sums = np.nansum(parts, axis=2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(counts >= 2, sums / counts, np.nan)

@@ -1,0 +1,172 @@
+"""Handle candidates on a front's rectified view: what stands out of the front's surface (or sinks into a pocket) in
+a handle's size, or, where the D415 has no depth (thin, dark and shiny handles), differs from the front's colour.
+
+A blob's geometry comes from its measured points where it has depth (their plane coordinates: no parallax) and
+from its cells where it has none (the ray's meeting with the plane).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from deploy.perception.front_extent import COLOUR_DELTA_E, Extent, colour_distance
+from deploy.perception.plane_view import QUANTUM_M, SMOOTH_NOISE, PlaneView
+
+MAX_STANDOFF_M = 0.10  # handles stand at most this far out of their front (real bars 25-50 mm, knobs up to 40 mm)
+MAX_POCKET_M = 0.05  # a recessed pull's pocket is at most this deep
+MIN_SIZE_M = 0.015  # the smallest handle (a small knob's head)
+MAX_ACROSS_M = 0.10  # across its length a handle, or a pull's pocket, is at most hand-sized
+MAX_LENGTH_M = 1.2  # along it, at most a wide front's width
+STRUCTURE_SHARE = 0.8  # a row or column standing out along this share of the search region (a front and a margin
+# either side) is the structure around the front (a counter's edge, the floor), not a handle, which is shorter
+JOIN_M = 0.01  # pieces of one handle closer than this are one (a bar, its posts and its depth holes)
+POCKET_INSET_M = 0.02  # a pocket is cut into the panel, with material around it: at least this far inside its edges
+EDGE_REACH_M = 0.05  # an edge pull stands out of its front's edge: blobs this close outside the rectangle count
+
+
+MIN_RELIEF_M = 0.01  # a handle stands at least this far out of its front (bars 25-50 mm, knobs and cups 20-40 mm,
+# edge pulls 15-30 mm), or a pocket sinks at least this far in
+MIN_POINTS = 8  # a candidate with fewer measured points is seen in colour only
+RELIEF_NOISE = 1.2  # ... and at least this many times the depth noise band there (points just outside the band
+# are noise as often as not)
+FIRM_LENGTH_M = 0.025  # the smallest real knob's diameter
+RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured)
+# is the front's surface
+
+
+@dataclass(frozen=True)
+class Blob:
+    """One handle candidate: its cells in the view (`rows`, `cols`), the plane coordinates (s, z, offset) of its
+    measured points (`points`, (N, 3); N may be 0), `inside`: whether its centre lies inside the front's rectangle."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    points: np.ndarray
+    centre: np.ndarray  # (s, z) m: the middle of its extent
+    axis: np.ndarray  # (2,) unit, in (s, z): along its length
+    length_m: float
+    across_m: float
+    inside: bool
+    rim: float  # the share of the ring around it that is the front's surface
+    noise_m: float  # the D415's noise band there (NOISE_SIGMAS sigmas of one measurement)
+
+    @property
+    def relief_m(self) -> float:
+        """How far it stands out of the front (negative: sunk into it), the median of its measured points."""
+        return float(np.median(self.points[:, 2])) if len(self.points) else 0.0
+
+    @property
+    def seen_in_colour_only(self) -> bool:
+        """Whether the D415 measured (almost) none of it: a thin, dark or shiny handle found by its colour."""
+        return len(self.points) < MIN_POINTS
+
+    @property
+    def firm(self) -> bool:
+        """Whether it is certainly a handle (not depth noise, not a neighbour's edge): large enough, with the front
+        around it, standing clearly out of (or into) the front, or of another colour where depth has a hole."""
+        relief = self.seen_in_colour_only or abs(self.relief_m) >= max(MIN_RELIEF_M, RELIEF_NOISE * self.noise_m)
+        return self.length_m >= FIRM_LENGTH_M and relief and self.rim >= RIM_SHARE
+
+    @property
+    def elongation(self) -> float:
+        return self.length_m / max(self.across_m, 1e-3)
+
+
+def front_colour(view: PlaneView, extent: Extent) -> np.ndarray:
+    """The front's colour (Lab, OpenCV's 8-bit scale): the median over its surface's cells."""
+    sl = (slice(extent.top, extent.bottom + 1), slice(extent.left, extent.right + 1))
+    cells = view.lab[sl][view.on_plane[sl]]
+    return np.median(cells, axis=0) if len(cells) else np.median(view.lab[sl].reshape(-1, 3), axis=0)
+
+
+def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K: np.ndarray) -> list[Blob]:
+    """The handle candidates on the front `extent` of `view` and just outside its edges (edge pulls)."""
+    reach = int(np.ceil(EDGE_REACH_M / view.res_m))
+    r0, r1 = max(extent.top - reach, 0), min(extent.bottom + reach, view.shape[0] - 1)
+    c0, c1 = max(extent.left - reach, 0), min(extent.right + reach, view.shape[1] - 1)
+    sl = (slice(r0, r1 + 1), slice(c0, c1 + 1))
+    offset, tolerance = view.smooth_m[sl], view.tolerance_m[sl]
+    inner = int(np.ceil(POCKET_INSET_M / view.res_m))
+    inside = np.zeros(offset.shape, bool)
+    inside[extent.top - r0 + inner:extent.bottom - r0 + 1 - inner,
+           extent.left - c0 + inner:extent.right - c0 + 1 - inner] = True
+    with np.errstate(invalid="ignore"):
+        out = (offset > tolerance) & (offset <= MAX_STANDOFF_M)
+        pocket = inside & (offset < -tolerance) & (offset >= -MAX_POCKET_M)
+    other = view.no_depth[sl] & (colour_distance(view.lab[sl], front_colour(view, extent)) > COLOUR_DELTA_E)  # a
+    # hole of another colour than the front's: a handle the D415 lost (shadows keep their depth on the plane)
+    candidate = _without_structure((out | pocket | other) & view.seen[sl], view.seen[sl])
+    join = max(int(round(JOIN_M / view.res_m)), 1)
+    joined = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
+    surface, measured = view.on_plane[sl], view.seen[sl] & ~view.no_depth[sl]
+    ring_kernel = np.ones((2 * join + 1, 2 * join + 1), np.uint8)
+    smallest = MIN_SIZE_M / view.res_m
+    blobs = []
+    for label in range(1, count):
+        x, y, bw, bh, _ = stats[label]
+        if max(bw, bh) < smallest:
+            continue
+        box = (slice(max(y - join, 0), y + bh + join), slice(max(x - join, 0), x + bw + join))
+        member = labels[box] == label
+        rows, cols = np.nonzero(member & candidate[box])
+        ring = cv2.dilate(member.astype(np.uint8), ring_kernel).astype(bool) & ~member & measured[box]
+        rim = float(np.count_nonzero(ring & surface[box])) / np.count_nonzero(ring) if ring.any() else 0.0
+        blob = _blob(view, rows + r0 + box[0].start, cols + c0 + box[1].start, extent, camera_to_base, K, rim)
+        if blob is not None:
+            blobs.append(blob)
+    return blobs
+
+
+def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, camera_to_base: np.ndarray,
+          K: np.ndarray, rim: float) -> Blob | None:
+    """A candidate's geometry, or None when it is not of a handle's size."""
+    if len(rows) < 4:
+        return None
+    with_depth = view.depth_m[rows, cols] > 0
+    points = view.points(rows[with_depth], cols[with_depth], camera_to_base, K)
+    raw_noise = (view.tolerance_m[rows, cols] - QUANTUM_M) / SMOOTH_NOISE + QUANTUM_M
+    points = points[np.abs(points[:, 2]) > raw_noise[with_depth]]  # its own points, not the front's around it
+    cells = np.stack([view.s(cols), view.z(rows)], axis=1)
+    where = np.concatenate([points[:, :2], cells[~with_depth]]) if len(points) else cells
+    centred = where - where.mean(axis=0)
+    _, _, vt = np.linalg.svd(centred, full_matrices=False)
+    axis = vt[0] if len(vt) else np.array([1.0, 0.0])
+    along, across = centred @ axis, centred @ np.array([-axis[1], axis[0]])
+    lo, hi = np.percentile(along, [2, 98])
+    length = float(hi - lo) + view.res_m
+    width = float(np.subtract(*np.percentile(across, [98, 2]))) + view.res_m
+    if length < MIN_SIZE_M or length > MAX_LENGTH_M or width > MAX_ACROSS_M:
+        return None
+    centre = where.mean(axis=0) + axis * (lo + hi) / 2
+    r, c = int(view.row(centre[1])), int(view.col(centre[0]))
+    inside = extent.top <= r <= extent.bottom and extent.left <= c <= extent.right
+    return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)))
+
+
+def segment_distance(blob: Blob, point: np.ndarray) -> float:
+    """Distance (m) in the plane from `point` (s, z) to the blob's middle line (its length along its axis)."""
+    d = np.asarray(point, float) - blob.centre
+    t = float(np.clip(d @ blob.axis, -blob.length_m / 2, blob.length_m / 2))
+    return float(np.linalg.norm(d - t * blob.axis))
+
+
+def bounds(blob: Blob, view: PlaneView) -> tuple[float, float, float, float]:
+    """(s_min, s_max, z_min, z_max) of the blob's cells."""
+    s, z = view.s(blob.cols), view.z(blob.rows)
+    return float(s.min()), float(s.max()), float(z.min()), float(z.max())
+
+
+def _without_structure(candidate: np.ndarray, seen: np.ndarray) -> np.ndarray:
+    """`candidate` without the rows and columns where it spans STRUCTURE_SHARE of the seen cells."""
+    out = candidate.copy()
+    for axis in (0, 1):
+        spans = np.sum(candidate, axis=1 - axis) >= STRUCTURE_SHARE * np.maximum(np.sum(seen, axis=1 - axis), 1)
+        if axis == 0:
+            out[spans] = False
+        else:
+            out[:, spans] = False
+    return out

@@ -1,0 +1,266 @@
+"""The user's pointer in kitchens: from one pixel to the front, its furniture and its handle, among identical
+neighbours, with depth holes and the arm in the way; bad pointers refused in one line; no truth reaches it.
+
+Scenes come from the simulated kitchens (D415 depth, a calibrated camera pose off by 5 mm / 0.5 deg, the arm's pixels
+from the self-filter). The world's truth only chooses the pixels a user would click and scores the answers."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+import pytest
+
+from deploy.config import CALIBRATION_ERROR
+from deploy.errors import PointerError
+from deploy.perception.pointing import Pointer, point_at
+from deploy.rig import simulated_calibration
+from drivers.camera.base import Frame
+from sim_fallback.camera import SimCamera
+from sim_fallback.furniture_body import grip_frame
+from sim_fallback.handles import STYLES
+from sim_fallback.scenario import make_scenario
+from sim_fallback.unit_families import random_carcass, random_look, random_unit, random_width
+from sim_fallback.user import user_pixel
+from sim_fallback.world import SimWorld
+
+STYLE_CLASS = {"bar": "bar", "long-bar": "bar", "knob": "knob", "edge-pull": "pull", "recessed": "pull",
+               "cup": "pull"}
+GRIP_TOLERANCE_M = 0.03  # a parallel gripper's fingers (2 cm pads) still close on a handle found this close
+
+
+@dataclass
+class Scene:
+    """A first frame as the controller gets it (`frame` with the calibrated pose, `robot` the self-filter's mask)
+    and, for choosing pixels and scoring only, the truth: `links` (the (body, link) image), `parts` (part name ->
+    (body, link indices, grip centre)), `target` the target part's name, `statics` (name -> pixels)."""
+
+    frame: Frame
+    robot: np.ndarray
+    links: np.ndarray
+    parts: dict[str, tuple[int, tuple[int, ...], np.ndarray]]
+    target: str
+    statics: dict[str, np.ndarray]
+
+    def pixel(self, part: str, seed: int = 0) -> tuple[int, int]:
+        body, links, _ = self.parts[part]
+        found = user_pixel(self.links, body, links[0], links, np.random.default_rng(seed))
+        assert found is not None, f"{part} is not in view"
+        return found
+
+    def grip(self, part: str | None = None) -> np.ndarray:
+        return self.parts[part or self.target][2]
+
+    def front_truth(self, part: str | None = None) -> np.ndarray:
+        body, links, _ = self.parts[part or self.target]
+        return (self.links[..., 0] == body) & (self.links[..., 1] == links[0]) & ~self.robot
+
+
+def kitchen_scene(task: str, seed: int, split: str = "test", target=None, part: str | None = None) -> Scene:
+    from deploy.bench.pointer import _robot_pixels
+    from sim_fallback.furniture_body import part_links
+
+    scenario = make_scenario("kitchen", task, seed, split, part=part, target=target)  # type: ignore[arg-type]
+    names = [shape.name for shape in scenario.build_layout().statics]
+    with SimWorld(scenario) as world:
+        camera = SimCamera(world, seed=seed)
+        frame, links = camera.read(), camera.link_image()
+        pose = simulated_calibration(camera.T_base_camera, *CALIBRATION_ERROR, np.random.default_rng([seed, 7]))
+        frame = replace(frame, T_base_camera=pose)
+        parts = {name: (p.body, part_links(world.client, p.body, p.joint),
+                        grip_frame(world.client, p.body, p.joint, p.part)[0]) for name, p in world.parts.items()}
+        statics = {name: (links[..., 0] == world.statics_id) & np.isin(
+            links[..., 1], [k - 1 for k, n in enumerate(names) if n == name]) for name in set(names)}
+        target_name = world.scenario.part
+    return Scene(frame, _robot_pixels(frame, np.asarray(scenario.q_start)), links, parts, target_name, statics)
+
+
+def stack_of(n: int, style: str = "bar", split: str = "test", seed: int = 5):
+    """A base unit of `n` drawers (identical handles of `style`)."""
+    rng = np.random.default_rng(seed)
+    look = random_look(split, rng, style)
+    for _ in range(200):  # the layout draws 2-4 drawers
+        unit = random_unit("base", "drawers", random_width(split, "drawers", rng), random_carcass(split, "base", rng),
+                           look, split, rng, f"{n} drawers")
+        if len(unit.fronts) == n:
+            return unit.furniture()
+    raise AssertionError(f"no {n}-drawer unit drawn")
+
+
+def scene_style(seed: int, task: str = "drawer", split: str = "test") -> str:
+    """The handle style of a kitchen's target part."""
+    scenario = make_scenario("kitchen", task, seed, split)
+    layout = scenario.build_layout()
+    return layout.furniture[layout.target].furniture.part(scenario.part).handle.style
+
+
+def inside_pixel(mask: np.ndarray) -> tuple[int, int]:
+    """The pixel of `mask` farthest from its edge (and from the image's)."""
+    inset = cv2.distanceTransform(np.pad(mask.astype(np.uint8), 1), cv2.DIST_L2, 5)[1:-1, 1:-1]
+    v, u = np.unravel_index(int(np.argmax(inset)), inset.shape)
+    return int(u), int(v)
+
+
+@pytest.fixture(scope="module")
+def three_drawers() -> Scene:
+    return kitchen_scene("drawer", 2, target=stack_of(3), part="top drawer")
+
+
+def test_the_pointed_drawer_of_three_identical_ones_gives_its_own_handle(three_drawers):
+    scene = three_drawers
+    names = ["top drawer", "middle drawer", "bottom drawer"]
+    for name in names:
+        found = point_at(scene.frame, scene.robot, Pointer(pixel=scene.pixel(name)))
+        errors = {other: float(np.linalg.norm(found.handle.centre - scene.grip(other))) for other in names}
+        assert errors[name] < GRIP_TOLERANCE_M, (name, errors)
+        assert min(errors, key=errors.get) == name
+        assert found.handle.style == "bar"
+        assert iou(found.front.mask, scene.front_truth(name)) > 0.6
+
+
+def test_front_plane_outline_and_furniture_of_a_drawer(three_drawers):
+    scene = three_drawers
+    found = point_at(scene.frame, scene.robot, Pointer(pixel=scene.pixel("middle drawer")))
+    front = found.front
+    assert abs(front.plane.normal[2]) < 1e-9  # fronts are vertical
+    camera = scene.frame.T_base_camera[:3, 3]
+    assert (camera - front.plane.origin) @ front.plane.normal > 0  # out of the front, toward the camera
+    assert front.corners.shape == (4, 3)
+    np.testing.assert_allclose(np.linalg.norm(front.corners[1] - front.corners[0]), front.width_m, rtol=1e-6)
+    np.testing.assert_allclose(np.linalg.norm(front.corners[0] - front.corners[3]), front.height_m, rtol=1e-6)
+    # the handle stands out of the front, in its outline
+    s, z, offset = front.plane.coordinates(found.handle.centre[None])[0]
+    assert abs(s) < front.width_m / 2 and abs(z) < front.height_m / 2 and 0.02 < offset < 0.08
+    body = scene.parts["middle drawer"][0]
+    furniture_truth = (scene.links[..., 0] == body) & ~scene.robot
+    assert iou(found.furniture.mask, furniture_truth) > 0.6
+    assert not (found.furniture.mask & scene.statics["floor"]).sum() > 0.02 * found.furniture.mask.sum()
+    assert not (found.furniture.mask & scene.statics["countertop"]).sum() > 0.02 * found.furniture.mask.sum()
+
+
+def test_a_handle_with_no_depth_at_all_is_found_from_its_colour(three_drawers):
+    scene = three_drawers
+    name = "middle drawer"
+    body, links, _ = scene.parts[name]
+    handle = (scene.links[..., 0] == body) & np.isin(scene.links[..., 1], links[1:])
+    handle = cv2.dilate(handle.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    depth = scene.frame.depth_m.copy()
+    depth[handle] = 0.0  # a thin shiny bar the D415 loses entirely
+    frame = replace(scene.frame, depth_m=depth)
+    found = point_at(frame, scene.robot, Pointer(pixel=scene.pixel(name)))
+    assert np.linalg.norm(found.handle.centre - scene.grip(name)) < GRIP_TOLERANCE_M
+    assert found.handle.style == "bar"
+
+
+def test_the_arm_over_part_of_the_handle(three_drawers):
+    scene = three_drawers
+    name = "middle drawer"
+    body, links, _ = scene.parts[name]
+    handle = (scene.links[..., 0] == body) & np.isin(scene.links[..., 1], links[1:])
+    cols = np.nonzero(handle.any(axis=0))[0]
+    arm = np.zeros_like(handle)
+    arm[:, cols.min():(cols.min() + cols.max()) // 2] = True  # the arm across the handle's left half, top to bottom
+    robot = scene.robot | arm
+    depth = scene.frame.depth_m.copy()
+    depth[robot] = 0.0  # as the self-filter leaves the frame
+    pixel = scene.pixel(name)
+    if robot[pixel[1], pixel[0]]:
+        pixel = inside_pixel(scene.front_truth(name) & ~robot)
+    found = point_at(replace(scene.frame, depth_m=depth), robot, Pointer(pixel=pixel))
+    assert np.linalg.norm(found.handle.centre - scene.grip(name)) < 0.1  # the half it sees
+    assert found.handle.hidden > 0 and found.handle.graspability < 1.0
+    assert found.handle.style == "bar"
+
+
+FIRST_KITCHEN_WITH = {"bar": 5, "long-bar": 6, "edge-pull": 2, "recessed": 16, "knob": 3, "cup": 0}  # test split
+
+
+@pytest.mark.parametrize("style", STYLES["test"])
+def test_every_handle_style_is_found_on_a_kitchen_unit(style):
+    """The first test-split drawer kitchen whose units have handles of `style` (kitchens share one style)."""
+    scene = kitchen_scene("drawer", FIRST_KITCHEN_WITH[style], "test")
+    assert scene_style(FIRST_KITCHEN_WITH[style]) == style
+    found = point_at(scene.frame, scene.robot, Pointer(pixel=scene.pixel(scene.target)))
+    assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle
+    assert found.handle.style == STYLE_CLASS[style]
+    assert found.handle.reason
+
+
+def test_a_front_without_a_handle_is_refused_in_one_line(three_drawers):
+    """A push-to-open unit: every front's handle (and its shadow) painted and measured as the front around it."""
+    scene = three_drawers
+    color, depth = scene.frame.color.copy(), scene.frame.depth_m.copy()
+    for name in ("top drawer", "middle drawer", "bottom drawer"):
+        body, links, _ = scene.parts[name]
+        handle = (scene.links[..., 0] == body) & np.isin(scene.links[..., 1], links[1:])
+        handle = cv2.dilate(handle.astype(np.uint8), np.ones((15, 15), np.uint8)).astype(bool)
+        front = scene.front_truth(name) & ~handle & (depth > 0)
+        color[handle] = np.median(color[front], axis=0).astype(np.uint8)
+        rows, cols = np.nonzero(front)
+        fit = np.linalg.lstsq(np.c_[cols, rows, np.ones(len(rows))], 1.0 / depth[front], rcond=None)[0]  # a plane's
+        hr, hc = np.nonzero(handle)  # inverse depth is linear in (u, v)
+        depth[hr, hc] = 1.0 / (np.c_[hc, hr, np.ones(len(hr))] @ fit)
+    frame = replace(scene.frame, color=color, depth_m=depth.astype(np.float32))
+    name = "middle drawer"
+    with pytest.raises(PointerError, match=r"^--point \d+ \d+: the pointed front \(.* m\) shows no handle, knob or "
+                                           r"pull: a push-to-open front .*point at a front with a handle$"):
+        point_at(frame, scene.robot, Pointer(pixel=scene.pixel(name)))
+
+
+def test_bad_pointers_are_refused_in_one_line(three_drawers):
+    scene = three_drawers
+    frame, robot = scene.frame, scene.robot
+    with pytest.raises(PointerError, match=r"^--point 700 100: pixel \(700, 100\) is outside the 640x480 image"):
+        point_at(frame, robot, Pointer(pixel=(700, 100)))
+    with pytest.raises(PointerError, match=r"--box 10 10 5 20: the box is empty"):
+        point_at(frame, robot, Pointer(box=(10, 10, 5, 20)))
+    for surface, said in (("floor", "on the floor"), ("wall", "a wall"), ("countertop", "a counter")):
+        pixel = inside_pixel(scene.statics[surface] & ~robot)
+        with pytest.raises(PointerError, match=said) as refused:
+            point_at(frame, robot, Pointer(pixel=pixel))
+        assert "\n" not in str(refused.value) and "point at the drawer's or door's front" in str(refused.value)
+    arm = inside_pixel(robot)
+    with pytest.raises(PointerError, match=r"is on the arm, which hides the part there: move the arm"):
+        point_at(frame, robot, Pointer(pixel=arm))
+    with pytest.raises(PointerError, match=r"beyond its 0.30 m reach: move the robot closer"):
+        point_at(frame, robot, Pointer(pixel=scene.pixel("middle drawer")), reach_m=0.3)
+    with pytest.raises(PointerError, match="has no camera pose"):
+        point_at(replace(frame, T_base_camera=None), robot, Pointer(pixel=scene.pixel("middle drawer")))
+
+
+def test_a_box_around_the_front_gives_it_too(three_drawers):
+    scene = three_drawers
+    truth = scene.front_truth("middle drawer")
+    rows, cols = np.nonzero(truth)
+    box = (float(cols.min()), float(rows.min()), float(cols.max() + 1), float(rows.max() + 1))
+    found = point_at(scene.frame, scene.robot, Pointer(box=box))
+    assert np.linalg.norm(found.handle.centre - scene.grip("middle drawer")) < GRIP_TOLERANCE_M
+    assert iou(found.front.mask, truth) > 0.6
+
+
+def test_no_truth_reaches_the_pointer(three_drawers, monkeypatch):
+    """The answer depends on colour, depth, intrinsics, the calibrated pose and the arm's pixels only: frames carrying
+    scrambled labels and masks give the same, and the world's truth is never asked for."""
+    scene = three_drawers
+    pixel = scene.pixel("middle drawer")
+    first = point_at(scene.frame, scene.robot, Pointer(pixel=pixel))
+    rng = np.random.default_rng(0)
+    noisy = replace(scene.frame, segmentation=rng.integers(0, 4, scene.frame.depth_m.shape, dtype=np.uint8),
+                    mask=rng.random(scene.frame.depth_m.shape) > 0.5)
+
+    def no_truth(*_args, **_kwargs):
+        raise AssertionError("the pointer read the world's truth")
+
+    for name in ("truth", "part_truth", "target_handle", "handle_pose", "joint_value"):
+        monkeypatch.setattr(SimWorld, name, no_truth)
+    monkeypatch.setattr(SimCamera, "link_image", no_truth)
+    again = point_at(noisy, scene.robot, Pointer(pixel=pixel))
+    np.testing.assert_array_equal(again.front.mask, first.front.mask)
+    np.testing.assert_array_equal(again.furniture.mask, first.furniture.mask)
+    np.testing.assert_allclose(again.handle.centre, first.handle.centre)
+    assert again.handle.kind == first.handle.kind
+
+
+def iou(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.count_nonzero(a & b) / max(np.count_nonzero(a | b), 1))
