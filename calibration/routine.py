@@ -150,9 +150,8 @@ def check_pointing(record: HandEyeRecord) -> None:
 
 
 def plan_around_start(kin: Kinematics, arm: Arm, cfg: RoutineConfig) -> list[np.ndarray]:
-    """`cfg.poses` station joints around the arm's current pose, inside its safety workspace if it has one."""
-    guard = getattr(arm, "guard", None)
-    workspace = (guard.limits.workspace_min, guard.limits.workspace_max) if guard is not None else None
+    """`cfg.poses` station joints around the arm's current pose, inside its safety workspace."""
+    workspace = (arm.limits.workspace_min, arm.limits.workspace_max)
     return plan_stations(kin, arm.state().q, cfg.poses, cfg.stations, workspace)
 
 

@@ -23,7 +23,7 @@ from scipy.spatial.transform import Rotation
 
 from deploy.rig import bare_bus, build_arm
 from drivers.arm.base import Arm
-from drivers.arm.can_arm import CanArm, scan_bus
+from drivers.arm.can_arm import scan_bus
 from drivers.arm.can_bus import CanBus
 from drivers.arm.damiao import Special, special
 from drivers.arm.disable import disable_and_confirm
@@ -33,7 +33,7 @@ from drivers.arm.motion import move_to_joints
 from drivers.arm.motor_channels import MotorChannel, request_feedback
 from drivers.arm.registry import ARMS
 from drivers.arm.robot_config import RobotConfig
-from drivers.arm.trajectory import MotionLimits, joint_trajectory
+from drivers.arm.trajectory import joint_trajectory
 from drivers.errors import ArmError, IKError
 
 if TYPE_CHECKING:
@@ -101,17 +101,12 @@ def inject_sim_faults(arm: Arm, faults: list[SimFault]) -> None:
         return
     from sim_fallback.can_motors import motors_on
 
-    motors = motors_on(arm.config.can.channel)
+    motors = None if arm.bus_channel is None else motors_on(arm.bus_channel)
     if motors is None:
-        raise ArmError(f"no simulated motors answer on CAN channel {arm.config.can.channel!r}: --sim-fault needs "
+        raise ArmError(f"no simulated motors answer on CAN channel {arm.bus_channel!r}: --sim-fault needs "
                        "--arm sim-can")
     for fault in faults:
         fault.schedule(motors)
-
-
-def motor_states(arm: Arm) -> list[dict]:
-    """The final state of every motor of a CAN arm (name, CAN id, enabled, status); [] for other arms."""
-    return arm.motor_states() if isinstance(arm, CanArm) else []
 
 
 @contextmanager
@@ -152,9 +147,9 @@ def status(arm: Arm) -> dict:
                 "tool_position_m": tool[:3, 3].round(4).tolist(),
                 "tool_rpy_deg": np.degrees(Rotation.from_matrix(tool[:3, :3]).as_euler("xyz")).round(2).tolist(),
                 "gripper_width_m": round(state.gripper_width_m, 4)}
-        if isinstance(arm, CanArm):
-            data["motors"] = arm.motor_report()
-    if after := motor_states(arm):
+        if report := arm.motor_report():
+            data["motors"] = report
+    if after := arm.motor_states():
         data["motors_after_stop"] = after
     return data
 
@@ -162,7 +157,7 @@ def status(arm: Arm) -> dict:
 def disable_all(config: RobotConfig, kind: str, faults: list[SimFault] | None = None) -> list[dict]:
     """Send disable to every configured motor (works without connecting) and wait for each one's answer; the
     motors' states (drivers/arm/disable.py: `enabled` where no answer came)."""
-    channels = [MotorChannel(getattr(m, "name", "gripper"), m, m.default_limits) for m in config.motors]
+    channels = [MotorChannel(m.name, m, m.default_limits) for m in config.motors]
     with raw_bus(config, kind, faults) as bus:
         unconfirmed = disable_and_confirm(bus, channels, config.watchdog.reply_timeout_s, threading.RLock(),
                                           time.perf_counter)
@@ -172,7 +167,7 @@ def disable_all(config: RobotConfig, kind: str, faults: list[SimFault] | None = 
 def set_zero(config: RobotConfig, kind: str, joint: str, faults: list[SimFault] | None = None) -> dict:
     """Make motor `joint`'s current position its zero: disable it (confirmed by its answer), then send set-zero
     and wait for the answer (it stores the zero). ArmError naming the motor when either goes unanswered."""
-    motors = {getattr(m, "name", "gripper"): m for m in config.motors}
+    motors = {m.name: m for m in config.motors}
     if joint not in motors:
         raise ArmError(f"joint {joint!r} is not in {config.label}: joints are {', '.join(motors)}")
     c = MotorChannel(joint, motors[joint], motors[joint].default_limits)
@@ -205,10 +200,8 @@ def plan(arm: Arm, config: RobotConfig, what: str, q_goal: np.ndarray | None = N
         q_goal[arm.joint_names.index(joint)] += float(delta)
     elif what == "move":
         q_goal = _pose_goal(arm, pose, q0)
-    limits = arm.guard.limits if hasattr(arm, "guard") else None
-    if limits is not None:
-        _check_goal(arm, what, q_goal, limits)
-    duration = joint_trajectory(q0, q_goal, motion_limits(arm, config)).duration
+    _check_goal(arm, what, q_goal, arm.limits)
+    duration = joint_trajectory(q0, q_goal, config.motion_limits(arm.kin, BRINGUP_SPEED)).duration
     return Plan(what, q0, q_goal, duration, kin.fk(q0)[:3, 3], kin.fk(q_goal)[:3, 3])
 
 
@@ -219,12 +212,10 @@ def _pose_goal(arm: Arm, pose: tuple[float, ...], q0: np.ndarray) -> np.ndarray:
     T = np.eye(4)
     T[:3, :3] = Rotation.from_euler("xyz", [roll, pitch, yaw], degrees=True).as_matrix()
     T[:3, 3] = x, y, z
-    kin = arm.kin
-    if hasattr(arm, "guard"):
-        model = pin.Model(kin.model)
-        model.lowerPositionLimit = arm.guard.limits.q_min + GOAL_MARGIN_RAD
-        model.upperPositionLimit = arm.guard.limits.q_max - GOAL_MARGIN_RAD
-        kin = Kinematics(model, kin.tool_frame)
+    model = pin.Model(arm.kin.model)
+    model.lowerPositionLimit = arm.limits.q_min + GOAL_MARGIN_RAD
+    model.upperPositionLimit = arm.limits.q_max - GOAL_MARGIN_RAD
+    kin = Kinematics(model, arm.kin.tool_frame)
     try:
         return kin.ik(T, q0)
     except IKError as exc:
@@ -251,17 +242,12 @@ def _check_goal(arm: Arm, what: str, q_goal: np.ndarray, limits) -> None:
                        f"{limits.workspace_min.tolist()} .. {limits.workspace_max.tolist()}: choose another goal")
 
 
-def motion_limits(arm: Arm, config: RobotConfig) -> MotionLimits:
-    """BRINGUP_SPEED of the robot config's limits (the URDF's narrowed by the config's per-joint ones)."""
-    return config.motion_limits(arm.kin, BRINGUP_SPEED)
-
-
 def execute(arm: Arm, config: RobotConfig, p: Plan, hold_s: float = 0.0,
             progress: Callable[[float], None] | None = None) -> dict:
     """Run a planned move (the arm is connected), let it come to rest (SETTLE_S at most), hold `hold_s` s; the
     final joints and tool position. ArmError (the arm then stops) when a measured joint passes its limit or a
     joint ends farther than GOAL_TOLERANCE_RAD from its goal."""
-    limits = motion_limits(arm, config)
+    limits = config.motion_limits(arm.kin, BRINGUP_SPEED)
 
     def on_tick(state, t: float) -> None:
         _check_limits(arm, p, state.q)
@@ -299,11 +285,9 @@ def execute(arm: Arm, config: RobotConfig, p: Plan, hold_s: float = 0.0,
 
 
 def _check_limits(arm: Arm, p: Plan, q: np.ndarray) -> None:
-    """ArmError when a measured joint is past its limit (the arm's safety limits, when it has them), farther than
-    it was at the plan's start (a joint zeroed slightly outside may move back in)."""
-    if not hasattr(arm, "guard"):
-        return
-    lim = arm.guard.limits
+    """ArmError when a measured joint is past its limit (the arm's safety limits), farther than it was at the plan's
+    start (a joint zeroed slightly outside may move back in)."""
+    lim = arm.limits
     past = np.maximum(lim.q_min - q, q - lim.q_max)
     beyond = past - np.maximum(0.0, np.maximum(lim.q_min - p.q_start, p.q_start - lim.q_max))
     j = int(np.argmax(beyond))

@@ -30,7 +30,6 @@ from deploy.arm_bringup import released
 from deploy.errors import ConfigError
 from deploy.rig import BoardScene, RigSpec, check_spec, load_robot, open_rig
 from drivers.arm.base import Arm
-from drivers.arm.can_arm import CanArm
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.registry import ARMS
 from drivers.arm.robot_config import PANDA_SIM_CONFIG, RobotConfig, load_robot_config
@@ -211,20 +210,14 @@ def open_devices(choice: DeviceChoice, setup: str = "eye-to-hand", board: BoardC
     scene = BoardScene(setup, board or BoardConfig(), seed)  # type: ignore[arg-type]
     with open_rig(RigSpec(camera=choice.camera, arm=choice.arm, robot=choice.robot_path, scene=scene)) as rig, \
             released(rig.arm):
-        if isinstance(rig.arm, CanArm):
-            rig.arm.probe()
+        rig.arm.probe()
         motors = None
-        if choice.simulated and isinstance(rig.arm, CanArm):
+        if choice.simulated and rig.arm.bus_channel is not None:
             from sim_fallback.can_motors import motors_on
 
-            motors = motors_on(rig.arm.config.can.channel)
-        yield Devices(choice, rig.camera, rig.arm, rig.kin, rig.serial, motion_limits(choice.robot, rig.kin),
-                      rig.board, motors)
-
-
-def motion_limits(robot: RobotConfig, kin: Kinematics, fraction: float = SPEED_FRACTION) -> MotionLimits:
-    """`fraction` of the robot's safety limits (URDF narrowed by the config), so no move trips the guard."""
-    return robot.motion_limits(kin, fraction)
+            motors = motors_on(rig.arm.bus_channel)
+        limits = choice.robot.motion_limits(rig.kin, SPEED_FRACTION)
+        yield Devices(choice, rig.camera, rig.arm, rig.kin, rig.serial, limits, rig.board, motors)
 
 
 def _angle_deg(R: np.ndarray) -> float:

@@ -37,11 +37,10 @@ from deploy.geometry.estimators.screw_config import ScrewConfig
 from deploy.geometry.radius_filter import FILTER_PROFILES, FilterProfile
 from deploy.geometry.types import JointType
 from deploy.perception.config import PerceptionConfig
+from deploy.policies import POLICIES, Fusion, OpeningPolicy, opening_policy
 from drivers.toml_file import read_toml
 
 Task = Literal["drawer", "door", "auto"]
-Policy = Literal["closed", "open", "paper"]
-Fusion = Literal["vision", "trajectory", "fused", "force"]
 CALIBRATION_ERROR = (5.0, 0.5)  # simulation: a field-grade hand-eye calibration's error, translation mm, rotation deg
 
 
@@ -56,7 +55,7 @@ class FilterConfig(_Section):
     `profile` fills in whichever of radius_m / eps is not given; None follows the camera (`Config.for_camera`):
     the paper's real-camera setting "sparse" (r = 1.3 cm, eps = 1) for real cameras and their recordings, its
     simulation setting "sim" (r = 0.05 m, eps = 100) in simulation (and where no camera is known). The radius is
-    in metres whatever the profile: the old unitless `radius` (and `unit`) are refused (`unitless_radius`).
+    in metres whatever the profile: a unitless `radius` (and `unit`) is refused (`unitless_radius`).
     """
 
     profile: Literal["sim", "sparse"] | None = None
@@ -78,7 +77,7 @@ class FilterConfig(_Section):
 
 
 def unitless_radius(data: dict[str, Any]) -> str | None:
-    """The one-line fix when the `[filter]` table of a run's settings `data` still has the old `radius` (whose
+    """The one-line fix when the `[filter]` table of a run's settings `data` has a unitless `radius` (whose
     unit followed the profile: the same number meant m in simulation and cm on a real camera) or `unit`."""
     section = data.get("filter")
     if not isinstance(section, dict) or not ({"radius", "unit"} & set(section)):
@@ -148,24 +147,23 @@ class EstimatorConfig(_Section):
 class OpeningConfig(_Section):
     """How to open: task, target (m for a drawer, deg for a door), policy and motion sizes.
 
-    policy: "closed" re-estimates after every step, "open" estimates once after the first pull and keeps that
-    axis, "paper" runs the paper's straight steps with its estimator (`paper-obb`) alone (`acting_fusion`
-    "vision": the gripper's path and the force cue are ours, not the paper's). fusion: "vision" acts on
-    the camera's estimate only; "trajectory" on a fit to the gripper's own path (FK) once it fits, vision
-    before; "fused" on the trajectory fit once the gripper has moved `trajectory_min_travel` (m or deg) and the
-    fit is confident, on vision otherwise and for the joint type; "force" on vision, except after a pull whose
-    force across its path reached `force_cue_n` (the commanded axis was off and the compliant path yielded to
-    the object): then on the fit to the gripper's path once it has moved `trajectory_min_travel`. A vision
-    estimate below
-    `vision_min_confidence` (doors: `door_vision_min_confidence`, and only past `vision_min_travel_deg`) is not
-    acted on: the previous axis is kept, at first the prior from the first frame (drawer: the front normal;
-    door: the front's far edge).
+    policy: a policy of the registry (deploy/policies.py): "closed" re-estimates after every step, "open" estimates
+    once after the first pull and keeps that axis, "paper" runs the paper's straight steps with its estimator
+    (`paper-obb`) on vision alone (the gripper's path and the force cue are ours, not the paper's).
+    fusion: "vision" acts on the camera's estimate only; "trajectory" on a fit to the gripper's own path (FK) once
+    it fits, vision before; "fused" on the trajectory fit once the gripper has moved `trajectory_min_travel` (m or
+    deg) and the fit is confident, on vision otherwise and for the joint type; "force" on vision, except after a
+    pull whose force across its path reached `force_cue_n` (the commanded axis was off and the compliant path
+    yielded to the object): then on the fit to the gripper's path once it has moved `trajectory_min_travel`. A
+    vision estimate below `vision_min_confidence` (doors: `door_vision_min_confidence`, and only past
+    `vision_min_travel_deg`) is not acted on: the previous axis is kept, at first the prior from the first frame
+    (drawer: the front normal; door: the front's far edge).
     """
 
     task: Task = "drawer"
     target_distance_m: float = Field(default=0.30, gt=0, le=1.0)
     target_angle_deg: float = Field(default=45.0, gt=0, le=170)
-    policy: Policy = "closed"
+    policy: str = Field(default="closed", description="an opening policy of the registry (`--policy`)")
     fusion: Fusion = "force"
     force_cue_n: float = Field(default=10.0, gt=0, description="fusion force: a pull resisted across its path "
                                "by this much (N) was off the object's axis")
@@ -192,10 +190,23 @@ class OpeningConfig(_Section):
                                              "when the force the tool applies (from the joint torques) exceeds "
                                              "this; a Panda-class arm's. None: no limit")
 
+    @field_validator("policy")
+    @classmethod
+    def _registered(cls, name: str) -> str:
+        try:
+            POLICIES.entry(name)
+        except ConfigError as exc:  # "unknown policy 'x': choose one of ...", the registry's words
+            raise PydanticCustomError("unknown_policy", "{message}", {"message": str(exc)}) from None
+        return name
+
+    def strategy(self) -> OpeningPolicy:
+        """The policy object `policy` names: what the episode acts with and how it steps."""
+        return opening_policy(self.policy)
+
     @property
     def acting_fusion(self) -> Fusion:
-        """The fusion the policy acts with: `fusion`, but "vision" for the paper's policy."""
-        return "vision" if self.policy == "paper" else self.fusion
+        """The fusion the policy acts with: the policy's own (the paper's: "vision"), else `fusion`."""
+        return self.strategy().acting_fusion(self.fusion)
 
     @property
     def target(self) -> float:
@@ -206,13 +217,6 @@ class OpeningConfig(_Section):
         """The target for `joint`: metres (prismatic) or radians (revolute)."""
         return self.target_distance_m if joint is JointType.PRISMATIC else float(np.radians(self.target_angle_deg))
 
-    def step_for(self, joint: JointType, k: int) -> float:
-        """Step k (0-based): m (drawer) or rad (door); the paper's schedule grows 0.10 -> 0.16 m / 0.07 -> 0.15
-        (metres of straight pull for both)."""
-        if self.policy == "paper":
-            start, end = (0.10, 0.16) if joint is JointType.PRISMATIC else (0.07, 0.15)
-            return min(start + 0.02 * k, end)
-        return self.drawer_step_m if joint is JointType.PRISMATIC else float(np.radians(self.door_step_deg))
 
 
 class Config(_Section):
@@ -227,8 +231,8 @@ class Config(_Section):
 
     @property
     def acting_estimator(self) -> str:
-        """The estimator the policy acts with: `estimator.name`, but the paper's own for the paper's policy."""
-        return "paper-obb" if self.opening.policy == "paper" else self.estimator.name
+        """The estimator the policy acts with: the policy's own (the paper's: `paper-obb`), else `estimator.name`."""
+        return self.opening.strategy().acting_estimator(self.estimator.name)
 
     def for_camera(self, camera: str) -> Config:
         """This config with the filter profile of camera `camera` (a registry spec) where none was chosen."""
@@ -329,7 +333,7 @@ def _reads_as_json(path: Path) -> bool:
     return True
 
 
-_OWN_FIX = {"unknown_estimator"}
+_OWN_FIX = {"unknown_estimator", "unknown_policy"}
 """Errors whose message already names the fix (the registry's "choose one of ...")."""
 
 

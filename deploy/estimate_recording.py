@@ -35,7 +35,7 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
     without one).
 
     Axes are in the base frame when the recording has `T_base_camera`, else in the camera frame. progress(done,
-    total) follows the frames; `viewer` (deploy.control.viewer.RerunViewer) is shown every frame, its mask and
+    total) follows the frames; `viewer` (deploy.report.viewer.RerunViewer) is shown every frame, its mask and
     the axis estimated at it, and is closed at the end.
     """
     recording = _masked_recording(path)

@@ -19,6 +19,14 @@ def calibration_error(scene, T_camera: np.ndarray) -> tuple[float, float]:
     return pose_error(T_camera, scene.true_camera)
 
 
+def true_board_corner(scene, board) -> np.ndarray:
+    """The base-frame position of `board`'s corner nearest its centre in a simulated calibration scene (the truth
+    the pointing test is scored against)."""
+    points = np.asarray(board.board().getChessboardCorners(), float)
+    p = points[np.argmin(np.linalg.norm(points - board.center_m, axis=1))]
+    return scene.true_board[:3, :3] @ p + scene.true_board[:3, 3]
+
+
 class Evaluation:
     """The truth of `world` (sim_fallback.world.SimWorld) at the start of an episode, and the scoring after it."""
 

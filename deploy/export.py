@@ -203,7 +203,7 @@ def _open3d(rec: FramesRecording, out: Path, progress: Progress | None, beyond: 
 
 
 def _rrd(rec: FramesRecording, out: Path, progress: Progress | None) -> list[str]:
-    from deploy.control.viewer import RerunViewer
+    from deploy.report.viewer import RerunViewer
 
     viewer = RerunViewer(out, spawn=False, name=f"axisloop {rec.path.name}")
     try:

@@ -37,7 +37,7 @@ def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float
     options = stream_options(camera, camera_options or {})
     viewer = None
     if view:
-        from deploy.control.viewer import RerunViewer
+        from deploy.report.viewer import RerunViewer
 
         viewer = RerunViewer(out / VIEW_FILE)
     with open_rig(RigSpec(camera=camera, arm=arm, robot=robot, calibration=calibration,
@@ -105,11 +105,9 @@ def _check_calibration(camera: str, arm: str | None, calibration: Path | None) -
 def _arm_reading(rig: Rig, latest: dict[str, np.ndarray]) -> ArmReading:
     """The arm's joint positions and tool pose, read without enabling it (the pose also kept in `latest`)."""
     arm, kin = rig.arm, rig.kin
-    refresh = getattr(arm, "probe", None)  # a CAN arm: one feedback frame from every motor
 
     def read() -> tuple[np.ndarray, np.ndarray]:
-        if refresh is not None:
-            refresh()
+        arm.probe()  # a CAN arm asks every motor for one feedback frame
         q = np.asarray(arm.state().q, float)
         latest["tool"] = kin.fk(q)
         return q, latest["tool"]

@@ -33,11 +33,11 @@ from deploy.errors import CalibrationError, ConfigError
 from deploy.perception.base import Segmenter
 from deploy.perception.config import PerceptionConfig
 from deploy.perception.registry import SEGMENTERS
+from deploy.perception.registry import needs as segmenter_needs
 from drivers.arm.base import Arm
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.registry import ARMS
 from drivers.arm.robot_config import PANDA_SIM_CONFIG, RobotConfig, load_robot_config
-from drivers.arm.trajectory import MotionLimits
 from drivers.camera.base import Camera
 from drivers.camera.posed import PosedCamera
 from drivers.camera.registry import CAMERAS
@@ -52,7 +52,6 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-JOINT_SPEED_SHARE = 0.3  # free-space moves at this share of the robot's joint velocity limits
 SIM_SERIAL = "sim-d415"  # the simulated camera's serial, naming its calibration files
 
 
@@ -129,10 +128,6 @@ class Rig:
         from drivers.arm.body import RobotBody
 
         return SelfFilter(RobotBody.from_robot(self.robot))
-
-    def motion_limits(self, fraction: float = JOINT_SPEED_SHARE) -> MotionLimits:
-        """`fraction` of the robot's safety limits for planned free-space moves."""
-        return self.robot.motion_limits(self.kin, fraction)
 
 
 def check_spec(spec: RigSpec) -> None:
@@ -237,7 +232,7 @@ def _open_simulated(rig: Rig, stack: ExitStack) -> None:
         scene = spec.scene
         rig.world = stack.enter_context(SimWorld(Scenario.make(scene.task, scene.seed, scene.split,
                                                                condition=scene.condition)))
-        sim_camera = CAMERAS.open(spec.camera, world=rig.world, seed=scene.seed, labels=spec.segmenter == "oracle",
+        sim_camera = CAMERAS.open(spec.camera, world=rig.world, seed=scene.seed, labels=_needs_labels(spec),
                                   **spec.camera_options)
         T_calibrated = simulated_calibration(sim_camera.T_base_camera, *spec.calibration_error,
                                              np.random.default_rng([scene.seed, 7]))
@@ -248,7 +243,12 @@ def _open_simulated(rig: Rig, stack: ExitStack) -> None:
         return
     rig.arm = build_arm(spec.arm, rig.robot, rig.world)
     stack.callback(rig.arm.disconnect)
-    rig.kin = getattr(rig.arm, "kin", rig.kin)
+    rig.kin = rig.arm.kin
+
+
+def _needs_labels(spec: RigSpec) -> bool:
+    """Whether the rig's segmenter reads the simulator's labels (an ablation): only then does the camera render them."""
+    return spec.segmenter is not None and segmenter_needs(spec.segmenter, "labels")
 
 
 def simulated_calibration(T_true: np.ndarray, translation_mm: float, rotation_deg: float,
@@ -272,12 +272,12 @@ def _open_hardware(rig: Rig, stack: ExitStack) -> None:
         camera = CAMERAS.open(spec.camera, **spec.camera_options)
         camera.connect()
         stack.callback(camera.disconnect)
-        rig.serial = getattr(camera, "serial", None) or spec.camera
+        rig.serial = camera.serial or spec.camera
         rig.camera = camera
     if spec.arm is not None:
         rig.arm = build_arm(spec.arm, rig.robot)
         stack.callback(rig.arm.disconnect)
-        rig.kin = getattr(rig.arm, "kin", rig.kin)
+        rig.kin = rig.arm.kin
         if camera is not None:
             rig.camera = PosedCamera(camera, _calibrated_pose(rig), override=spec.calibration is not None)
 

@@ -30,7 +30,9 @@ class Entry:
     `hardware` kinds drive or read a physical device. Capabilities: `bus` "module:attribute" names a factory of
     the kind's bare bus with no device on top (arms talking to their motors over one: `bus(robot)` returns the
     bus and the simulated motors behind it, or None on hardware); `stream_options` are the stream settings its
-    factory takes from the command line (a camera's width, height, fps)."""
+    factory takes from the command line (a camera's width, height, fps); `needs` names what the kind needs that
+    others of its registry do not (a segmenter's "labels": the simulator's labels or a recording's stored masks;
+    "box": the object's box on the first frame; "weights": model weights on this machine)."""
 
     name: str
     target: str
@@ -40,6 +42,7 @@ class Entry:
     hardware: bool = False
     bus: str | None = None
     stream_options: tuple[str, ...] = ()
+    needs: tuple[str, ...] = ()
 
     @property
     def usage(self) -> str:
@@ -81,13 +84,13 @@ class Registry(Generic[T]):
 
     def register(self, name: str, target: str, description: str, argument: str | None = None,
                  simulated: bool = False, hardware: bool = False, bus: str | None = None,
-                 stream_options: tuple[str, ...] = ()) -> None:
+                 stream_options: tuple[str, ...] = (), needs: tuple[str, ...] = ()) -> None:
         """Add (or replace) kind `name`, built by the factory at `target` ("module:attribute"); the other
         arguments are the `Entry` fields."""
         if ":" in name or not name:
             raise ValueError(f"{self.kind} name {name!r} must be non-empty and contain no ':'")
         self._entries[name] = Entry(name, target, description, argument, simulated, hardware, bus,
-                                    tuple(stream_options))
+                                    tuple(stream_options), tuple(needs))
 
     def entries(self) -> list[Entry]:
         _load_plugins()

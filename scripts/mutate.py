@@ -65,7 +65,7 @@ def _safety(name: str, bug: str, old: str, new: str) -> Mutant:
 
 
 def _codec(name: str, bug: str, old: str, new: str) -> Mutant:
-    return Mutant(f"damiao.{name}", bug, "drivers/arm/damiao.py", old, new, CODEC_TESTS)
+    return Mutant(f"damiao.{name}", bug, "drivers/arm/damiao/codec.py", old, new, CODEC_TESTS)
 
 
 def _channel(name: str, bug: str, old: str, new: str) -> Mutant:
@@ -111,7 +111,7 @@ RECORD = """
 GRASP = "if not MIN_GRASP_WIDTH_M < width < open_width - OPEN_MARGIN_M:"
 FORCE_STOP = "if limit is not None and (force > limit or stuck):"
 BOUNDS = "slow_from, halt_at = self.c.slow_from * limit, self.c.halt_at * limit"
-STILL = "still_s = still_s + dt if self.scale < STALL_SCALE else 0.0"
+STILL = "self.still_s = self.still_s + self.arm.control_period_s if self.scale < STALL_SCALE else 0.0"
 
 MUTANTS = [
     _safety("accel-braking-unchecked", "acceleration checked only when speeding up", ACCEL,
@@ -197,7 +197,7 @@ MUTANTS = [
     _force("stall-unchecked", "a pull held still never ends (only the limit stops it)", FORCE_STOP,
            "if limit is not None and force > limit:"),
     _force("slow-counts-as-still", "a slowed pull counted as held still", STILL,
-           "still_s = still_s + dt if self.scale < 1.0 else 0.0"),
+           "self.still_s = self.still_s + self.arm.control_period_s if self.scale < 1.0 else 0.0"),
     _force("halt-at-limit", "the halt fraction dropped: the pull halts at the limit, not at 85 % of it", BOUNDS,
            "slow_from, halt_at = self.c.slow_from * limit, limit"),
     _force("no-slow-down", "no slowing past half the limit: full speed up to the halt", BOUNDS,
@@ -227,7 +227,7 @@ MUTANTS = [
     _episode("context", "pull-ignores-slip", "a pull goes on after the handle slipped out",
              "return held and self.now()", "return True and self.now()"),
     _episode("observer", "mask-check-dropped", "a lost object not ending the episode",
-             "if np.count_nonzero(mask) < self.config.opening.min_mask_fraction * self.mask_pixels:",
+             "if np.count_nonzero(mask) < self._config.opening.min_mask_fraction * self._mask_pixels:",
              "if False:"),
 ]
 

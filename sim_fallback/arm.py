@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import pybullet as pb
 
-from drivers.arm.base import Arm, ArmState
+from drivers.arm.base import GRIP_FORCE_N, Arm, ArmState
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.safety import SafetyGuard, SafetyLimits
 from drivers.errors import ArmError
@@ -75,7 +75,7 @@ class SimArm(Arm):
         self._gripper_target = spec.gripper_max_width_m
         self._grip: Grip | None = None
         self._probe = make_probe(self._client)
-        self._grip_force_n = 40.0
+        self._grip_force_n = GRIP_FORCE_N
         self._may_grip = False  # set by a gripper command, cleared by a grip: a slipped grasp stays slipped
         self._clock.add_hook(self._after_step)
         self.connect()
@@ -122,7 +122,7 @@ class SimArm(Arm):
     def sync(self) -> None:
         self._clock.step(1)
 
-    def set_gripper(self, width_m: float, force_n: float = 40.0) -> None:
+    def set_gripper(self, width_m: float, force_n: float = GRIP_FORCE_N) -> None:
         """Both fingers (PyBullet ignores <mimic>) move to width/2 each, pushing with at most `force_n`."""
         width = float(np.clip(width_m, 0.0, self._spec.gripper_max_width_m))
         if width > self._gripper_target:

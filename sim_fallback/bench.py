@@ -12,6 +12,7 @@ from collections.abc import Callable
 import numpy as np
 import pybullet as pb
 
+from drivers.arm.robot_config import panda_sim_config
 from drivers.arm.trajectory import MotionLimits
 from drivers.camera.depth_noise import DepthNoise
 from sim_fallback.arm import SimArm
@@ -119,7 +120,7 @@ def _opening(world: SimWorld, arm: SimArm, noise: DepthNoise | ActiveStereo) -> 
     """Grasp (untimed), then time a ground-truth opening lasting OPENING_S with frames at 10 Hz: the real-time
     factor over wall time and over the process's CPU time, and each frame's timings (ms by step, wall; `cpu`: the
     frame's CPU time)."""
-    grasp_handle(world, arm, MotionLimits.for_robot(world.robot_spec, arm.kin, fraction=0.3), OPENING_M)
+    grasp_handle(world, arm, panda_sim_config().motion_limits(arm.kin, 0.3), OPENING_M)
     camera = SimCamera(world, noise=noise, fps=10.0)
     v = OPENING_M / (OPENING_S - 1.0)  # cruise speed; about 1 s goes to speeding up and braking
     limits = MotionLimits(v, 2 * v, 20 * v)

@@ -123,7 +123,8 @@ def sim_can_arm(config: RobotConfig, world: SimWorld | None = None, faults: dict
 
 def _episode_arm(robot: RobotConfig, world: SimWorld, signals: EpisodeSignals | None = None) -> SimArm:
     signals = signals or episode_signals(robot, world.scenario.seed)
-    return SimArm(world, robot.kinematics(), pad_friction=signals.pad_friction,
+    kin = robot.kinematics()
+    return SimArm(world, kin, robot.safety_guard(kin), pad_friction=signals.pad_friction,
                   torque_sensing=signals.torque_sensing)
 
 

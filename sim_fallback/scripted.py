@@ -30,6 +30,7 @@ from drivers.arm.motion import (
     line_path,
     move_to_joints,
 )
+from drivers.arm.robot_config import panda_sim_config
 from drivers.arm.trajectory import MotionLimits
 from drivers.camera.base import SegLabel
 from drivers.camera.frames_dir import FramesWriter
@@ -47,7 +48,6 @@ PREGRASP_M = 0.10  # straight approach along the gripper's axis over the last 10
 FINGERTIPS_PAST_TOOL_M = 0.011  # the Panda's fingertips reach this far past its grasp frame
 FINGERTIP_CLEARANCE_M = 0.003
 PREGRASP_MARGIN_M = 0.015  # the open fingers clear the handle by this much each side
-GRIPPER_FORCE_N = 40.0
 CLOSE_TIME_S = 0.5
 DEFAULT_TARGET = {"drawer": 0.20, "door": float(np.radians(30.0))}  # m, rad
 APPROACH_LIMITS = MotionLimits(0.10, 0.5, 5.0)  # m/s, m/s^2, m/s^3 along the approach line
@@ -108,7 +108,7 @@ def grasp_handle(
     approach = T_grasp[:3, 2]
     follow_cartesian_path(arm, arm.kin, line_path(arm.kin.fk(arm.state().q), approach), PREGRASP_M,
                           APPROACH_LIMITS, on_tick)
-    arm.set_gripper(0.0, GRIPPER_FORCE_N)
+    arm.set_gripper(0.0, panda_sim_config().grip_force_n)
     wait(arm, CLOSE_TIME_S, on_tick)
     if not holds_target(world):
         style = world.target.part.handle.style if world.target.part.handle is not None else "unmarked"
@@ -196,7 +196,7 @@ def record_scripted(
     with SimWorld(scenario) as sim:
         arm = SimArm(sim)
         camera = SimCamera(sim, intrinsics=d415_intrinsics(*resolution), seed=seed, fps=fps, labels=True, posed=True)
-        limits = MotionLimits.for_robot(sim.robot_spec, arm.kin, fraction=0.3)
+        limits = panda_sim_config().motion_limits(arm.kin, 0.3)
         joint_values: list[float] = []
         with FramesWriter(out, camera.intrinsics, T_base_camera=camera.T_base_camera, camera="sim",
                           simulated=True) as writer:

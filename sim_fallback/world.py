@@ -32,7 +32,7 @@ from sim_fallback.scenario import Scenario
 from sim_fallback.static_body import static_body
 
 PHYSICS_HZ = 240
-VISUAL_TRIANGLE_FRACTION = 0.25  # robot visuals: decimated collision meshes (0.1 drops the IoU to 0.9)
+VISUAL_TRIANGLE_FRACTION = 0.25  # robot visuals: decimated collision meshes
 STIFF_FRICTION_FACTOR = 3.0  # condition "stiff": the joint's Coulomb friction times this
 LOCKED_FORCE = 1e5  # condition "locked": the joint's brake (N or N m), far above anything the arm can pull
 FIXED_GROUP, ALL_GROUPS = 2, 0xFFFF  # collision filter group of fixed links (furniture bodies, static shapes)

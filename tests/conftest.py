@@ -10,7 +10,7 @@ from contextlib import contextmanager  # noqa: E402
 
 import pytest  # noqa: E402
 
-import deploy.calibration_devices as devices  # noqa: E402
+import deploy.calibration_workflow as workflow  # noqa: E402
 import sim_fallback.scenario as scenario  # noqa: E402
 
 NEAR_DOORS_M = (0.4, 0.7)  # the scenario's door distances before RGBManip's 0.5-0.85 m: scenes some tests need
@@ -26,7 +26,7 @@ def near_doors(monkeypatch):
 def opened(monkeypatch):
     """The Devices each command opened (the real ones: this only keeps a reference to look at afterwards)."""
     seen = []
-    real = devices.open_devices
+    real = workflow.open_devices
 
     @contextmanager
     def keep(*args, **kwargs):
@@ -34,5 +34,5 @@ def opened(monkeypatch):
             seen.append(dev)
             yield dev
 
-    monkeypatch.setattr(devices, "open_devices", keep)
+    monkeypatch.setattr(workflow, "open_devices", keep)
     return seen

@@ -17,6 +17,7 @@ import pytest
 from cli_run import one_line, run
 
 from deploy.arm_bringup import GOAL_MARGIN_RAD, GOAL_TOLERANCE_RAD, execute, plan
+from deploy.control.state import StopReason
 from drivers.arm.can_bus import CanBus
 from drivers.arm.robot_config import load_robot_config
 from drivers.errors import ArmError, CanBusError
@@ -165,7 +166,7 @@ def test_repeated_ctrl_c_during_an_opening_still_finishes_the_run_folder_with_th
     assert process.returncode == 130 and "Traceback" not in err
     assert f"all 8 motors disabled; the run folder {run_dir} holds the frames, steps.json and report.png" in err
     steps = json.loads((run_dir / "steps.json").read_text())
-    assert steps["result"]["stop_reason"] == "interrupted"
+    assert steps["result"]["stop_reason"] == StopReason.INTERRUPTED
     assert len(steps["motors"]) == 8 and not any(m["enabled"] for m in steps["motors"])
     assert (run_dir / "report.png").stat().st_size > 0
 

@@ -12,7 +12,7 @@ import typer
 from calibration.poses import PoseConfig
 from calibration.routine import RoutineConfig
 from calibration.store import load_hand_eye
-from deploy.calibration_devices import DeviceChoice, Devices, motion_limits, pivot_from_record
+from deploy.calibration_devices import SPEED_FRACTION, DeviceChoice, Devices, pivot_from_record
 from deploy.cli import main
 from drivers.arm.can_arm import CanArm
 from drivers.arm.can_bus import CanBus
@@ -140,7 +140,7 @@ def test_a_real_arm_asks_before_its_first_motion(can_robot):
     c = robot.can
     arm = CanArm(robot, CanBus.from_config(c))
     dev = Devices(DeviceChoice("d415", "can", robot, (0.0, 0.0, 30.0)), None, arm, arm.kin, "0123",
-                  motion_limits(robot, arm.kin))
+                  robot.motion_limits(arm.kin, SPEED_FRACTION))
     asked = []
 
     def refuse(message: str) -> None:

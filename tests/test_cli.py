@@ -9,6 +9,7 @@ from rerun_files import entities
 from scipy.spatial.transform import Rotation
 
 from deploy.cli import main
+from deploy.control.state import StopReason
 from deploy.geometry.metrics import axis_angle_error_deg, axis_position_error_m
 from deploy.synthetic.sequence import synthetic_sequence, write_sequence
 from drivers.arm.robot_config import PANDA_SIM_CONFIG
@@ -171,13 +172,13 @@ def test_open_door_that_falls_short_exits_non_zero(capsys, tmp_path):
     code, out, _ = run(capsys, "open-door", "--seed", "0", "--angle", "45", "--arm", "sim-can", "--robot", str(robot),
                        "--run-dir", str(tmp_path / "run"), "--json")
     data = json.loads(out)
-    assert code == 1 and not data["success"] and data["stop_reason"] == "arm error"
+    assert code == 1 and not data["success"] and data["stop_reason"] == StopReason.ARM_ERROR
     assert data["message"].startswith("safety stop: joint panda_joint1 position -0.25")
     assert "is below its limit -0.2500" in data["message"]
     assert data["axis"]["joint_type"] == "revolute"
     assert 3.0 < data["true_opened_deg"] < 45.0  # it had started opening
     steps = json.loads((tmp_path / "run" / "steps.json").read_text())
-    assert steps["result"]["stop_reason"] == "arm error" and (tmp_path / "run" / "report.png").is_file()
+    assert steps["result"]["stop_reason"] == StopReason.ARM_ERROR and (tmp_path / "run" / "report.png").is_file()
 
 
 def test_bench_open_json_keys(capsys):

@@ -89,7 +89,7 @@ def test_a_runs_config_json_given_to_config_is_named_json_not_a_toml_syntax_erro
     whatever the file is called; not "is not valid TOML (Invalid statement ...): fix the syntax"."""
     from cli_run import one_line, run
 
-    from deploy.control.run_folder import RunFolder
+    from deploy.report.run_folder import RunFolder
 
     RunFolder(tmp_path / "run").write_config(Config())
     record = tmp_path / "run" / "config.json"

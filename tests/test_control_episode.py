@@ -7,26 +7,24 @@ from dataclasses import replace
 import numpy as np
 import pybullet as pb
 import pytest
+from episodes import sim_episode
 
 from deploy.bench.open import bench_open, simulate_episode
 from deploy.config import Config
-from deploy.control import run_episode
-from deploy.control.run_folder import RunFolder
 from deploy.control.session import OpenRequest, open_object
+from deploy.control.state import StopReason
 from deploy.estimate_recording import estimate_recording
 from deploy.perception.oracle import OracleSegmenter
-from sim_fallback.arm import SimArm
-from sim_fallback.camera import SimCamera, d415_intrinsics
+from deploy.report.run_folder import RunFolder
+from drivers.camera.frames_dir import FramesRecording
 from sim_fallback.scenario import Scenario
-from sim_fallback.world import SimWorld
 
-STOP_REASONS = {"target reached", "blocked", "grasp lost", "grasp failed", "tracking lost", "ik infeasible",
-                "arm error", "timeout", "max steps", "no handle", "no object"}
+STOP_REASONS = set(StopReason) - {StopReason.DRY_RUN, StopReason.INTERRUPTED}  # how an opening can end
 
 
 def test_drawer_closed_loop_opens_and_its_run_folder_replays(tmp_path):
     result = simulate_episode("drawer", 0, "train", target=0.15, run_dir=tmp_path / "run")
-    assert result["stop_reason"] == "target reached"
+    assert result["stop_reason"] == StopReason.TARGET_REACHED
     assert result["success"] and result["true_opened_m"] >= 0.15
     assert abs(result["opened_m"] - result["true_opened_m"]) < 0.01  # progress from kinematics is honest
     assert result["axis"]["joint_type"] == "prismatic" and result["axis_angle_error_deg"] < 8
@@ -41,7 +39,7 @@ def test_drawer_closed_loop_opens_and_its_run_folder_replays(tmp_path):
     assert (run / "report.png").stat().st_size > 10_000
     replay = estimate_recording(run / "frames", Config())
     assert replay["n_samples"] >= 5 and replay["joint_type"] == "prismatic"
-    records = [json.loads(line) for line in (run / "frames" / "frames.jsonl").read_text().splitlines()]
+    records = FramesRecording(run / "frames").records
     assert [r["grasped"] for r in records] == [not r.get("first") for r in records]  # first frames, then pulls'
     assert records[0]["grasped"] is False and replay["gripper_frames"] == sum(r["grasped"] for r in records)
 
@@ -52,7 +50,7 @@ def test_a_run_that_looked_again_replays_from_where_it_looked(tmp_path):
     acted on (the paper's estimator, acted on alone); from the first frame's body box it computed another."""
     result = simulate_episode("drawer", 1, "test", target=0.10, policy="paper", run_dir=tmp_path / "run")
     frames = tmp_path / "run" / "frames"
-    records = [json.loads(line) for line in (frames / "frames.jsonl").read_text().splitlines()]
+    records = FramesRecording(frames).records
     assert [r["index"] for r in records if r.get("first")] == [0, 1]
     steps = json.loads((tmp_path / "run" / "steps.json").read_text())["steps"]
     acted = next(s for s in steps if s["source"] == "vision")  # the first step acted on what vision estimated
@@ -64,13 +62,14 @@ def test_a_run_that_looked_again_replays_from_where_it_looked(tmp_path):
 @pytest.mark.parametrize(("seed", "split"), [(1, "train"), (0, "test")])
 def test_door_closed_loop_opens(seed, split):
     result = simulate_episode("door", seed, split, target=30.0)
-    assert result["stop_reason"] == "target reached", result["message"]
+    assert result["stop_reason"] == StopReason.TARGET_REACHED, result["message"]
     assert result["success"] and result["true_opened_deg"] >= 30.0
     assert result["axis"]["joint_type"] == "revolute"
     assert result["axis_angle_error_deg"] < 10 and result["axis_position_error_m"] < 0.05
 
 
-@pytest.mark.parametrize(("task", "policy", "target", "seed"), [("drawer", "open", 0.15, 2), ("door", "paper", 20.0, 1)])
+@pytest.mark.parametrize(("task", "policy", "target", "seed"),
+                         [("drawer", "open", 0.15, 2), ("door", "paper", 20.0, 1)])
 def test_open_loop_and_paper_policies_run(task, policy, target, seed):
     """(Train door 2's friction grip loses the paper's straight steps: that policy's failure, not its plumbing.)"""
     result = simulate_episode(task, seed, "train", target=target, policy=policy)
@@ -89,31 +88,15 @@ class _LosingSegmenter(OracleSegmenter):
         return np.zeros_like(super().track(frame))
 
 
-def _episode(setup, target=0.15, segmenter=None, scenario=None, folder=None):
-    """run_episode on `scenario` (default drawer seed 0) after `setup(world, arm)`, recording into the run
-    `folder` if given; returns the result and whether the arm stays still afterwards."""
-    with SimWorld(scenario or Scenario.make("drawer", 0, "train")) as world:
-        arm = SimArm(world)
-        camera = SimCamera(world, intrinsics=d415_intrinsics(320, 240), fps=5.0, labels=True, posed=True)
-        setup(world, arm)
-        config = Config().replace(opening={"task": "drawer", "target_distance_m": target})
-        result = run_episode(camera, arm, arm.kin, segmenter or OracleSegmenter(), config, folder=folder)
-        if folder is not None:
-            folder.finish(result)
-        q0 = arm.state().q
-        world.clock.step(120)
-        still = float(np.abs(arm.state().q - q0).max()) < 0.01
-    return result, still
-
-
 def test_locked_drawer_ends_blocked_and_safe():
     def lock(world, arm):
         pb.setJointMotorControl2(world.cabinet_id, world.cabinet_joint, pb.VELOCITY_CONTROL, targetVelocity=0.0,
                                  force=1e5, physicsClientId=world.client)
         arm.grasp_force_limit_n = 1e5  # the grasp holds, so the arm itself feels the lock
 
-    result, still = _episode(lock)
-    assert result.stop_reason == "blocked" and "no more motion" in result.message
+    ran = sim_episode(setup=lock)
+    result, still = ran.result, ran.still
+    assert result.stop_reason is StopReason.BLOCKED and "no more motion" in result.message
     assert not result.success and still
 
 
@@ -122,13 +105,14 @@ def test_slipping_grasp_regrasps_once_then_fails_clearly(tmp_path):
         arm.grasp_force_limit_n = 0.5
         pb.changeDynamics(world.cabinet_id, world.handle_link, lateralFriction=0.0, physicsClientId=world.client)
 
-    result, still = _episode(weaken, folder=RunFolder(tmp_path / "run"))
-    assert result.stop_reason == "grasp lost" and result.regrasped  # held at first, slipped, re-grasped once
+    ran = sim_episode(setup=weaken, folder=RunFolder(tmp_path / "run"))
+    result, still = ran.result, ran.still
+    assert result.stop_reason is StopReason.GRASP_LOST and result.regrasped  # held at first, slipped, re-grasped once
     assert result.message.startswith("the handle slipped out of the gripper again during ")
     assert "after one re-grasp: the pull needs more force than the grasp holds" in result.message
     assert not result.success and still
     assert json.loads(json.dumps(result.to_dict()))["stop_reason"] == result.stop_reason
-    records = [json.loads(line) for line in (tmp_path / "run" / "frames" / "frames.jsonl").read_text().splitlines()]
+    records = FramesRecording(tmp_path / "run" / "frames").records
     held = [r["grasped"] for r in records]  # the first frame; each pull's while held and, after each slip, not
     assert held[0] is False and held[1] is True and held.count(False) >= 3 and held[-1] is False
 
@@ -149,8 +133,9 @@ def test_a_slip_is_recovered_by_finding_the_handle_again():
 
         world.clock.add_hook(restore)
 
-    result, still = _episode(slip_once, target=0.15)
-    assert result.stop_reason == "target reached" and result.success and still
+    ran = sim_episode(setup=slip_once, target=0.15)
+    result, still = ran.result, ran.still
+    assert result.stop_reason is StopReason.TARGET_REACHED and result.success and still
     assert result.regrasped and result.opened >= 0.15
 
 
@@ -171,23 +156,26 @@ def test_a_drawer_that_slides_back_after_a_slip_is_found_again_along_its_path():
 
         world.clock.add_hook(hook)
 
-    result, still = _episode(slip_then_slide_back, target=0.30)
+    ran = sim_episode(setup=slip_then_slide_back, target=0.30)
+    result, still = ran.result, ran.still
     assert seen["slid"] and result.regrasped
-    assert result.stop_reason == "target reached" and still, result.message
+    assert result.stop_reason is StopReason.TARGET_REACHED and still, result.message
     assert seen["value"] >= 0.30 and abs(result.opened - seen["value"]) < 0.02
 
 
 def test_lost_tracking_stops_safely():
-    result, still = _episode(lambda world, arm: None, segmenter=_LosingSegmenter())
-    assert result.stop_reason == "tracking lost" and "mask shrank to 0 pixels" in result.message
+    ran = sim_episode(segmenter=_LosingSegmenter())
+    result, still = ran.result, ran.still
+    assert result.stop_reason is StopReason.TRACKING_LOST and "mask shrank to 0 pixels" in result.message
     assert not result.success and still
 
 
 def test_unreachable_handle_is_refused_before_moving():
     scenario = Scenario.make("drawer", 0, "train")
     far = replace(scenario, cabinet_xy=tuple(1.6 * np.array(scenario.cabinet_xy)))  # the handle ~1 m away
-    result, still = _episode(lambda world, arm: None, target=0.30, scenario=far)
-    assert result.stop_reason == "ik infeasible" and "out of reach" in result.message
+    ran = sim_episode(target=0.30, scenario=far)
+    result, still = ran.result, ran.still
+    assert result.stop_reason is StopReason.IK_INFEASIBLE and "out of reach" in result.message
     assert result.steps == 0 and still
 
 
@@ -205,7 +193,7 @@ def test_bench_open_reports_the_issue_keys():
 def test_a_target_nearer_than_the_first_pull_is_not_overshot_by_it():
     """The first pull stops at the steps' goal (target + 1.5 cm): a 1 cm target is not pulled the whole 5 cm."""
     result = simulate_episode("drawer", 0, "test", target=0.01)
-    assert result["success"] and result["stop_reason"] == "target reached", result["message"]
+    assert result["success"] and result["stop_reason"] == StopReason.TARGET_REACHED, result["message"]
     assert 0.01 <= result["true_opened_m"] < 0.035
 
 
@@ -227,7 +215,7 @@ def test_a_dry_run_commands_no_motion_even_when_the_arm_hides_the_object(tmp_pat
     with caplog.at_level("INFO", logger="deploy.control.stages"):
         data = open_object(OpenRequest(task="drawer", scene="drawer", run_dir=tmp_path / "run", dry_run=True),
                            setup=spy)
-    assert data["stop_reason"] == "dry run"
+    assert data["stop_reason"] == StopReason.DRY_RUN
     assert "dry run: the arm hides part of the object; a run would first turn panda_joint1" in caplog.text
     assert max(moved, default=0.0) < 1e-9
 

@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from deploy.config import OpeningConfig
+from deploy.config import Config, OpeningConfig
 from deploy.control.grasp import Handle, back_along_path, find_handle, grasp_pose, hinge_prior
 from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
 from deploy.geometry.types import Axis, Box, JointType, NoAxis
+from deploy.policies import POLICIES, GrowingSteps, OpeningPolicy, opening_policy
 
 # a cabinet whose front faces -x (toward a robot at the origin), front face at x = 0.5
 BODY = Box(np.array([0.7, 0.0, 0.5]), np.eye(3), np.array([0.4, 0.6, 0.6]))
@@ -104,10 +105,37 @@ def test_choose_axis_rule():  # openings in SI: rad for a door, m for a drawer
 def test_config_targets_and_paper_schedule():
     cfg = OpeningConfig(task="door", target_angle_deg=45, policy="paper")
     assert cfg.target == pytest.approx(np.radians(45))
-    assert [cfg.step_for(JointType.PRISMATIC, k) for k in (0, 1, 5)] == pytest.approx([0.10, 0.12, 0.16])
-    assert cfg.step_for(JointType.REVOLUTE, 10) == pytest.approx(0.15)
-    with pytest.raises(ValueError):
+    paper = cfg.strategy()
+    assert [paper.step_size(JointType.PRISMATIC, k, cfg) for k in (0, 1, 5)] == pytest.approx([0.10, 0.12, 0.16])
+    assert paper.step_size(JointType.REVOLUTE, 10, cfg) == pytest.approx(0.15)
+    with pytest.raises(ValueError, match="unknown policy 'sometimes': choose one of closed, open, paper"):
         OpeningConfig(policy="sometimes")
+
+
+def test_each_policy_says_what_it_acts_with():
+    opening = OpeningConfig(drawer_step_m=0.07, door_step_deg=10.0)
+    closed, open_loop, paper = (opening_policy(name) for name in ("closed", "open", "paper"))
+    assert (closed.re_estimates, open_loop.re_estimates, paper.re_estimates) == (True, False, True)
+    assert closed.acting_estimator("screw") == "screw" and paper.acting_estimator("screw") == "paper-obb"
+    assert closed.acting_fusion("force") == "force" and paper.acting_fusion("force") == "vision"
+    assert not closed.straight_door(JointType.REVOLUTE) and paper.straight_door(JointType.REVOLUTE)
+    assert not paper.straight_door(JointType.PRISMATIC)
+    assert closed.step_size(JointType.PRISMATIC, 3, opening) == 0.07
+    assert closed.step_size(JointType.REVOLUTE, 3, opening) == pytest.approx(np.radians(10.0))
+
+
+def test_a_policy_registered_elsewhere_is_accepted_by_name(monkeypatch):
+    """A new strategy needs its object and one registry line: the run config takes it and acts with what it says."""
+    monkeypatch.setitem(POLICIES._entries, "cautious", None)  # removed again after the test
+    POLICIES.register("cautious", f"{__name__}:_cautious", "closed loop on vision alone, small steps")
+    config = Config().replace(opening={"policy": "cautious", "fusion": "force"}, estimator={"name": "screw"})
+    assert config.opening.acting_fusion == "vision" and config.acting_estimator == "screw"
+    assert config.opening.strategy().step_size(JointType.PRISMATIC, 0, config.opening) == 0.03
+
+
+def _cautious(_argument: str) -> OpeningPolicy:
+    return OpeningPolicy("cautious", None, "vision", re_estimates=True, door_arcs=True,
+                         steps=GrowingSteps(drawer_m=(0.03, 0.03), door_m=(0.03, 0.03), grow_m=0.0))
 
 
 def test_seen_opening_is_the_drawer_fronts_distance_out_of_the_cabinet_front():

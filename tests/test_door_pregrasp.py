@@ -6,6 +6,7 @@ import pytest
 
 import deploy.control.stages as stages
 from deploy.bench.open import simulate_episode
+from deploy.control.state import StopReason
 from drivers.camera.depth_noise import DepthNoise
 
 # Test door 44 stands far to one side: a configuration chosen for a straight pull turns the wrist (joint 5) onto
@@ -30,5 +31,6 @@ def test_a_door_pregrasp_planned_for_the_arc_carries_the_wrist_through_it():
 def test_planned_for_a_straight_pull_the_wrist_runs_out_of_speed_on_the_arc(monkeypatch):
     monkeypatch.setattr(stages, "PLANNED_DOOR_ARCS_DEG", ())
     result = simulate_episode("door", FAR_DOOR_SEED, split="test", target=20.0)
-    assert result["stop_reason"] == "ik infeasible"  # the scenario does need the arc: the test above is not vacuous
+    # the scenario does need the arc: the test above is not vacuous
+    assert result["stop_reason"] == StopReason.IK_INFEASIBLE
     assert "panda_joint5" in result["message"]

@@ -9,6 +9,7 @@ import pytest
 
 from deploy.bench.executors import LocalExecutor, RayExecutor, make_executor
 from deploy.bench.open import simulate_episode
+from deploy.control.state import StopReason
 from deploy.errors import USER_ERRORS, ConfigError, JobError, ModelError
 
 
@@ -162,7 +163,7 @@ def test_ray_runs_a_simulated_episode(ray_executor):
     job = dict(task="drawer", seed=0, split="train", target=0.05)
     (result,) = ray_executor.map(simulate_episode, [job])
     assert (result["task"], result["seed"], result["split"]) == ("drawer", 0, "train")
-    assert result["stop_reason"] == "target reached"
+    assert result["stop_reason"] == StopReason.TARGET_REACHED
     assert result["axis"]["joint_type"] == "prismatic"
     assert 0.05 <= result["true_opened_m"] <= 0.05 + 0.02  # reached, at most a 1.5 cm overshoot past it
     assert result["axis_angle_error_deg"] < 2.0

@@ -13,6 +13,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from deploy.bench.open import simulate_episode
+from deploy.control.state import StopReason
 from drivers.arm.can_arm import CanArm
 from drivers.camera.frames_dir import FramesRecording
 from sim_fallback.can_motors import motors_on
@@ -58,7 +59,7 @@ def _episode(tmp_path, change=None, arm="sim", target=TARGET_M, **opening):
     return result, watch, run
 
 
-def _assert_ended(result, watch, run, reason: str, message: str) -> dict:
+def _assert_ended(result, watch, run, reason: StopReason, message: str) -> dict:
     """The reason and message, the arm stopped, the run folder complete; steps.json's content."""
     assert (result["stop_reason"], result["success"]) == (reason, False), result["message"]
     assert message in result["message"]
@@ -73,7 +74,7 @@ def _assert_ended(result, watch, run, reason: str, message: str) -> dict:
     else:  # the CAN arm's final motor states, as in the episode's JSON
         assert steps["motors"] == result["motors"]
         assert [(m["name"], m["enabled"], m["status"]) for m in steps["motors"]] == \
-            [(getattr(c, "name", "gripper"), False, "disabled") for c in watch.motors.config.motors]
+            [(c.name, False, "disabled") for c in watch.motors.config.motors]
     assert steps["result"]["stop_reason"] == reason and steps["result"]["message"] == result["message"]
     frames = FramesRecording(run / "frames")
     assert len(frames) >= 1 and frames.has_masks
@@ -89,7 +90,7 @@ def _no_handle_collisions(world, _arm):
 @pytest.mark.parametrize("arm", ["sim", "sim-can"])
 def test_a_grasp_on_air_fails_before_anything_is_pulled(tmp_path, arm):
     result, watch, run = _episode(tmp_path, _no_handle_collisions, arm)
-    steps = _assert_ended(result, watch, run, "grasp failed", "gripper closed to 0.")
+    steps = _assert_ended(result, watch, run, StopReason.GRASP_FAILED, "gripper closed to 0.")
     assert "mm): it missed the handle" in result["message"]
     assert result["steps"] == 0 and not result["regrasped"] and result["true_opened_m"] < 0.002
     assert steps["motions"] == []  # no pull was made
@@ -109,7 +110,7 @@ def _jam_fingers_open(world, arm):
 
 def test_a_gripper_that_does_not_close_fails_the_grasp(tmp_path):
     result, watch, run = _episode(tmp_path, _jam_fingers_open)
-    steps = _assert_ended(result, watch, run, "grasp failed", "gripper closed to 80.0 mm (open 80.0 mm)")
+    steps = _assert_ended(result, watch, run, StopReason.GRASP_FAILED, "gripper closed to 80.0 mm (open 80.0 mm)")
     assert result["steps"] == 0 and steps["motions"] == []
 
 
@@ -132,7 +133,8 @@ def test_a_grasp_that_slips_twice_ends_grasp_lost_after_one_regrasp(tmp_path, ar
         _grip_gives_way_at(arm, 20.0)  # the grip gives way long before the drawer does
 
     result, watch, run = _episode(tmp_path, weak_grasp_on_a_locked_drawer, arm)
-    steps = _assert_ended(result, watch, run, "grasp lost", "the handle slipped out of the gripper again during ")
+    steps = _assert_ended(result, watch, run, StopReason.GRASP_LOST,
+                          "the handle slipped out of the gripper again during ")
     assert "after one re-grasp: the pull needs more force than the grasp holds" in result["message"]
     assert result["regrasped"] and result["true_opened_m"] < 0.005
     motions = steps["motions"]
@@ -147,7 +149,8 @@ def test_a_locked_drawer_with_a_firm_grasp_ends_blocked(tmp_path, arm):
 
     # the tracking-error check behind the force limit (out of reach here), on a drawer locked fast
     result, watch, run = _episode(tmp_path, held, arm, pull_force_limit_n=500.0, condition="locked")
-    steps = _assert_ended(result, watch, run, "blocked", "no more motion during first pull (blocked: tracking error ")
+    steps = _assert_ended(result, watch, run, StopReason.BLOCKED,
+                          "no more motion during first pull (blocked: tracking error ")
     assert "the joint is at its limit or locked" in result["message"]
     assert not result["regrasped"] and result["steps"] == 0 and result["true_opened_m"] < 0.005
     assert [m["label"] for m in steps["motions"]] == ["first pull"]
@@ -176,7 +179,7 @@ def _cover_the_camera_once_the_gripper_closes(world, arm):
 def test_a_lost_view_ends_tracking_lost(tmp_path, arm):
     """The segmenter's own loss check or the episode's mask check, whichever fires first, names the frame."""
     result, watch, run = _episode(tmp_path, _cover_the_camera_once_the_gripper_closes, arm)
-    steps = _assert_ended(result, watch, run, "tracking lost", "at frame ")
+    steps = _assert_ended(result, watch, run, StopReason.TRACKING_LOST, "at frame ")
     assert int(re.search(r"at frame (\d+)", result["message"]).group(1)) > 0  # a frame of the pull, not the first
     assert result["steps"] == 0 and [m["label"] for m in steps["motions"]] == ["first pull"]
 
@@ -184,7 +187,7 @@ def test_a_lost_view_ends_tracking_lost(tmp_path, arm):
 @pytest.mark.parametrize("arm", ["sim", "sim-can"])
 def test_the_time_limit_ends_the_episode_even_during_a_pull(tmp_path, arm):
     result, watch, run = _episode(tmp_path, arm=arm, timeout_s=1.0)
-    steps = _assert_ended(result, watch, run, "timeout", "1 s of arm time used, opened ")
+    steps = _assert_ended(result, watch, run, StopReason.TIMEOUT, "1 s of arm time used, opened ")
     assert re.search(r"opened -?0\.0", result["message"]), result["message"]  # a tenth of a mm either way
     assert result["steps"] == 0 and result["true_opened_m"] < 0.01  # the first pull stopped at once, no step
     assert [m["label"] for m in steps["motions"]] == ["first pull"]
@@ -192,6 +195,6 @@ def test_the_time_limit_ends_the_episode_even_during_a_pull(tmp_path, arm):
 
 def test_the_step_limit_ends_the_episode_after_its_last_step(tmp_path):
     result, watch, run = _episode(tmp_path, target=0.25, max_steps=1)
-    steps = _assert_ended(result, watch, run, "max steps", "1 steps made, opened 0.1")
+    steps = _assert_ended(result, watch, run, StopReason.MAX_STEPS, "1 steps made, opened 0.1")
     assert result["steps"] == 1 and result["true_opened_m"] < 0.25
     assert [m["label"] for m in steps["motions"]][0] == "first pull" and len(steps["motions"]) == 2

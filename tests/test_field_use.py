@@ -15,8 +15,9 @@ from ros2_bags import write_bag
 from deploy.cli import app, main
 from deploy.config import Config, filter_profile_for, load_config
 from deploy.control.session import OpenRequest
-from deploy.control.viewer import STEP_LOGGER, EpisodeView, RerunViewer
+from deploy.control.view import STEP_LOGGER, EpisodeView
 from deploy.geometry.types import Axis, JointType
+from deploy.report.viewer import RerunViewer
 from drivers.camera.base import Frame, Intrinsics
 from drivers.camera.frames_dir import FramesRecording, FramesWriter
 from drivers.camera.realsense_convert import convert_recording

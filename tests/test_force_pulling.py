@@ -10,11 +10,12 @@ from scipy.spatial.transform import Rotation
 from deploy.bench.open import _pull_forces, bench_open, simulate_episode
 from deploy.config import OpeningConfig
 from deploy.control.policy import choose_axis
+from deploy.control.state import StopReason
 from deploy.geometry.types import Axis, JointType, NoAxis
 from drivers.arm.base import ArmState
 from drivers.arm.motion import Compliance, follow_cartesian_path, line_path
 from drivers.arm.registry import open_arm
-from drivers.arm.robot_config import load_robot_config
+from drivers.arm.robot_config import load_robot_config, panda_sim_config
 from drivers.arm.trajectory import MotionLimits
 from drivers.arm.wrench import WrenchEstimator, torque_offset
 from sim_fallback.arm import SimArm
@@ -80,7 +81,7 @@ def _pitched_pull(compliance):
     """A drawer grasped along the truth, then pulled 12 cm along a line pitched 5 deg off its axis."""
     with SimWorld(Scenario.make("drawer", 0, "train")) as world:
         arm = SimArm(world)
-        grasp_handle(world, arm, MotionLimits.for_robot(world.robot_spec, arm.kin, 0.3), 0.15)
+        grasp_handle(world, arm, panda_sim_config().motion_limits(arm.kin, 0.3), 0.15)
         truth = world.truth()
         across = np.cross(truth.direction, [0.0, 0.0, 1.0])
         line = Rotation.from_rotvec(np.radians(5.0) * across / np.linalg.norm(across)).apply(truth.direction)
@@ -103,7 +104,7 @@ def test_compliance_bends_the_path_under_an_axis_error():
 
 def test_a_locked_drawer_ends_blocked_under_the_force_limit():
     result = simulate_episode("drawer", 0, "train", target=0.15, condition="locked")
-    assert result["stop_reason"] == "blocked" and not result["success"]
+    assert result["stop_reason"] == StopReason.BLOCKED and not result["success"]
     assert "no more motion during first pull (blocked: pull force " in result["message"]
     assert f"peak {result['peak_pull_force_n']:.1f} N" in result["message"]
     assert 30.0 < result["peak_pull_force_n"] <= 60.0 and result["true_opened_m"] < 0.002
@@ -116,7 +117,7 @@ def test_a_pull_that_makes_no_headway_ends_blocked_even_when_never_held_still_lo
     `stall_s`: with that rule switched off, a locked drawer's pull must still end after `no_progress_s`."""
     with SimWorld(Scenario.make("drawer", 0, "train", condition="locked")) as world:
         arm = SimArm(world)
-        grasp_handle(world, arm, MotionLimits.for_robot(world.robot_spec, arm.kin, 0.3), 0.15)
+        grasp_handle(world, arm, panda_sim_config().motion_limits(arm.kin, 0.3), 0.15)
         compliance = Compliance(force_limit_n=60.0, stall_s=float("inf"), no_progress_s=2.0)
         result = follow_cartesian_path(arm, arm.kin, line_path(arm.kin.fk(arm.state().q), world.truth().direction),
                                        0.12, MotionLimits(0.08, 0.32, 3.2), compliance=compliance)
@@ -127,14 +128,14 @@ def test_a_pull_that_makes_no_headway_ends_blocked_even_when_never_held_still_lo
 
 def test_the_episode_time_budget_stops_a_pull_midway():
     result = simulate_episode("drawer", 0, "test", target=0.10, timeout_s=6.0)  # runs out as the first pull starts
-    assert result["stop_reason"] == "timeout"
+    assert result["stop_reason"] == StopReason.TIMEOUT
     assert result["true_opened_m"] < 0.01  # the 5 cm first pull was cut short, not finished
     assert result["timings"]["sim_time_s"] < 6.0 + 2.0
 
 
 def test_a_lower_force_limit_stops_sooner():
     result = simulate_episode("drawer", 0, "train", target=0.15, condition="locked", pull_force_limit_n=30.0)
-    assert result["stop_reason"] == "blocked" and result["peak_pull_force_n"] <= 30.0
+    assert result["stop_reason"] == StopReason.BLOCKED and result["peak_pull_force_n"] <= 30.0
 
 
 def test_bench_open_reports_the_condition_the_peak_force_and_the_axis_cues():
@@ -156,7 +157,7 @@ def test_the_peak_force_median_leaves_out_episodes_that_never_pulled():
 
 def test_a_stiff_door_still_opens():
     result = simulate_episode("door", 0, "train", target=20.0, condition="stiff")
-    assert result["success"] and result["stop_reason"] == "target reached", result["message"]
+    assert result["success"] and result["stop_reason"] == StopReason.TARGET_REACHED, result["message"]
     assert 0.0 < result["peak_pull_force_n"] <= 60.0
 
 

@@ -6,6 +6,7 @@ import numpy as np
 
 import deploy.control.stages as stages
 from deploy.bench.open import simulate_episode
+from deploy.control.state import StopReason
 
 # Test scenario 42, placed near (0.4-0.7 m), is a door with a knob nearer than the calibrated camera sees it:
 # the approach ends with the palm pushing on the knob (about 30 N after settling).
@@ -37,5 +38,5 @@ def test_a_pressed_handle_is_eased_off_before_closing_and_the_door_opens(near_do
 def test_without_easing_off_the_first_pull_reads_the_released_push_as_resistance(near_doors, monkeypatch):
     result, pushes = _episode(monkeypatch, ease=False)
     assert pushes and pushes[0] > stages.PRESS_N  # the scenario does press: the test above is not vacuous
-    assert result["stop_reason"] == "blocked"
+    assert result["stop_reason"] == StopReason.BLOCKED
     assert np.isclose(result["true_opened_deg"], 0.0, atol=1.0)

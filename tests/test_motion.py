@@ -15,6 +15,7 @@ from drivers.arm.motion import (
     move_to_joints,
     move_to_pose,
 )
+from drivers.arm.robot_config import panda_sim_config
 from drivers.arm.robots import panda
 from drivers.arm.trajectory import MotionLimits, joint_trajectory
 from drivers.errors import ArmError
@@ -167,7 +168,7 @@ def test_zero_length_path_does_not_move():
 def test_move_to_joints_and_to_pose_reach_their_goals():
     arm = IdealArm.panda()
     kin = arm.kin
-    limits = MotionLimits.for_robot(panda(), kin, fraction=0.5)
+    limits = panda_sim_config().motion_limits(kin, 0.5)
     q_goal = panda().q_ready + np.array([0.3, 0.2, -0.2, 0.3, 0.2, -0.3, 0.5])
     ticks = []
     assert move_to_joints(arm, q_goal, limits, on_tick=lambda state, t: ticks.append(t) is None)
@@ -182,7 +183,7 @@ def test_move_to_joints_and_to_pose_reach_their_goals():
 
 def test_joint_trajectory_stopped_by_on_tick_ends_at_rest_short_of_the_goal():
     arm = IdealArm.panda()
-    limits = MotionLimits.for_robot(panda(), arm.kin, fraction=0.5)
+    limits = panda_sim_config().motion_limits(arm.kin, 0.5)
     q_goal = panda().q_ready + 0.5
     traj = joint_trajectory(arm.state().q, q_goal, limits)
     assert not follow_joint_trajectory(arm, traj, on_tick=lambda state, t: t < traj.duration / 2)
@@ -203,7 +204,7 @@ def test_safety_violation_stops_the_arm():
 
 def test_an_on_tick_exception_stops_the_arm():
     arm = IdealArm.panda()
-    limits = MotionLimits.for_robot(panda(), arm.kin, fraction=0.5)
+    limits = panda_sim_config().motion_limits(arm.kin, 0.5)
 
     def camera_fails(state: ArmState, t: float) -> bool:
         if t > 0.2:

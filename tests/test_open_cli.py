@@ -8,6 +8,7 @@ import pytest
 from rerun_files import entities
 
 from deploy.cli import main
+from deploy.control.state import StopReason
 
 ROBOT = "panda_sim"  # a shipped robot config, by name
 
@@ -33,7 +34,7 @@ def test_open_auto_classifies_and_opens(capsys, tmp_path, scene, joint):
 def test_dry_run_plans_moves_nothing_and_views(capsys, tmp_path):
     code, out, _ = run(capsys, "open-door", "--dry-run", "--view", "--run-dir", tmp_path / "run", "--json")
     data = json.loads(out)
-    assert code == 0 and data["stop_reason"] == "dry run" and "nothing moved" in data["message"]
+    assert code == 0 and data["stop_reason"] == StopReason.DRY_RUN and "nothing moved" in data["message"]
     assert abs(data["true_opened_deg"]) < 0.2 and data["steps"] == 0
     assert (tmp_path / "run" / "episode.rrd").stat().st_size > 10_000  # frame, cloud and gripper pose logged
     found = entities(tmp_path / "run" / "episode.rrd")
@@ -56,7 +57,7 @@ def test_hardware_path_on_a_recording_with_the_kinematic_arm(capsys, tmp_path):
     code, out, _ = run(capsys, "open-drawer", "--camera", f"replay:{rec}", "--arm", "ideal", "--robot", ROBOT,
                        "--segmenter", "oracle", "--dry-run", "--run-dir", tmp_path / "run", "--json")
     data = json.loads(out)
-    assert code == 0 and data["stop_reason"] == "dry run" and data["arm"] == "ideal"
+    assert code == 0 and data["stop_reason"] == StopReason.DRY_RUN and data["arm"] == "ideal"
     assert data["axis"]["joint_type"] == "prismatic" and data["axis"]["direction"][0] < -0.9  # toward the robot
 
 

@@ -6,6 +6,7 @@ import pybullet as pb
 import pytest
 
 from deploy.bench.open import simulate_episode
+from deploy.control.state import StopReason
 from deploy.geometry.boxes import front_box, front_direction
 from deploy.perception.config import PerceptionConfig
 from deploy.perception.rgbd import RGBDSegmenter
@@ -14,7 +15,7 @@ from deploy.perception.track_health import mask_iou
 from deploy.rig import RigSpec, SimScene, open_rig, simulated_calibration
 from drivers.arm.body import RobotBody
 from drivers.arm.motion import follow_cartesian_path, line_path
-from drivers.arm.robot_config import PANDA_SIM_CONFIG, load_robot_config
+from drivers.arm.robot_config import PANDA_SIM_CONFIG, load_robot_config, panda_sim_config
 from drivers.arm.trajectory import MotionLimits
 from drivers.camera.base import SegLabel
 from sim_fallback.arm import SimArm
@@ -31,7 +32,7 @@ def test_short_episodes_succeed_with_the_default_segmenter_and_a_field_calibrati
     result = simulate_episode(task, 1, "test", target=target)
     assert result["segmenter"] == "rgbd"  # no weights on this machine
     assert result["calibration_error"] == {"translation_mm": 5.0, "rotation_deg": 0.5}
-    assert result["stop_reason"] == "target reached" and result["success"], result["message"]
+    assert result["stop_reason"] == StopReason.TARGET_REACHED and result["success"], result["message"]
     assert result["axis_angle_error_deg"] < 5
 
 
@@ -130,7 +131,7 @@ def test_front_box_follows_the_front_plane_where_the_smallest_box_turns():
 
 
 def _gripped(world, arm):
-    grasp_handle(world, arm, MotionLimits.for_robot(world.robot_spec, arm.kin, 0.3), target=0.05)
+    grasp_handle(world, arm, panda_sim_config().motion_limits(arm.kin, 0.3), target=0.05)
     assert arm.state().gripper_width_m > 0.005
     return arm.kin.fk(arm.state().q)
 
@@ -195,7 +196,7 @@ def test_rgbd_tracking_follows_a_door_swinging_out_of_its_first_region():
     detects the door again rather than keeping the part still inside, which shrank until the track counted as
     lost (door 70 deg, test seed 19: "tracking lost" at frame 62 with the other order)."""
     result = simulate_episode("door", 19, "test", target=70.0)
-    assert result["stop_reason"] == "target reached", result["message"]
+    assert result["stop_reason"] == StopReason.TARGET_REACHED, result["message"]
 
 
 def test_bench_perception_measures_rgbd_and_names_missing_weights(monkeypatch):

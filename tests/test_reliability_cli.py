@@ -16,6 +16,7 @@ import pytest
 from cli_run import one_line, run, small_recording
 from realsense_recordings import scene, write_db3
 
+from deploy.control.state import StopReason
 from drivers.arm.robot_config import PANDA_SIM_CONFIG
 from drivers.camera.frames_dir import FramesRecording
 
@@ -257,7 +258,8 @@ def test_a_signal_during_an_opening_keeps_the_run_folder_complete(tmp_path, sig,
     assert f"error: stopped by {name}; {motors}; the run folder {run_dir} holds the frames, steps.json and " \
            "report.png up to here" in err and "Traceback" not in err
     steps = json.loads((run_dir / "steps.json").read_text())
-    assert steps["result"]["stop_reason"] == "interrupted" and steps["result"]["message"] == f"stopped by {name}"
+    assert steps["result"]["stop_reason"] == StopReason.INTERRUPTED
+    assert steps["result"]["message"] == f"stopped by {name}"
     assert (run_dir / "report.png").stat().st_size > 0 and len(FramesRecording(run_dir / "frames")) >= 3
 
 

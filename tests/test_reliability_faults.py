@@ -8,6 +8,7 @@ import re
 import pytest
 
 from deploy.cli import main
+from deploy.control.state import StopReason
 from drivers.arm.disable import disable_summary, with_summary
 from drivers.arm.robot_config import load_robot_config
 from drivers.errors import ArmError, CanBusError
@@ -30,7 +31,7 @@ def _cycles(arm, n: int) -> None:
 
 
 def _states(motors) -> dict[str, bool]:
-    return {getattr(c, "name", "gripper"): m.enabled for m, c in zip(motors.motors, motors.config.motors,
+    return {c.name: m.enabled for m, c in zip(motors.motors, motors.config.motors,
                                                                        strict=True)}
 
 
@@ -202,7 +203,7 @@ def test_a_fault_during_an_opening_names_the_joint_and_the_motors(capsys, tmp_pa
     code, out, _ = run(capsys, "open-drawer", "--arm", "sim-can", "--sim-fault", "silent:panda_joint2@1.0",
                        "--run-dir", tmp_path / "run", "--json")
     data = json.loads(out)
-    assert code == 1 and data["stop_reason"] == "arm error" and "panda_joint2" in data["message"]
+    assert code == 1 and data["stop_reason"] == StopReason.ARM_ERROR and "panda_joint2" in data["message"]
     assert [m["name"] for m in data["motors"] if m["enabled"]] == ["panda_joint2"]
     assert (tmp_path / "run" / "steps.json").is_file() and (tmp_path / "run" / "report.png").is_file()
 

@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 
 from drivers.arm.kinematics import Kinematics
+from drivers.arm.robot_config import panda_sim_config
 from drivers.arm.robots import panda
 from drivers.arm.safety import SafetyGuard, SafetyLimits
-from drivers.arm.trajectory import MotionLimits, joint_trajectory
+from drivers.arm.trajectory import joint_trajectory
 from drivers.errors import ArmError
 
 DT = 0.002
@@ -46,7 +47,7 @@ def _stream(guard, kin, traj, speed: float = 1.0) -> tuple[float, float]:
 
 def test_a_planned_trajectory_passes_every_check(guard, kin):
     q0 = panda().q_ready
-    limits = MotionLimits.for_robot(panda(), kin, fraction=1.0)
+    limits = panda_sim_config().motion_limits(kin, 1.0)
     traj = joint_trajectory(q0, q0 + np.array([0.6, -0.3, 0.5, 0.4, -0.6, 0.3, 0.8]), limits)
     peak_v, peak_a = _stream(guard, kin, traj)
     assert peak_v > 0.99 and peak_a > 0.9  # it ran at the limits, so the checks were tested at them

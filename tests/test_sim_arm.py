@@ -8,6 +8,7 @@ import pytest
 
 from drivers.arm.base import Arm
 from drivers.arm.motion import follow_cartesian_path, line_path, move_to_joints
+from drivers.arm.robot_config import panda_sim_config
 from drivers.arm.trajectory import MotionLimits
 from drivers.errors import ArmError
 from sim_fallback.arm import SimArm
@@ -19,7 +20,7 @@ PULL = MotionLimits(0.05, 0.3, 3.0)  # m/s, m/s^2, m/s^3 along the path
 
 
 def _limits(world, arm):
-    return MotionLimits.for_robot(world.robot_spec, arm.kin, fraction=0.3)
+    return panda_sim_config().motion_limits(arm.kin, 0.3)
 
 
 def test_reaches_a_joint_target_faster_than_real_time():

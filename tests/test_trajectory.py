@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from drivers.arm.kinematics import Kinematics
+from drivers.arm.robot_config import panda_sim_config
 from drivers.arm.robots import panda
 from drivers.arm.trajectory import (
     JointTrajectory,
@@ -23,7 +24,7 @@ def kin() -> Kinematics:
 
 @pytest.fixture(scope="module")
 def limits(kin) -> MotionLimits:
-    return MotionLimits.for_robot(panda(), kin, fraction=0.5)
+    return panda_sim_config().motion_limits(kin, 0.5)
 
 
 def _samples(traj: JointTrajectory, dt: float = 0.002) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

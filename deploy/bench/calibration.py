@@ -14,6 +14,7 @@ from calibration.poses import PoseConfig
 from calibration.routine import HandEyeRun, RoutineConfig, Stations, plan_around_start, run_hand_eye
 from deploy.evaluation import calibration_error
 from deploy.rig import BoardScene, board_scene
+from drivers.arm.robot_config import panda_sim_config
 from drivers.arm.trajectory import MotionLimits
 from drivers.camera.base import Intrinsics
 from sim_fallback.board import CalibrationRig
@@ -50,7 +51,7 @@ def routine_config(rig: CalibrationRig, poses: int, board: BoardConfig, seed: in
 
 
 def limits(rig: CalibrationRig, fraction: float = SPEED_FRACTION) -> MotionLimits:
-    return MotionLimits.for_robot(rig.world.robot_spec, rig.arm.kin, fraction)
+    return panda_sim_config().motion_limits(rig.arm.kin, fraction)
 
 
 def truth_error(rig: CalibrationRig, solution: HandEyeSolution) -> tuple[float, float]:

@@ -111,9 +111,8 @@ def enable_cmd(
     """
     import time
 
-    from deploy.arm_bringup import inject_sim_faults, make_arm, motor_states, parse_sim_faults, released
+    from deploy.arm_bringup import inject_sim_faults, make_arm, parse_sim_faults, released
     from deploy.rig import load_robot
-    from drivers.arm.can_arm import CanArm
     from drivers.arm.disable import disable_summary
 
     faults = parse_sim_faults(arm, sim_fault)
@@ -123,14 +122,14 @@ def enable_cmd(
         if not yes and not typer.confirm(f"Enable the motors of the {arm} arm and hold position?", err=json_out):
             a.disconnect()
             raise typer.Exit(1)
-        if clear_errors and isinstance(a, CanArm):
+        if clear_errors:
             a.clear_errors()
     with a:
         (err_console if json_out else console).print(f"enabled; holding for {hold:.1f} s (Ctrl-C to stop)")
         end = time.perf_counter() + hold
         while time.perf_counter() < end:
             a.sync()
-    states = motor_states(a)
+    states = a.motor_states()
     if json_out:
         print_json({"held_s": hold, "motors": states})
     else:
@@ -190,15 +189,13 @@ def _move(kind: str, robot: Path | None, what: str, dry_run: bool, yes: bool, ho
     """Plan `what` (home, jog or move) from the measured joints, show it, ask, then run it."""
     from deploy.arm_bringup import execute, inject_sim_faults, make_arm, parse_sim_faults, plan, released
     from deploy.rig import load_robot
-    from drivers.arm.can_arm import CanArm
 
     faults = parse_sim_faults(kind, sim_fault)
     config = load_robot(kind, robot)
     a = make_arm(kind, config)
     with released(a):
         inject_sim_faults(a, faults)
-        if isinstance(a, CanArm):
-            a.probe()  # measured joints without enabling
+        a.probe()  # measured joints without enabling
         p = plan(a, config, what, **target)
         title = f"{what} plan ({kind} arm{', dry run' if dry_run else ''})"
         if json_out and dry_run:

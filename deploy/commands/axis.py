@@ -146,7 +146,7 @@ def axis_estimate(
     }, ESTIMATE_OPTIONS).for_camera(f"replay:{recording}")
     viewer = None
     if view or rrd is not None:
-        from deploy.control.viewer import RerunViewer
+        from deploy.report.viewer import RerunViewer
 
         viewer = RerunViewer(view_file(recording, rrd, "axis"))
     with progress_bar(f"estimating {recording.name}") as bar:

@@ -28,13 +28,14 @@ DEFAULT_POLICY = PolicyChoice(OPENING.policy)
 MAX_EPISODES, MAX_WORKERS, MAX_SEQUENCES = 100_000, 64, 100  # every job is built up front; a sequence is ~60 MB
 SEQUENCES = 20  # bench axis's default sequences per object kind
 MAX_ARM_SECONDS = 3600.0
-NEEDS_BOX = "classical"  # needs the object's box on each scene's first frame, which bench open cannot give
+OPENABLE = [e for e in SEGMENTERS.entries() if "box" not in e.needs]  # bench open gives no first box per scene
 app = typer.Typer(help="Benchmarks: accuracy and speed, results for docs/benchmarks.md.", no_args_is_help=True)
 BenchSegmenterOpt = Annotated[str | None, typer.Option(
-    "--segmenter", autocompletion=lambda: [n for n in SEGMENTERS.names() if n != NEEDS_BOX],
-    help="; ".join(f"{e.usage}: {e.description}" for e in SEGMENTERS.entries() if e.name != NEEDS_BOX)
-    + " \\[default: gdino-sam2 where its weights are on this machine, else rgbd]. Not classical, which needs the "
-    "object's box on each scene's first frame.")]
+    "--segmenter", autocompletion=lambda: [e.name for e in OPENABLE],
+    help="; ".join(f"{e.usage}: {e.description}" for e in OPENABLE)
+    + " \\[default: gdino-sam2 where its weights are on this machine, else rgbd]. Not "
+    + " or ".join(e.name for e in SEGMENTERS.entries() if e not in OPENABLE)
+    + ", which needs the object's box on each scene's first frame.")]
 BenchConditionOpt = Annotated[Condition, typer.Option(
     help="Every simulated object's joint (the controller is not told): normal, locked (held fast) or stiff (three "
     "times the friction).")]
@@ -337,8 +338,8 @@ def _bench_target(task: Task, distance: float | None, angle: float | None, targe
         raise ConfigError(f"invalid value for {option}: {goal:g}: {exc.errors()[0]['msg'].lower()}: give a value "
                           "in that range") from None
     if segmenter is not None:
-        SEGMENTERS.entry(segmenter)
-        if segmenter == NEEDS_BOX:
-            raise ConfigError("--segmenter classical needs the object's box on each scene's first frame, which bench "
-                              "open cannot give: use rgbd (the default), gdino-sam2 or oracle")
+        entry, _ = SEGMENTERS.entry(segmenter)
+        if entry not in OPENABLE:
+            raise ConfigError(f"--segmenter {segmenter} needs the object's box on each scene's first frame, which "
+                              f"bench open cannot give: use {' or '.join(e.name for e in OPENABLE)}")
     return goal

@@ -117,7 +117,7 @@ def snapshot(
     check_snapshot_folder(out, overwrite, camera)  # before the camera opens
     with open_any_camera(camera, width, height, fps) as cam, cam:
         frame = cam.read()
-        files = save_snapshot(frame, out, getattr(cam, "depth_scale", 0.001))
+        files = save_snapshot(frame, out, cam.depth_scale)
     if json_out:
         print_json({"files": [str(f) for f in files], "intrinsics": frame.intrinsics.to_dict()})
     else:

@@ -32,6 +32,7 @@ from deploy.commands.options import (
 )
 from deploy.commands.output import print_json, print_rows
 from deploy.config import CALIBRATION_ERROR
+from deploy.policies import POLICIES
 
 top_level = typer.Typer()  # its commands sit directly under `deploy`
 
@@ -48,8 +49,7 @@ ViewOpt = Annotated[bool, typer.Option("--view", help="Show frames, the camera, 
                                       "true in simulation) in a rerun viewer, saved to RUN/episode.rrd.")]
 OverwriteOpt = overwrite_option("run folder at --run-dir")
 PolicyOrConfigOpt = Annotated[PolicyChoice | None, typer.Option(
-    help="closed (re-estimate every step), open (estimate once, after the first pull) or paper (the paper's "
-         "straight steps and box estimator, alone) \\[default: the config's, closed].")]
+    help=f"{POLICIES.help()} \\[default: the config's, closed].")]
 DistanceOpt = Annotated[float | None, typer.Option(
     "--distance", help="Target opening of a drawer, in metres \\[default: the config's, 0.30].")]
 AngleOpt = Annotated[float | None, typer.Option(

@@ -15,6 +15,7 @@ import typer
 
 from deploy.geometry.estimators.registry import ESTIMATORS
 from deploy.perception.registry import SEGMENTERS
+from deploy.policies import POLICIES
 from drivers.arm.registry import ARMS
 from drivers.camera.registry import CAMERAS
 from drivers.registry import Registry
@@ -50,10 +51,8 @@ class FilterChoice(str, Enum):
     sparse = "sparse"
 
 
-class PolicyChoice(str, Enum):
-    closed = "closed"
-    open = "open"
-    paper = "paper"
+PolicyChoice = Enum("PolicyChoice", {name: name for name in POLICIES.names()}, type=str)  # type: ignore[misc]
+"""The registered opening policies (deploy/policies.py), as command-line choices."""
 
 
 def yes_option(help: str) -> Any:
@@ -152,9 +151,7 @@ BoxOpt = Annotated[tuple[float, float, float, float] | None, typer.Option(
     "(needed by --segmenter classical).")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object instead of a table (on an error: "
                                        "{error, kind, exit_code, motors}).")]
-PolicyOpt = Annotated[PolicyChoice, typer.Option(help="closed (re-estimate every step), open (estimate once, after "
-                                                  "the first pull) or paper (the paper's straight steps and box "
-                                                  "estimator, alone).")]
+PolicyOpt = Annotated[PolicyChoice, typer.Option(help=f"{POLICIES.help()}.")]
 RobotOpt = robot_option("Robot config: a shipped one's name (panda_sim, damiao_6dof) or a TOML file "
                         "\\[default: panda_sim].")
 StationSeedOpt = seed_option("Seed of the station generator (and sim noise).")

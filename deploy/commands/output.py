@@ -24,7 +24,7 @@ err_console = Console(stderr=True)
 
 
 OUR_PACKAGES = ("deploy", "drivers", "calibration", "sim_fallback")
-STEP_LOGGER = "deploy.control.steps"  # deploy.control.viewer's per-step lines, shown without --verbose too
+STEP_LOGGER = "deploy.control.steps"  # deploy.control.view's per-step lines, shown without --verbose too
 
 
 class _StderrHandler(logging.StreamHandler):

@@ -75,7 +75,7 @@ def track(
                                    detector=detector, tracker=tracker, device=device)
         backend = make_segmenter(segmenter, config)
         if rrd_path is not None:
-            from deploy.control.viewer import RerunViewer
+            from deploy.report.viewer import RerunViewer
 
             viewer = RerunViewer(rrd_path)
         with progress_bar(f"tracking {recording.name}") as bar:

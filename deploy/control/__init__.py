@@ -2,6 +2,9 @@
 
 `run_episode` is imported on first use: the state record and stop reasons (`deploy.control.state`) load without
 the episode's stages, perception and geometry (real-device calibration scores nothing and needs none of them).
+
+The modules import one way: grasp, classify, policy (pure decisions), view (step lines) <- state <- observer <-
+context <- stages <- episode <- session.
 """
 
 from deploy.control.state import EpisodeResult, StopReason

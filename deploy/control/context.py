@@ -1,5 +1,6 @@
-"""What every stage of an episode works with (`Episode`): the devices, the run's settings, the observer, the
-state record, and one pull with frames grabbed on the way."""
+"""What every stage of an episode works with (`Episode`): the arm, the run's settings and policy, what the robot
+config gives (free-space limits, grip force, compliance), the observer, the state record, and one pull with frames
+grabbed on the way."""
 
 from __future__ import annotations
 
@@ -10,34 +11,51 @@ import numpy as np
 
 from deploy.config import Config
 from deploy.control.observer import Observer
-from deploy.control.run_folder import RunFolder
 from deploy.control.state import EpisodeState
-from deploy.perception.base import Segmenter
+from deploy.control.view import EpisodeView
+from deploy.policies import OpeningPolicy
+from deploy.report.run_folder import RunFolder
 from drivers.arm.base import Arm, ArmState
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.motion import Compliance, PathFn, PathResult, follow_cartesian_path
+from drivers.arm.robot_config import RobotConfig
 from drivers.arm.trajectory import MotionLimits
-from drivers.camera.base import Camera
 
 MIN_GRASP_WIDTH_M = 0.003  # a closed gripper narrower than this holds nothing
 SETTLE_S = 0.3  # after a motion the arm settles on its last command (a new motion starts from the
 # measured joints, and the safety layer refuses a jump from the last command to them)
 
 
+FREE_SPACE_SHARE = 0.3  # free-space joint moves at this share of the robot config's limits
+
+
 @dataclass
 class Episode:
-    """What every stage works with: the devices, the run's settings, the observer and the state."""
+    """What every stage works with: the arm, the run's settings and its policy, the robot config's free-space
+    limits (`joint_limits`), grip force and compliance (how pulls yield), the observer (the only way to what the
+    camera saw), the state record, what the episode reports to (`view`) and the run folder."""
 
-    camera: Camera
     arm: Arm
-    kin: Kinematics
-    segmenter: Segmenter
     config: Config
+    policy: OpeningPolicy
     joint_limits: MotionLimits
+    grip_force_n: float
+    compliance: Compliance
     observer: Observer
     state: EpisodeState
+    view: EpisodeView
     folder: RunFolder | None = None
-    compliance: Compliance = Compliance()  # how pulls yield (the robot config's [compliance])
+
+    @classmethod
+    def of_robot(cls, arm: Arm, config: Config, robot: RobotConfig, observer: Observer, state: EpisodeState,
+                 view: EpisodeView, folder: RunFolder | None = None) -> Episode:
+        """The episode of `arm` on `robot`'s config: its free-space limits, grip force and compliance."""
+        return cls(arm, config, config.opening.strategy(), robot.motion_limits(arm.kin, FREE_SPACE_SHARE),
+                   robot.grip_force_n, robot.compliance.gains(), observer, state, view, folder)
+
+    @property
+    def kin(self) -> Kinematics:
+        return self.arm.kin
 
     def tool(self) -> np.ndarray:
         """The measured tool pose (4x4, base frame)."""
@@ -88,9 +106,8 @@ class Episode:
             self.wait(SETTLE_S)
         finally:
             self.arm.set_compliance(False)
-        self.observer.next_frame_t = 0.0
-        settled = self.arm.state()  # the settled end of the motion
-        self.observer.capture(settled, holds(settled))
+        settled = self.arm.state()
+        self.observer.settled(settled, holds(settled))
         self.state.timings["motion_s"] += time.perf_counter() - clock
         self.state.steps += step
         self.state.peak_pull_force_n = max(self.state.peak_pull_force_n, result.peak_force_n)

@@ -16,18 +16,15 @@ from deploy.config import Config
 from deploy.control import stages
 from deploy.control.context import Episode
 from deploy.control.observer import Observer
-from deploy.control.run_folder import RunFolder
 from deploy.control.state import EpisodeResult, EpisodeState, EpisodeStop, StopReason
-from deploy.control.viewer import RerunViewer
+from deploy.control.view import EpisodeView
 from deploy.errors import PerceptionError
 from deploy.geometry.types import JointType
 from deploy.perception.base import Segmenter
 from deploy.perception.self_filter import SelfFilter
+from deploy.report.run_folder import RunFolder
 from drivers.arm.base import Arm
-from drivers.arm.kinematics import Kinematics
-from drivers.arm.motion import Compliance
-from drivers.arm.robots import panda
-from drivers.arm.trajectory import MotionLimits
+from drivers.arm.robot_config import RobotConfig
 from drivers.camera.base import Camera
 from drivers.errors import ArmError, IKError
 from drivers.interrupts import Interrupted, interrupts
@@ -38,28 +35,26 @@ TASK_JOINT = {"drawer": JointType.PRISMATIC, "door": JointType.REVOLUTE}
 def run_episode(
     camera: Camera,
     arm: Arm,
-    kin: Kinematics,
     segmenter: Segmenter,
     config: Config,
+    robot: RobotConfig,
     folder: RunFolder | None = None,
-    joint_limits: MotionLimits | None = None,
-    viewer: RerunViewer | None = None,
+    view: EpisodeView | None = None,
     dry_run: bool = False,
     self_filter: SelfFilter | None = None,
-    compliance: Compliance | None = None,
 ) -> EpisodeResult:
-    """Open the object in view to `config.opening`'s target; always leaves the arm stopped.
+    """Open the object in view to `config.opening`'s target with `config.opening.policy`; always leaves the arm
+    stopped.
 
-    folder: the run folder (frames and motions are written as they come; the caller finishes it with
-    `RunFolder.finish`). joint_limits: free-space joint moves (default 0.3 of the Panda's limits).
-    dry_run: perceive and plan the grasp, command nothing. self_filter: removes the arm's own pixels.
-    compliance: how pulls yield (the robot config's [compliance]; default `Compliance()`).
+    robot: the arm's robot config (free-space limits, grip force, compliance). folder: the run folder (frames and
+    motions are written as they come; the caller finishes it with `RunFolder.finish`). view: step lines and the
+    rerun viewer (default: step lines only). dry_run: perceive and plan the grasp, command nothing. self_filter:
+    removes the arm's own pixels.
     """
     state = EpisodeState(t0=arm.time(), joint=TASK_JOINT.get(config.opening.task))
-    observer = Observer(camera, segmenter, kin, config, state.joint, state.t0, folder, viewer, self_filter)
-    episode = Episode(camera, arm, kin, segmenter, config,
-                      joint_limits or MotionLimits.for_robot(panda(), kin, 0.3), observer, state, folder,
-                      compliance or Compliance())
+    view = view or EpisodeView()
+    observer = Observer(camera, segmenter, arm.kin, config, state.joint, state.t0, folder, view, self_filter)
+    episode = Episode.of_robot(arm, config, robot, observer, state, view, folder)
     interrupted = None
     try:
         with interrupts():  # Ctrl-C / SIGTERM end the episode here, so that its run folder can be finished
@@ -76,8 +71,7 @@ def run_episode(
         reason, message, interrupted = StopReason.INTERRUPTED, stop.message, stop
     finally:
         arm.stop()
-        if viewer is not None:
-            viewer.close()
+        view.close()
     result = _result(episode, reason, message)
     if interrupted is not None:  # the caller finishes the run folder with the result so far, then stops too
         interrupted.result = result
@@ -86,14 +80,13 @@ def run_episode(
 
 
 def _result(episode: Episode, reason: StopReason, message: str) -> EpisodeResult:
-    state = episode.state
-    state.timings["estimate_s"] += episode.observer.seconds
+    state, times = episode.state, episode.observer.times()
+    state.timings["estimate_s"] += times.seconds
     state.timings["sim_time_s"] = episode.now()
-    frame_ms = episode.observer.frame_ms
-    if frame_ms:
-        state.timings.update({"frame_ms_median": float(np.median(frame_ms)),
-                              "frame_ms_p90": float(np.percentile(frame_ms, 90)),
-                              "frame_cpu_ms_median": float(np.median(episode.observer.frame_cpu_ms))})
+    if times.frame_ms:
+        state.timings.update({"frame_ms_median": float(np.median(times.frame_ms)),
+                              "frame_ms_p90": float(np.percentile(times.frame_ms, 90)),
+                              "frame_cpu_ms_median": float(np.median(times.frame_cpu_ms))})
     return EpisodeResult(
         success=state.axis is not None and state.opened >= episode.target(), opened=state.opened,
         target=episode.target(), steps=state.steps, joint_type=state.joint_type().value, axis=state.axis,
@@ -101,5 +94,6 @@ def _result(episode: Episode, reason: StopReason, message: str) -> EpisodeResult
         timings=state.timings, regrasped=state.regrasped, peak_pull_force_n=state.peak_pull_force_n,
         vision_axis=state.vision_axis, estimates=state.estimates,
         commanded=np.array(state.commanded).reshape(-1, 4, 4), measured=np.array(state.measured).reshape(-1, 4, 4),
-        opening_curve=state.opening_curve, first_frame=episode.observer.first_frame,
+        opening_curve=state.opening_curve,
+        first_frame=None if episode.observer.first_look is None else episode.observer.first_look.frame,
     )

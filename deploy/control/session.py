@@ -18,10 +18,10 @@ from typing import Any, Literal
 
 from deploy.config import CALIBRATION_ERROR, Config, load_config
 from deploy.control.episode import run_episode
-from deploy.control.run_folder import RunFolder
-from deploy.control.viewer import EpisodeView
+from deploy.control.view import EpisodeView
 from deploy.errors import ConfigError
 from deploy.perception.registry import default_segmenter
+from deploy.report.run_folder import RunFolder
 from deploy.rig import Rig, RigSpec, SimScene, open_rig
 from drivers.camera.registry import CAMERAS
 from drivers.interrupts import Interrupted
@@ -53,7 +53,7 @@ class OpenRequest:
     segmenter: str | None = None
     seed: int = 0
     split: Literal["train", "test"] = "train"
-    policy: Literal["closed", "open", "paper"] | None = None
+    policy: str | None = None  # a policy of the registry (deploy/policies.py); None keeps the config's
     run_dir: Path | None = None
     dry_run: bool = False
     yes: bool = False
@@ -128,20 +128,19 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
         view = _view(request, run_dir, evaluation)
         with rig.arm:
             try:
-                result = run_episode(rig.camera, rig.arm, rig.kin, rig.segmenter, config, folder,
-                                     rig.motion_limits(), view, request.dry_run, rig.self_filter(),
-                                     rig.robot.compliance.gains())
+                result = run_episode(rig.camera, rig.arm, rig.segmenter, config, rig.robot, folder, view,
+                                     request.dry_run, rig.self_filter())
             except Interrupted as stop:  # Ctrl-C / SIGTERM: finish the run folder up to here, then stop (later
                 # signals are only recorded now, drivers/interrupts.py: a second Ctrl-C cannot cut the folder short)
                 if folder is not None and stop.result is not None:
                     folder.finish(stop.result, evaluation.axis_error if evaluation is not None else None,
-                                  _motor_states(rig.arm))
+                                  rig.arm.motor_states())
                     stop.run_dir = folder.path
                 raise
         data = {**result.to_dict(), "task": request.task, "camera": request.camera,
                 "arm": request.arm, "policy": config.opening.policy, "segmenter": rig.spec.segmenter,
                 "filter": config.filter.used()}
-        if (motors := _motor_states(rig.arm)) is not None:
+        if motors := rig.arm.motor_states():
             data["motors"] = motors
         if evaluation is not None:
             translation_mm, rotation_deg = request.calibration_error
@@ -165,11 +164,6 @@ def _log_config(config: Config) -> None:
              config.perception.object_prompt, config.perception.box)
 
 
-def _motor_states(arm: Any) -> list[dict] | None:
-    """A CAN arm's every motor's final state (name, enabled, status); None for other arms."""
-    return arm.motor_states() if hasattr(arm, "motor_states") else None
-
-
 def _evaluation(rig: Rig):
     if rig.world is None:
         return None
@@ -182,7 +176,7 @@ def _view(request: OpenRequest, run_dir: Path | None, evaluation: Any) -> Episod
     """The episode's step lines, and with --view the rerun viewer (RUN/episode.rrd) showing the true axis too."""
     viewer = None
     if request.view and run_dir is not None:
-        from deploy.control.viewer import RerunViewer
+        from deploy.report.viewer import RerunViewer
 
         viewer = RerunViewer(run_dir / "episode.rrd")
     view = EpisodeView(viewer)

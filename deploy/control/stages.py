@@ -6,11 +6,10 @@ from __future__ import annotations
 import logging
 import time
 
-import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from deploy.axis_pipeline import frame_points, viewpoint
+from deploy.axis_pipeline import viewpoint
 from deploy.control.classify import classify_joint, front_shift_m, front_turn_deg
 from deploy.control.context import MIN_GRASP_WIDTH_M, SETTLE_S, Episode
 from deploy.control.grasp import (
@@ -27,7 +26,7 @@ from deploy.control.grasp import (
 )
 from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
 from deploy.control.state import EpisodeStop, StopReason, display_scale, opening_unit
-from deploy.control.viewer import step_log
+from deploy.control.view import step_log
 from deploy.geometry.estimators.trajectory import fit_trajectory
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 from drivers.arm.motion import (
@@ -45,7 +44,6 @@ from drivers.camera.base import Frame
 
 log = logging.getLogger(__name__)
 
-GRIPPER_FORCE_N = 40.0
 CLOSE_TIME_S = 0.5
 OPEN_MARGIN_M = 0.005  # a gripper within this of fully open did not close on anything
 MAX_DRAWER_LAG_M = 0.03  # how far a drawer may lag the gripper's travel (a stretched grasp)
@@ -112,21 +110,15 @@ def _vec(v: np.ndarray) -> str:
 
 def _find_handle(episode: Episode) -> Handle | None:
     observer = episode.observer
-    frame, _ = observer.first(episode.arm.state)
-    handle_mask = episode.segmenter.handle_mask(frame)
-    pipeline = observer.pipeline
-    points = pipeline.handle_points if handle_mask is None else frame_points(frame, handle_mask, pipeline.config)
-    return None if pipeline.body_box is None else find_handle(
-        points, observer.first_points, pipeline.body_box, viewpoint(frame), episode.state.joint is JointType.REVOLUTE)
+    look = observer.first(episode.arm.state)
+    points = observer.handle_points()
+    return None if look.body_box is None else find_handle(
+        points, look.points, look.body_box, viewpoint(look.frame), episode.state.joint is JointType.REVOLUTE)
 
 
 def _arm_in_the_way(episode: Episode) -> bool:
     """Whether the arm's pixels touch the object's on the first frame (it may hide part of the front)."""
-    observer = episode.observer
-    if not observer.first_robot.any():
-        return False
-    near = cv2.dilate(observer.first_mask.astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
-    return int(np.count_nonzero(near & observer.first_robot)) > ARM_TOUCH_PX
+    return episode.observer.arm_near_object() > ARM_TOUCH_PX
 
 
 def _clear_view(episode: Episode) -> np.ndarray | None:
@@ -134,18 +126,14 @@ def _clear_view(episode: Episode) -> np.ndarray | None:
     within the arm's joint limits, if that is less than now; None when there is nothing better (or no
     self-filter to tell)."""
     observer, arm = episode.observer, episode.arm
-    if observer.self_filter is None or observer.first_frame is None:
-        return None
     state = arm.state()
-    near = cv2.dilate(observer.first_mask.astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
+    if observer.arm_hiding(state.q, state.gripper_width_m) is None:
+        return None
 
     def hidden(q: np.ndarray) -> int:
-        return int(np.count_nonzero(near & observer.self_filter.mask(observer.first_frame, q, state.gripper_width_m,
-                                                                     depth_test=False)))
+        return observer.arm_hiding(q, state.gripper_width_m)
 
-    guard = getattr(arm, "guard", None)  # the robot config's limits where the arm enforces them, else the URDF's
-    q_min, q_max = (guard.limits.q_min, guard.limits.q_max) if guard is not None else (episode.kin.q_min,
-                                                                                         episode.kin.q_max)
+    q_min, q_max = arm.limits.q_min, arm.limits.q_max
     candidates = [state.q + np.eye(len(state.q))[0] * turn for turn in CLEAR_VIEW_TURNS_RAD]
     candidates = [q for q in candidates if q_min[0] + 0.1 <= q[0] <= q_max[0] - 0.1]
     best = min(candidates, key=hidden, default=None)
@@ -196,14 +184,15 @@ def probe_and_classify(episode: Episode, handle: Handle) -> None:
     state, observer = episode.state, episode.observer
     probe = episode.config.opening.probe_pull_m
     _pull(episode, line_path(episode.tool(), handle.normal), probe, "probe pull")
-    if observer.last_seen is None:
+    seen, first = observer.latest_view(), observer.first_look
+    if seen is None:
         raise EpisodeStop(StopReason.TRACKING_LOST, "no frame was seen during the probe pull: check the camera")
-    frame, mask = observer.last_seen
-    pipeline = observer.pipeline
-    after = frame_points(frame, mask, pipeline.config)
-    turn = front_turn_deg(handle.normal, after, episode.tool()[:3, 3], pipeline.body_box, viewpoint(frame))
-    shift = front_shift_m(observer.first_points, after, handle.center, handle.normal)
-    state.joint = pipeline.joint = classify_joint(turn, shift, probe)
+    frame, mask = seen
+    after = observer.points(frame, mask)
+    turn = front_turn_deg(handle.normal, after, episode.tool()[:3, 3], first.body_box, viewpoint(frame))
+    shift = front_shift_m(first.points, after, handle.center, handle.normal)
+    state.joint = classify_joint(turn, shift, probe)
+    observer.set_joint(state.joint)
     if state.joint is JointType.REVOLUTE:  # the straight probe slips on a door's arc: count the turn seen
         state.p_grasp, state.opened_before = episode.tool()[:3, 3], float(np.radians(turn))
     state.estimates.append({"step": 0, "t": episode.now(), "source": "probe pull", "axis": None,
@@ -226,7 +215,7 @@ def first_pull(episode: Episode, handle: Handle) -> None:
     length = min(opening_cfg.first_pull_m, left * radius)
     if length <= 0.0:  # the probe pull already went past the goal
         return
-    if revolute and opening_cfg.policy != "paper":
+    if revolute and not episode.policy.straight_door(state.joint):
         axis = state.axis
         _pull(episode, arc_path(episode.tool(), axis.origin, axis.direction), length / radius, "first pull",
               episode.arc_limits())
@@ -239,8 +228,8 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
     after the first pull, and keeps that axis. Before any usable estimate: the door's hinge prior, or a line
     along the front normal."""
     clock = time.perf_counter()
-    state, vision = episode.state, episode.observer.vision
-    if episode.config.opening.policy == "open":
+    state, vision = episode.state, episode.observer.latest_axis()
+    if not episode.policy.re_estimates:
         chosen, source = (state.axis, "fixed") if state.estimated else _estimate_once(episode, pull)
         state.estimated = True
     else:
@@ -280,7 +269,7 @@ def _follow_vision_alone(episode: Episode, vision: AxisResult, pull: np.ndarray)
 def _estimate_once(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
     """The open loop's one estimate: vision's axis of the expected joint type however confident, else the
     prior."""
-    state, vision = episode.state, episode.observer.vision
+    state, vision = episode.state, episode.observer.latest_axis()
     if isinstance(vision, Axis) and (state.joint is None or vision.joint_type is state.joint):
         return orient_axis(vision, _measured_pull(episode, pull), state.p_grasp), "vision (once)"
     prior = state.axis if state.axis is not None else Axis(JointType.PRISMATIC, state.p_grasp, pull, confidence=0.0)
@@ -336,7 +325,7 @@ def _slipped_handle(episode: Episode, frame: Frame, points: np.ndarray, held: np
     travel = 0.0 if state.axis is None else \
         max(state.opened, state.opened_before + opening(state.axis, state.p_grasp, held))
     for near in back_along_path(state.axis, held, travel, REGRASP_RADIUS_M):
-        handle = find_handle(protruding_points(points, near, eye), points, episode.observer.pipeline.body_box, eye,
+        handle = find_handle(protruding_points(points, near, eye), points, episode.observer.first_look.body_box, eye,
                              state.joint_type() is JointType.REVOLUTE)
         if handle is not None:
             return handle
@@ -392,7 +381,7 @@ def _ease_off_press(episode: Episode) -> None:
 
 
 def _close_and_check(episode: Episode, open_width: float, failure: StopReason, context: str = "") -> None:
-    episode.arm.set_gripper(0.0, GRIPPER_FORCE_N)
+    episode.arm.set_gripper(0.0, episode.grip_force_n)
     episode.wait(CLOSE_TIME_S)
     width = episode.arm.state().gripper_width_m
     if not MIN_GRASP_WIDTH_M < width < open_width - OPEN_MARGIN_M:
@@ -407,7 +396,7 @@ def _planned_pulls(episode: Episode, handle: Handle, T_grasp: np.ndarray) -> lis
     MIN_PLANNED_PULL_M."""
     pulls = []
     revolute = episode.state.joint is JointType.REVOLUTE
-    if revolute and episode.config.opening.policy != "paper":
+    if revolute and not episode.policy.straight_door(episode.state.joint):
         prior = _prior(episode, handle)
         pulls += [pull_poses(arc_path(T_grasp, prior.origin, prior.direction), np.radians(arc), PLANNED_ARC_STEP_RAD)
                   for arc in PLANNED_DOOR_ARCS_DEG]
@@ -423,7 +412,8 @@ def _planned_pulls(episode: Episode, handle: Handle, T_grasp: np.ndarray) -> lis
 def _prior(episode: Episode, handle: Handle) -> Axis:
     """The axis before any motion: a door's likely hinge, or a line along the front normal."""
     if episode.state.joint is JointType.REVOLUTE:
-        return hinge_prior(handle, episode.observer.first_points, episode.observer.pipeline.body_box)
+        first = episode.observer.first_look
+        return hinge_prior(handle, first.points, first.body_box)
     return Axis(JointType.PRISMATIC, handle.center, handle.normal, confidence=0.0)
 
 
@@ -436,21 +426,20 @@ def _measured_pull(episode: Episode, pull: np.ndarray) -> np.ndarray:
 def _read_drawer_lag(episode: Episode, axis: Axis) -> None:
     """A drawer lags a stretched grasp: trust the camera's reading of the opening when it is a little short of
     the gripper's (more than MAX_DRAWER_LAG_M short is a misreading, not a lag)."""
-    window = episode.observer.pipeline.window
+    window = episode.observer.window()
     if axis.joint_type is not JointType.PRISMATIC or not window:
         return
     state = episode.state
-    seen = seen_opening(window[-1].moving, episode.observer.first_points, axis.direction)
+    seen = seen_opening(window[-1].moving, episode.observer.first_look.points, axis.direction)
     if seen is not None and state.opened - MAX_DRAWER_LAG_M <= seen < state.opened:
         state.opened = seen
 
 
 def _log_estimate(episode: Episode, axis: Axis, source: str) -> None:
-    state, vision = episode.state, episode.observer.vision
+    state, vision = episode.state, episode.observer.latest_axis()
     shown = _shown(episode, state.opened)
     state.opening_curve.append((episode.now(), state.opened))
-    if episode.observer.viewer is not None:
-        episode.observer.viewer.axis(episode.now(), axis, shown, source)
+    episode.view.axis(episode.now(), axis, shown, source)
     state.estimates.append({
         "step": state.steps, "t": episode.now(), "source": source, "axis": axis.to_dict(),
         f"opened_{opening_unit(state.joint_type())}": shown,
@@ -460,21 +449,18 @@ def _log_estimate(episode: Episode, axis: Axis, source: str) -> None:
 
 
 def _step_path(episode: Episode, axis: Axis) -> tuple[PathFn, float, MotionLimits]:
-    """The next step: a line (drawer, or the paper's straight steps) or an arc about the axis (door)."""
-    state, cfg = episode.state, episode.config.opening
+    """The next step: a line along a drawer, an arc about a door's axis, or for a policy that pulls doors
+    straight a line along the arc's tangent (its steps in metres)."""
+    state = episode.state
     remaining = _goal(episode, axis) - state.opened
-    size = cfg.step_for(axis.joint_type, state.steps)
+    size = episode.policy.step_size(axis.joint_type, state.steps, episode.config.opening)
     T = episode.tool()
-    if cfg.policy == "paper":  # straight lines along the line or the arc's tangent, in metres
-        if axis.joint_type is JointType.PRISMATIC:
-            direction, length = axis.direction, min(size, remaining)
-        else:
-            direction = np.cross(axis.direction, T[:3, 3] - axis.origin)
-            radius = max(float(np.linalg.norm(direction)), 0.05)
-            length = min(size, remaining * radius)
-        return line_path(T, direction), length, episode.line_limits()
     if axis.joint_type is JointType.PRISMATIC:
         return line_path(T, axis.direction), min(size, remaining), episode.line_limits()
+    if episode.policy.straight_door(axis.joint_type):
+        tangent = np.cross(axis.direction, T[:3, 3] - axis.origin)
+        radius = max(float(np.linalg.norm(tangent)), 0.05)
+        return line_path(T, tangent), min(size, remaining * radius), episode.line_limits()
     return arc_path(T, axis.origin, axis.direction), min(size, remaining), episode.arc_limits()
 
 

@@ -1,4 +1,4 @@
-"""Depth image -> point cloud (metres), and rigid transforms of point sets."""
+"""Depth image -> point cloud (metres) and back to pixels, and rigid transforms of point sets."""
 
 from __future__ import annotations
 
@@ -48,3 +48,13 @@ def transform_points(T: np.ndarray, points: np.ndarray) -> np.ndarray:
         raise ValueError(f"transform_points: T must be a 4x4 homogeneous transform, got shape {T.shape}")
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     return points @ T[:3, :3].T + T[:3, 3]
+
+
+def points_to_pixels(points: np.ndarray, K: np.ndarray, T_base_camera: np.ndarray | None = None) -> np.ndarray:
+    """Pixel coordinates (N, 2) of (N, 3) points through the pinhole `K` (OpenCV camera frame), the points given in
+    the base frame when the camera's pose `T_base_camera` is, else in the camera frame; NaN for points behind it."""
+    T = np.eye(4) if T_base_camera is None else np.linalg.inv(np.asarray(T_base_camera, float))
+    cam = np.asarray(points, float).reshape(-1, 3) @ T[:3, :3].T + T[:3, 3]
+    z = np.where(cam[:, 2] > 1e-6, cam[:, 2], np.nan)
+    K = np.asarray(K, float)
+    return (cam[:, :2] / z[:, None]) * [K[0, 0], K[1, 1]] + [K[0, 2], K[1, 2]]

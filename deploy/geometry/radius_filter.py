@@ -194,7 +194,7 @@ def _unique(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _exact_counts(xyz: np.ndarray, which: np.ndarray, radius_m: float) -> np.ndarray:
     """Other points within radius_m of the (3, n) points xyz[:, which]."""
-    from scipy.spatial import cKDTree  # here: the CLI imports this module for its profiles (scipy costs 0.2 s)
+    from scipy.spatial import cKDTree  # here: the CLI imports this module for its profiles, scipy is slow to load
 
     points = xyz.T
     tree = cKDTree(points, leafsize=64, balanced_tree=False, compact_nodes=False)  # quick to build

@@ -12,10 +12,12 @@ from drivers.camera.base import Frame
 class Segmenter(ABC):
     """Segments the object to open: `start` on the first frame, `track` on every later one.
 
-    Masks are (H, W) bool arrays aligned with the frame's depth.
+    Masks are (H, W) bool arrays aligned with the frame's depth. `redetections` counts how often the backend had to
+    find a lost object again (0 for backends that never do).
     """
 
     name: str
+    redetections: int = 0
 
     @abstractmethod
     def start(self, frame: Frame, prompt: str = "cabinet") -> np.ndarray:

@@ -21,6 +21,7 @@ import numpy as np
 
 from deploy.errors import ModelError
 from deploy.perception.config import DEFAULT_TRACKER, EDGETAM_TRACKER, PerceptionConfig
+from deploy.perception.registry import needs
 from deploy.perception.track_health import box_of, mask_iou
 from drivers.camera.frames_dir import FramesRecording
 
@@ -42,7 +43,7 @@ def missing_weights(segmenter: str, config: PerceptionConfig) -> list[str]:
     segmenter without weights. Looks the models up only (`deploy models check` also loads them)."""
     from deploy.perception.models import fetch_command, resolve_checkpoint
 
-    if segmenter != "gdino-sam2":
+    if not needs(segmenter, "weights"):
         return []
     needed = [("tracker", config.tracker)]
     if config.box is None or config.handle_prompt:  # as GdinoSam2Segmenter.from_config
@@ -69,7 +70,7 @@ def _run(name: str, overrides: dict, recordings: list[Path]) -> dict:
     for k, path in enumerate(recordings):
         recording = FramesRecording(path)
         first = recording.frame(0)
-        box = box_of(first.mask) if name == "classical" else None
+        box = box_of(first.mask) if needs(name, "box") else None
         segmenter = make_segmenter(name, PerceptionConfig(box=box, **overrides))
         error = _calibration_error(first.T_base_camera, np.random.default_rng(k))
         for i in range(len(recording)):

@@ -15,11 +15,11 @@ SEGMENTERS: Registry[Segmenter] = Registry("segmenter", ConfigError)
 SEGMENTERS.register("rgbd", "deploy.perception.rgbd:open_rgbd",
                     "no weights: furniture found in the depth image, followed in 3D (needs the camera pose)")
 SEGMENTERS.register("gdino-sam2", "deploy.perception.gdino_sam2:open_gdino_sam2",
-                    "Grounding DINO + SAM2 (needs model weights)")
+                    "Grounding DINO + SAM2 (needs model weights)", needs=("weights",))
 SEGMENTERS.register("classical", "deploy.perception.classical:open_classical",
-                    "no weights: a first box tracked by depth and colour")
+                    "no weights: a first box tracked by depth and colour", needs=("box",))
 SEGMENTERS.register("oracle", "deploy.perception.oracle:open_oracle",
-                    "ablation: simulator labels or stored masks")
+                    "ablation: simulator labels or stored masks", needs=("labels",))
 
 
 def default_segmenter(config: PerceptionConfig | None = None) -> str:
@@ -35,6 +35,11 @@ def default_segmenter(config: PerceptionConfig | None = None) -> str:
     except ModelError:
         return "rgbd"
     return "gdino-sam2"
+
+
+def needs(name: str, what: str) -> bool:
+    """Whether segmenter `name` needs `what` ("labels", "box", "weights": `Entry.needs`)."""
+    return what in SEGMENTERS.entry(name)[0].needs
 
 
 def make_segmenter(name: str, config: PerceptionConfig | None = None) -> Segmenter:

@@ -63,7 +63,7 @@ def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | N
     exist yet: they are written to a hidden folder beside it and renamed to mask/ once every frame has one (a
     failure leaves none); `out` the recording itself counts as none. A PNG strip of a few evenly spaced frames is
     written beside. Returns a summary (timings in ms; IoU against the recording's own masks when it has them).
-    progress(done, total) follows the frames; `viewer` (deploy.control.viewer.RerunViewer) is shown every frame
+    progress(done, total) follows the frames; `viewer` (deploy.report.viewer.RerunViewer) is shown every frame
     with its mask and is closed at the end.
     """
     recording = FramesRecording(path)
@@ -124,7 +124,7 @@ def track_recording(path: Path, segmenter: Segmenter, prompt: str, out: Path | N
         "masks": str(target / "mask"), "overlay": str(strip), "start_ms": round(ms[0], 2),
         "track_ms_median": round(float(np.median(ms[1:])), 2) if n > 1 else None,
         "iou_vs_recorded_median": round(float(np.median(ious)), 4) if ious else None,
-        "redetections": getattr(segmenter, "redetections", 0),
+        "redetections": segmenter.redetections,
     }
     (target / "track.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary

@@ -27,7 +27,7 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 
-from drivers.arm.base import Arm, ArmState
+from drivers.arm.base import GRIP_FORCE_N, Arm, ArmState
 from drivers.arm.can_bus import CanBus
 from drivers.arm.control_loop import ControlLoop, LoopStats
 from drivers.arm.damiao import PARAM_ID, Special, Status, refresh_request, special
@@ -65,11 +65,9 @@ class CanArm(Arm):
     def __init__(self, config: RobotConfig, bus: CanBus, kin: Kinematics | None = None,
                  guard: SafetyGuard | None = None, realtime: bool = True,
                  on_cycle: Callable[[], None] | None = None, on_close: Callable[[], None] | None = None) -> None:
-        self.config = config
-        self.bus = bus
+        self.config, self.bus = config, bus
         self.kin = kin or config.kinematics()
-        self.limits = config.safety_limits(self.kin)
-        self.guard = guard or SafetyGuard(self.limits, config.joint_names)
+        self.guard = guard or config.safety_guard(self.kin)
         self.control_period_s = config.control_period_s
         self.realtime = realtime
         self._on_close = on_close
@@ -84,8 +82,7 @@ class CanArm(Arm):
         self.stats: LoopStats = self.loop.stats
         self._lock = self.loop.lock
         self._signals = StopSignals(self._stopped_by)
-        self._enabled = False
-        self._closed = False
+        self._enabled, self._closed = False, False
         self._unconfirmed: set[str] = set()  # motors whose last disable went unanswered
         self._gravity_data = self.kin.model.createData()  # the loop thread's own Pinocchio workspace
         self._tau_max = np.array([j.tau_max for j in config.joints])
@@ -94,13 +91,18 @@ class CanArm(Arm):
         self._dq_prev_cmd: np.ndarray | None = None
         self._kp = np.array([j.kp for j in config.joints])
         self._kd = np.array([j.kd for j in config.joints])
-        self._grip_width, self._grip_force = (config.gripper.max_width_m if config.gripper else 0.0), 40.0
+        self._grip_width = config.gripper.max_width_m if config.gripper else 0.0
+        self._grip_force = config.grip_force_n
 
     # --- Arm protocol ----------------------------------------------------------------------------------------
 
     @property
     def joint_names(self) -> list[str]:
         return self.config.joint_names
+
+    @property
+    def bus_channel(self) -> str:
+        return self.config.can.channel
 
     def connect(self) -> None:
         """Read each motor's PMAX/VMAX/TMAX, check the config against them, enable, hold the measured position."""
@@ -172,7 +174,7 @@ class CanArm(Arm):
         self.loop.sync(lambda: self._enabled)
         self._raise_if_not_running()
 
-    def set_gripper(self, width_m: float, force_n: float = 40.0) -> None:
+    def set_gripper(self, width_m: float, force_n: float = GRIP_FORCE_N) -> None:
         """Gripper opening target (clamped to [0, max width]); the motor pushes with about `force_n` at most."""
         if not np.isfinite(width_m) or not np.isfinite(force_n):
             raise ArmError(f"gripper command ({width_m}, {force_n} N) is not finite: a planner bug produced NaN")
@@ -280,8 +282,6 @@ class CanArm(Arm):
         if not self.config.gravity_compensation:
             return np.zeros(len(self.joints))
         return np.clip(self.gravity_torques(q), -self._tau_max, self._tau_max)
-
-    # --- helpers -------------------------------------------------------------------------------------------
 
     def _measured_q(self) -> np.ndarray:
         return np.array([c.to_joint(c.feedback.q if c.feedback else 0.0, "q") for c in self.joints])

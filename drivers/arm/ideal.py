@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from drivers.arm.base import Arm, ArmState
+from drivers.arm.base import GRIP_FORCE_N, Arm, ArmState
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.robots import RobotSpec, panda
 from drivers.arm.safety import SafetyGuard, SafetyLimits
@@ -78,7 +78,7 @@ class IdealArm(Arm):
         gap = self._width_cmd - self._width
         self._width += float(np.clip(gap, -self.gripper_speed_m_s * dt, self.gripper_speed_m_s * dt))
 
-    def set_gripper(self, width_m: float, force_n: float = 40.0) -> None:
+    def set_gripper(self, width_m: float, force_n: float = GRIP_FORCE_N) -> None:
         """Command the opening, clamped to [0, gripper_max_width_m]; the ideal gripper ignores force."""
         if not np.isfinite(width_m):
             raise ArmError(f"gripper width command {width_m} is not finite: a planner bug produced NaN")

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from enum import Enum
+from typing import Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -177,58 +178,100 @@ def follow_cartesian_path(
                      float(profile.limits.v_max) * dt)
     plan_s, plan_q = track.plan(profile, dt, q)
     if compliance is not None and arm.state().tau is not None:
-        return CompliantPull(arm, kin, track, profile, compliance).run(on_tick, max_tracking_error_m, sample_every)
+        motion: PathMotion = CompliantPull(arm, kin, track, profile, compliance)
+    else:
+        motion = PlannedPath(track, profile, plan_s, plan_q, dt)
+    return run_ticks(arm, kin, motion, on_tick, max_tracking_error_m, sample_every)
 
+
+class PathMotion(Protocol):
+    """One Cartesian motion tick by tick (`run_ticks`): `tick` gives the next command and the pose it aims at,
+    `check` judges the measured state; `done`, `outcome` and `reason` say where it stands."""
+
+    done: bool
+    outcome: Outcome
+    reason: str
+    path_fn: PathFn
+
+    def tick(self, k: int, t: float, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+        """Tick k at time t from commanded joints q: (joints, joint velocities, s, commanded tool pose)."""
+
+    def check(self, state: ArmState, t: float, error_m: float, max_error_m: float, keep_going: bool) -> None:
+        """After the tick: the measured state, the tracking error, whether on_tick lets it go on."""
+
+    def forces(self) -> tuple[float, float, float]:
+        """(peak force N, largest offset m, largest force across the path N) for the PathResult."""
+
+
+def run_ticks(arm: Arm, kin: Kinematics, motion: PathMotion, on_tick: OnTick | None, max_tracking_error_m: float,
+              sample_every: int) -> PathResult:
+    """The control-tick loop of every Cartesian motion: command, wait for the tick, measure, call on_tick, let the
+    motion judge; a sample every `sample_every` ticks and at the last. Any exception stops the arm."""
+    dt = arm.control_period_s
+    q = arm.state().q
     samples: list[tuple[float, float, np.ndarray, np.ndarray]] = []
-    braking: PathProfile | None = None
-    t_brake, s, outcome, reason, max_error = 0.0, 0.0, Outcome.COMPLETED, "completed", 0.0
-    k, done = 0, len(plan_s) == 0
+    max_error, k = 0.0, 0
     try:
-        while not done:
+        while not motion.done:
             k += 1
             t = k * dt
-            if braking is None:  # the planned ticks
-                s, q_next = plan_s[k - 1], plan_q[k - 1]
-                done = k == len(plan_s)
-            else:
-                tau = min(t - t_brake, braking.duration)
-                s_prev, s = s, braking.at(tau)[0]
-                q_next = track(q, s_prev, s)
-                done = tau >= braking.duration
-            arm.command(q_next, (q_next - q) / dt)
+            q_next, dq, s, T = motion.tick(k, t, q)
+            arm.command(q_next, dq)
             arm.sync()
             q = q_next
             state = arm.state()
-            T = path_fn(s)
             T_measured = kin.fk(state.q)
             error = float(np.linalg.norm(T[:3, 3] - T_measured[:3, 3]))
             max_error = max(max_error, error)
             keep_going = on_tick is None or on_tick(state, t) is not False
-            if braking is None and (error > max_tracking_error_m or not keep_going):
-                outcome = Outcome.STOPPED if not keep_going else Outcome.BLOCKED
-                reason = outcome.value if not keep_going else tracking_reason(error, max_tracking_error_m, s)
-                braking, t_brake, done = profile.stopping(t), t, False
-            if done or k % sample_every == 0:
+            motion.check(state, t, error, max_tracking_error_m, keep_going)
+            if motion.done or k % sample_every == 0:
                 samples.append((t, s, T, T_measured))
     except BaseException:
         arm.stop()
         raise
-    return path_result(samples, outcome, reason, max_error, kin, arm, path_fn)
+    if not samples:
+        samples.append((0.0, 0.0, motion.path_fn(0.0), kin.fk(arm.state().q)))
+    t_s, s_s, planned, measured = (np.array(x) for x in zip(*samples, strict=True))
+    return PathResult(t_s, s_s, planned, measured, motion.outcome, motion.reason, max_error, float(s_s[-1]),
+                      *motion.forces())
+
+
+class PlannedPath:
+    """A Cartesian motion along its planned ticks (s and joints at every tick); blocked (tracking error) or stopped
+    by on_tick, it brakes along the path with the profile's own limits, IK every tick."""
+
+    def __init__(self, track: Tracker, profile: PathProfile, plan_s: np.ndarray, plan_q: np.ndarray,
+                 dt: float) -> None:
+        self.track, self.profile, self.plan_s, self.plan_q, self.dt = track, profile, plan_s, plan_q, dt
+        self.path_fn = track.path_fn
+        self.braking: PathProfile | None = None
+        self.t_brake, self.s = 0.0, 0.0
+        self.outcome, self.reason, self.done = Outcome.COMPLETED, "completed", len(plan_s) == 0
+
+    def tick(self, k: int, t: float, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+        if self.braking is None:  # the planned ticks
+            self.s, q_next = self.plan_s[k - 1], self.plan_q[k - 1]
+            self.done = k == len(self.plan_s)
+        else:
+            tau = min(t - self.t_brake, self.braking.duration)
+            s_prev, self.s = self.s, self.braking.at(tau)[0]
+            q_next = self.track(q, s_prev, self.s)
+            self.done = tau >= self.braking.duration
+        return q_next, (q_next - q) / self.dt, self.s, self.path_fn(self.s)
+
+    def check(self, state: ArmState, t: float, error_m: float, max_error_m: float, keep_going: bool) -> None:
+        if self.braking is None and (error_m > max_error_m or not keep_going):
+            self.outcome = Outcome.STOPPED if not keep_going else Outcome.BLOCKED
+            self.reason = self.outcome.value if not keep_going else tracking_reason(error_m, max_error_m, self.s)
+            self.braking, self.t_brake, self.done = self.profile.stopping(t), t, False
+
+    def forces(self) -> tuple[float, float, float]:
+        return 0.0, 0.0, 0.0
 
 
 def tracking_reason(error_m: float, limit_m: float, s: float) -> str:
     return f"blocked: tracking error {error_m * 1e3:.1f} mm > {limit_m * 1e3:.1f} mm at s = {s:.4f}"
-
-
-def path_result(samples: list[tuple[float, float, np.ndarray, np.ndarray]], outcome: Outcome, reason: str,
-                max_error: float, kin: Kinematics, arm: Arm, path_fn: PathFn,
-                forces: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> PathResult:
-    """The PathResult of sampled ticks (t, s, commanded pose, measured pose) and `forces` (peak force N, largest
-    offset m, largest force across the path N); the start when none was sampled."""
-    if not samples:
-        samples.append((0.0, 0.0, path_fn(0.0), kin.fk(arm.state().q)))
-    t_s, s_s, planned, measured = (np.array(x) for x in zip(*samples, strict=True))
-    return PathResult(t_s, s_s, planned, measured, outcome, reason, max_error, float(s_s[-1]), *forces)
 
 
 @dataclass(frozen=True)
@@ -324,78 +367,68 @@ class Compliance:
 
 class CompliantPull:
     """One compliant, force-bounded pull along `track`'s path (see `Compliance`), re-solving each tick's IK
-    around the commanded position plus the admittance offset."""
+    around the commanded position plus the admittance offset (a `PathMotion` of `run_ticks`)."""
 
     def __init__(self, arm: Arm, kin: Kinematics, track: Tracker, profile: PathProfile,
                  compliance: Compliance) -> None:
         self.arm, self.kin, self.track, self.profile, self.c = arm, kin, track, profile, compliance
+        self.path_fn = track.path_fn
         self.wrench = WrenchEstimator(kin, compliance.filter_time_constant_s, compliance.torque_offset)
         self.offset = np.zeros(3)
         self.scale = 1.0  # path speed factor of the force bound
         self.peak_force_n = self.max_offset_m = self.across_force_n = self.pull_n = 0.0
-        self.bias = np.zeros(3)
+        self.bias = self._held_force()  # held before the pull (the grasp's squeeze): not the object's resistance
+        self.active, self.clock, self.s, self.still_s = profile, 0.0, 0.0, 0.0
+        self.release: OnlineRetargeter | None = None
+        self.q_hold, self.T = arm.state().q, self.path_fn(0.0)
+        self.q_cmd, self.dq_cmd = self.q_hold, np.zeros_like(self.q_hold)
+        self.outcome, self._reason, self.stopping, self.done = Outcome.COMPLETED, "completed", False, False
+        self.blocked_at: tuple[float, float, float] | None = None  # force N, time held still s, s
+        self.gained_s, self.gained_t = 0.0, 0.0  # how far the path has come (by PROGRESS_SHARE of it), and when
 
-    def run(self, on_tick: OnTick | None, max_tracking_error_m: float, sample_every: int) -> PathResult:
-        arm, dt, path_fn = self.arm, self.arm.control_period_s, self.track.path_fn
-        q = arm.state().q
-        dq = np.zeros_like(q)
-        self.bias = self._held_force()
-        active, clock, s, still_s = self.profile, 0.0, 0.0, 0.0
-        release: OnlineRetargeter | None = None
-        q_hold, T = q, path_fn(0.0)
-        samples: list[tuple[float, float, np.ndarray, np.ndarray]] = []
-        outcome, reason, max_error, stopping, k, done = Outcome.COMPLETED, "completed", 0.0, False, 0, False
-        blocked_at: tuple[float, float, float] | None = None  # force N, time held still s, s
-        gained_s, gained_t = 0.0, 0.0  # how far the path has come (by PROGRESS_SHARE of it at a time), and when
-        try:
-            while not done:
-                k += 1
-                t = k * dt
-                if release is None:
-                    clock += dt * (max(self.scale, STALL_SCALE) if stopping else self._speed(active, clock))
-                    clock = max(clock, 0.0)
-                    s_prev, s = s, active.at(clock)[0]
-                    done = clock >= active.duration
-                    T = path_fn(s)
-                    T[:3, 3] += self.offset
-                    q_next = self.track(q, s_prev, s, T)
-                    dq = (q_next - q) / dt
-                else:
-                    q_next, dq, _ = release.step(q_hold)
-                    done = release.finished
-                arm.command(q_next, dq)
-                arm.sync()
-                q = q_next
-                state = arm.state()
-                force = self._feel(state, s, release is None)
-                T_measured = self.kin.fk(state.q)
-                error = float(np.linalg.norm(T[:3, 3] - T_measured[:3, 3]))
-                max_error = max(max_error, error)
-                still_s = still_s + dt if self.scale < STALL_SCALE else 0.0
-                if s >= gained_s + PROGRESS_SHARE * self.profile.length:
-                    gained_s, gained_t = s, t
-                held_s = still_s if still_s >= self.c.stall_s else t - gained_t
-                stuck = still_s >= self.c.stall_s or held_s >= self.c.no_progress_s
-                keep_going = on_tick is None or on_tick(state, t) is not False
-                if not stopping:
-                    limit = self.c.force_limit_n
-                    if limit is not None and (force > limit or stuck):
-                        outcome, blocked_at = Outcome.BLOCKED, (force, held_s, s)
-                        release, q_hold, done = self._release(q, dq), state.q, False
-                    elif error > max_tracking_error_m or not keep_going:
-                        outcome = Outcome.STOPPED if not keep_going else Outcome.BLOCKED
-                        reason = outcome.value if not keep_going else tracking_reason(error, max_tracking_error_m, s)
-                        active, clock, done = active.stopping(clock), 0.0, False
-                    stopping = outcome is not Outcome.COMPLETED
-                if done or k % sample_every == 0:
-                    samples.append((t, s, T, T_measured))
-        except BaseException:
-            arm.stop()
-            raise
-        if blocked_at is not None:  # named once the command has stopped: the peak includes the stop
-            reason = self._force_reason(*blocked_at)
-        return path_result(samples, outcome, reason, max_error, self.kin, arm, path_fn,
-                           (self.peak_force_n, self.max_offset_m, self.across_force_n))
+    @property
+    def reason(self) -> str:
+        """How it ended; a force stop is named once the command has stopped (the peak includes the stop)."""
+        return self._reason if self.blocked_at is None else self._force_reason(*self.blocked_at)
+
+    def tick(self, k: int, t: float, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+        dt = self.arm.control_period_s
+        if self.release is None:
+            self.clock += dt * (max(self.scale, STALL_SCALE) if self.stopping else self._speed(self.active, self.clock))
+            self.clock = max(self.clock, 0.0)
+            s_prev, self.s = self.s, self.active.at(self.clock)[0]
+            self.done = self.clock >= self.active.duration
+            self.T = self.path_fn(self.s)
+            self.T[:3, 3] += self.offset
+            q_next = self.track(q, s_prev, self.s, self.T)
+            dq = (q_next - q) / dt
+        else:
+            q_next, dq, _ = self.release.step(self.q_hold)
+            self.done = self.release.finished
+        self.q_cmd, self.dq_cmd = q_next, dq
+        return q_next, dq, self.s, self.T
+
+    def check(self, state: ArmState, t: float, error_m: float, max_error_m: float, keep_going: bool) -> None:
+        force = self._feel(state, self.s, self.release is None)
+        self.still_s = self.still_s + self.arm.control_period_s if self.scale < STALL_SCALE else 0.0
+        if self.s >= self.gained_s + PROGRESS_SHARE * self.profile.length:
+            self.gained_s, self.gained_t = self.s, t
+        held_s = self.still_s if self.still_s >= self.c.stall_s else t - self.gained_t
+        stuck = self.still_s >= self.c.stall_s or held_s >= self.c.no_progress_s
+        if self.stopping:
+            return
+        limit = self.c.force_limit_n
+        if limit is not None and (force > limit or stuck):
+            self.outcome, self.blocked_at = Outcome.BLOCKED, (force, held_s, self.s)
+            self.release, self.q_hold, self.done = self._release(self.q_cmd, self.dq_cmd), state.q, False
+        elif error_m > max_error_m or not keep_going:
+            self.outcome = Outcome.STOPPED if not keep_going else Outcome.BLOCKED
+            self._reason = self.outcome.value if not keep_going else tracking_reason(error_m, max_error_m, self.s)
+            self.active, self.clock, self.done = self.active.stopping(self.clock), 0.0, False
+        self.stopping = self.outcome is not Outcome.COMPLETED
+
+    def forces(self) -> tuple[float, float, float]:
+        return self.peak_force_n, self.max_offset_m, self.across_force_n
 
     def _held_force(self) -> np.ndarray:
         """The force the tool holds before the pull (the grasp's squeeze: not the object's resistance), the mean

@@ -49,9 +49,7 @@ def open_ideal(_argument: str, robot: RobotConfig) -> Arm:
     import numpy as np
 
     from drivers.arm.ideal import IdealArm
-    from drivers.arm.safety import SafetyGuard
 
     kin = robot.kinematics()
-    guard = SafetyGuard(robot.safety_limits(kin), robot.joint_names)
     width = robot.gripper.max_width_m if robot.gripper else 0.0
-    return IdealArm(kin, guard, np.array(robot.q_ready), robot.control_period_s, width)
+    return IdealArm(kin, robot.safety_guard(kin), np.array(robot.q_ready), robot.control_period_s, width)

@@ -1,11 +1,10 @@
-"""Robot config (TOML, validated with pydantic): URDF, frames, CAN bus, per-joint motors, limits, gains, gripper.
+"""Robot config (TOML, validated with pydantic): URDF, frames, CAN bus, per-joint motors, limits, gains, gripper,
+compliance and grip force; the free-space motion limits of any arm come from it (`motion_limits`).
 
 Every number must be finite (nan or inf in a limit, the workspace or a timeout would switch a safety check off),
 and every limit is bounded so that an absurd finite one cannot switch a check off either: the workspace box within
-WORKSPACE_REACH_M of the base, a joint's v_max and tau_max within its motor model's VMAX and TMAX, a_max and j_max
-within 10x the shipped configs' largest, the control rate at least MIN_CONTROL_RATE_HZ, the watchdog's timeouts,
-the gripper's width within MAX_GRIPPER_WIDTH_M. v_max, a_max and j_max have lower bounds too (a near-zero one makes
-every move last longer than the trajectory planner can plan). q_ready lies within the joint limits.
+WORKSPACE_REACH_M of the base, the control rate at least MIN_CONTROL_RATE_HZ, the watchdog's timeouts, and the
+joints' and gripper's limits as drivers/arm/damiao/config.py bounds them. q_ready lies within the joint limits.
 The configs shipped with the package (drivers/arm/configs/*.toml, `--robot panda_sim`, `--robot damiao_6dof`) are
 complete examples; docs/arm.md describes every field.
 """
@@ -13,38 +12,33 @@ complete examples; docs/arm.md describes every field.
 from __future__ import annotations
 
 import re
+from functools import lru_cache
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated
 
 import numpy as np
 import pybullet_data
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
+from pydantic import Field, ValidationError, model_validator
 
-from drivers.arm.damiao import MODELS, PARAM_ID, MotorLimits
+from drivers.arm.base import GRIP_FORCE_N
+from drivers.arm.damiao.config import GripperConfig, JointConfig, MotorConfig, StrictModel, WatchdogConfig
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.motion import Compliance
 from drivers.arm.robots import RobotSpec
-from drivers.arm.safety import SafetyLimits
+from drivers.arm.safety import SafetyGuard, SafetyLimits
 from drivers.arm.trajectory import MotionLimits
 from drivers.errors import ArmError
 from drivers.toml_file import read_toml
 
 WORKSPACE_REACH_M = 3.0  # |coordinate| of the workspace box (m, base frame); arms reach 0.5-1.8 m
-MAX_A_RAD_S2 = 200.0  # joint acceleration limit: 10x the shipped configs' largest (20)
-MAX_J_RAD_S3 = 1e5  # joint jerk limit: 10x the shipped configs' largest (10000)
 MIN_CONTROL_RATE_HZ = 100.0  # a safety check at least every 10 ms
-MIN_V_RAD_S, MIN_A_RAD_S2, MIN_J_RAD_S3 = 0.05, 0.1, 1.0  # slower: a full-range bring-up move outlasts Ruckig
-MAX_GRIPPER_WIDTH_M = 0.3  # parallel grippers open 0.05-0.25 m; 80 is a width in mm given as m
+MAX_GRIP_FORCE_N = 500.0  # parallel grippers squeeze 20-200 N
 
 WorkspaceCorner = Annotated[list[Annotated[float, Field(ge=-WORKSPACE_REACH_M, le=WORKSPACE_REACH_M)]],
                             Field(min_length=3, max_length=3)]
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
-
-
-class CanConfig(_Strict):
+class CanConfig(StrictModel):
     """The CAN channel: python-can interface (socketcan, virtual, pcan, slcan, ...), bitrate, CAN FD."""
 
     interface: str = "socketcan"
@@ -68,83 +62,7 @@ class CanConfig(_Strict):
                            "the simulated motors")
 
 
-class MotorConfig(_Strict):
-    """One Damiao motor: model (for default limits), command id, feedback (master) id, mounting."""
-
-    motor: str = "DM4310"
-    can_id: int = Field(gt=0, lt=PARAM_ID)
-    master_id: int = Field(ge=0, lt=PARAM_ID)
-    direction: Literal[1, -1] = 1
-    zero_offset: float = 0.0  # joint position (rad) where the motor reads 0: q_joint = direction * q_motor + offset
-
-    @model_validator(mode="after")
-    def _known_model(self) -> MotorConfig:
-        if self.motor not in MODELS:
-            raise ValueError(f"unknown motor model {self.motor!r}; known: {', '.join(MODELS)}")
-        if self.master_id == self.can_id:
-            raise ValueError(f"master_id must differ from can_id ({self.can_id})")
-        return self
-
-    @property
-    def default_limits(self) -> MotorLimits:
-        return MODELS[self.motor]
-
-
-class JointConfig(MotorConfig):
-    """One arm joint: its URDF name, motor, limits (None = the URDF's) and MIT gains (normal and compliant)."""
-
-    name: str
-    q_min: float | None = None
-    q_max: float | None = None
-    v_max: float | None = Field(None, ge=MIN_V_RAD_S)  # rad/s
-    a_max: float = Field(10.0, ge=MIN_A_RAD_S2, le=MAX_A_RAD_S2)  # rad/s^2
-    j_max: float = Field(5000.0, ge=MIN_J_RAD_S3, le=MAX_J_RAD_S3)  # rad/s^3
-    tau_max: float = Field(gt=0)
-    kp: float = Field(30.0, ge=0, le=500)
-    kd: float = Field(1.0, ge=0, le=5)
-    kp_compliant: float = Field(5.0, ge=0, le=500)
-    kd_compliant: float = Field(0.5, ge=0, le=5)
-
-    @field_validator("v_max", "tau_max")
-    @classmethod
-    def _within_the_motor(cls, value: float | None, info: ValidationInfo) -> float | None:
-        """v_max and tau_max within the motor model's VMAX and TMAX: a larger one is no limit at all."""
-        model = MODELS.get(info.data.get("motor", ""))
-        if value is None or model is None:
-            return value
-        bound, unit, register = (model.v_max, "rad/s", "VMAX") if info.field_name == "v_max" else \
-            (model.t_max, "N m", "TMAX")
-        if value > bound:
-            raise ValueError(f"{info.field_name} {value:g} {unit} is above the {info.data['motor']}'s {register} "
-                             f"{bound:g} {unit}: give at most that (or the motor model you have)")
-        return value
-
-
-class GripperConfig(MotorConfig):
-    """A gripper driven by one Damiao motor: width = width_per_rad * (q_motor_joint - q_closed), in metres.
-
-    `nm_per_newton` converts the requested grip force into the motor torque the driver allows (kp * error)."""
-
-    max_width_m: float = Field(gt=0, le=MAX_GRIPPER_WIDTH_M)
-    width_per_rad: float = Field(gt=0)
-    q_closed: float = 0.0
-    nm_per_newton: float = Field(0.01, gt=0)
-    kp: float = Field(10.0, ge=0, le=500)
-    kd: float = Field(0.5, ge=0, le=5)
-
-
-class WatchdogConfig(_Strict):
-    """When the driver disables the motors: feedback older than `feedback_timeout_s`, a control cycle later than
-    `max_late_cycles` periods, a parameter read unanswered after `reply_timeout_s` (per motor)."""
-
-    feedback_timeout_s: float = Field(0.02, gt=0, le=1.0)
-    max_late_cycles: float = Field(2.0, gt=0, le=1000)
-    reply_timeout_s: float = Field(0.05, gt=0, le=1.0)
-    torque_margin: float = Field(1.2, ge=1.0, le=5.0)  # measured |tau| above margin * tau_max is a fault
-    stop_damping_s: float = Field(0.3, ge=0, le=5.0)  # stop(): damp (kp = 0) this long before disabling
-
-
-class ComplianceConfig(_Strict):
+class ComplianceConfig(StrictModel):
     """How the arm's pulls yield to the object they hold (`drivers.arm.motion.Compliance`): the admittance's
     stiffness and damping, the largest offset from the commanded path, the force deadband below which nothing
     yields, and the time constant of the wrench filter (joint torques, `drivers.arm.wrench`)."""
@@ -160,7 +78,7 @@ class ComplianceConfig(_Strict):
                           self.filter_time_constant_s)
 
 
-class RobotConfig(_Strict):
+class RobotConfig(StrictModel):
     """A whole arm. `urdf` is a path (relative to the config file) or `pybullet_data:<relative path>`."""
 
     name: str
@@ -176,6 +94,7 @@ class RobotConfig(_Strict):
     can: CanConfig = CanConfig()
     watchdog: WatchdogConfig = WatchdogConfig()
     compliance: ComplianceConfig = ComplianceConfig()
+    grip_force_n: float = Field(GRIP_FORCE_N, gt=0, le=MAX_GRIP_FORCE_N)  # the squeeze a grasp closes with
     joints: list[JointConfig] = Field(min_length=1)
     gripper: GripperConfig | None = None
     source: Path | None = None  # the file it was read from (set by load_robot_config)
@@ -203,10 +122,10 @@ class RobotConfig(_Strict):
 
     def _master_ids_apart(self) -> None:
         """No motor's master (feedback) id is another's can_id: its feedback would reach that motor as commands."""
-        by_can_id = {m.can_id: _motor_name(m) for m in self.motors}
+        by_can_id = {m.can_id: m.label for m in self.motors}
         for m in self.motors:
             if m.master_id in by_can_id:
-                raise ValueError(f"{_motor_name(m)}'s master_id {m.master_id:#x} is {by_can_id[m.master_id]}'s "
+                raise ValueError(f"{m.label}'s master_id {m.master_id:#x} is {by_can_id[m.master_id]}'s "
                                  f"can_id: its feedback would reach {by_can_id[m.master_id]} as commands; give "
                                  "every motor a master_id no motor uses as can_id (e.g. can_id + 0x10)")
 
@@ -278,9 +197,14 @@ class RobotConfig(_Strict):
         return SafetyLimits(q_min, q_max, v_max, np.array([j.a_max for j in self.joints]),
                             np.array(self.workspace_min), np.array(self.workspace_max))
 
+    def safety_guard(self, kin: Kinematics) -> SafetyGuard:
+        """The check every command of an arm of this config passes (`safety_limits`)."""
+        return SafetyGuard(self.safety_limits(kin), self.joint_names)
+
     def motion_limits(self, kin: Kinematics, fraction: float) -> MotionLimits:
-        """`fraction` of the safety limits (URDF narrowed by the config) for planned moves: they never trip
-        the safety layer."""
+        """The free-space motion limits of any arm of this config, the one place they are computed: `fraction` of
+        the safety limits (URDF narrowed by the config) and of the joints' jerk limits, so planned moves never
+        trip the safety layer."""
         safety = self.safety_limits(kin)
         return MotionLimits(safety.v_max * fraction, safety.a_max * fraction, self.robot_spec().j_max * fraction)
 
@@ -303,6 +227,12 @@ def robot_config_path(spec: str | Path) -> Path:
                    f"({', '.join(shipped_robot_configs())})")
 
 
+@lru_cache(maxsize=1)
+def panda_sim_config() -> RobotConfig:
+    """The simulated Panda's robot config (read once): the limits and grip force of the simulated world's arm."""
+    return load_robot_config(PANDA_SIM_CONFIG)
+
+
 def load_robot_config(spec: str | Path) -> RobotConfig:
     """Read and validate a robot config (a path, or a shipped config's name); ArmError naming the file and the
     bad field otherwise."""
@@ -320,10 +250,6 @@ def _problems(exc: ValidationError, shown: int = 3) -> str:
     texts = [": ".join(filter(None, (".".join(str(x) for x in e["loc"]), e["msg"]))) for e in errors[:shown]]
     more = f" (and {len(errors) - shown} more)" if len(errors) > shown else ""
     return "; ".join(texts) + more
-
-
-def _motor_name(motor: MotorConfig) -> str:
-    return f"joint {motor.name}" if isinstance(motor, JointConfig) else "the gripper"
 
 
 CONFIG_DIR = Path(__file__).resolve().parent / "configs"

@@ -19,9 +19,6 @@ from ruckig import (
     Trajectory,
 )
 
-from drivers.arm.kinematics import Kinematics
-from drivers.arm.robots import RobotSpec
-
 
 @dataclass(frozen=True)
 class MotionLimits:
@@ -30,11 +27,6 @@ class MotionLimits:
     v_max: np.ndarray | float
     a_max: np.ndarray | float
     j_max: np.ndarray | float
-
-    @classmethod
-    def for_robot(cls, robot: RobotSpec, kin: Kinematics, fraction: float = 0.5) -> MotionLimits:
-        """A fraction of the URDF velocity limits and the robot's acceleration and jerk limits."""
-        return cls(kin.v_max * fraction, robot.a_max * fraction, robot.j_max * fraction)
 
     def arrays(self, dof: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(v_max, a_max, j_max) broadcast to `dof` values; raises ValueError unless all are finite > 0."""

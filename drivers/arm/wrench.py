@@ -4,7 +4,7 @@ At rest or moving slowly the joint torques balance gravity and the contact: tau 
 [force; moment] the tool applies to what it holds (N, N m; base-aligned axes at the tool origin, the frame of
 `Kinematics.jacobian`). So w = (J^T)^+ (tau - g(q)): Pinocchio's gravity torques of the arm's model and a damped
 pseudo-inverse (least squares on a 7-joint arm, exact on a 6-joint one). Inertial and friction torques are not
-modelled: they are what the low-pass filter is for (noise figures: docs/benchmarks.md, issue 21).
+modelled: they are what the low-pass filter is for (noise figures: docs/benchmarks.md).
 
 Torques measured from motor current carry an offset of their own (a few percent of each motor's peak torque): at rest
 touching nothing the arm still reads tau - g(q) = offset, which the tool's image of moves as the arm does. So the

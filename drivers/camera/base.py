@@ -64,7 +64,15 @@ class Frame:
 
 
 class Camera(ABC):
-    """Base class of every camera. Use as a context manager: `with camera: frame = camera.read()`."""
+    """Base class of every camera. Use as a context manager: `with camera: frame = camera.read()`.
+
+    Every camera implements `intrinsics` and `read`; the other capabilities have defaults, so that no caller asks
+    a camera what it is: `serial` (the device's serial number, which names its calibration files; None for what
+    is not a device) and `depth_scale` (metres per unit of its 16-bit depth: what a depth PNG of it stores).
+    """
+
+    serial: str | None = None
+    depth_scale: float = 0.001
 
     @property
     @abstractmethod

@@ -455,6 +455,10 @@ class FramesReplayCamera(Camera):
     def intrinsics(self) -> Intrinsics:
         return self.recording.intrinsics
 
+    @property
+    def depth_scale(self) -> float:
+        return self.recording.depth_scale
+
     def connect(self) -> None:
         self._next = 0
         self._start_wall = None

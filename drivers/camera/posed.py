@@ -23,7 +23,11 @@ class PosedCamera(Camera):
 
     @property
     def serial(self) -> str | None:
-        return getattr(self.camera, "serial", None)
+        return self.camera.serial
+
+    @property
+    def depth_scale(self) -> float:
+        return self.camera.depth_scale
 
     def connect(self) -> None:
         self.camera.connect()

@@ -197,8 +197,7 @@ def plane_tilt_deg(points: np.ndarray, normal: np.ndarray) -> float:
 def turn_play_deg(off_axis_deg: float, angles: np.ndarray) -> float:
     """How far (deg) a turn's axis may lean from its scatter about other axes (`off_axis_deg` per axis)
     when that scatter follows the travel (the part's play, a grasp that rocks): the scatter over the RMS
-    of the turn's `angles` (rad) from the start, as if it were all one slow tilt. The block jackknife sees
-    little of such a tilt: on the tuning paths 45 % of the turn axes' errors were within 2 of its sigmas,
-    97 % with this added."""
+    of the turn's `angles` (rad) from the start, as if it were all one slow tilt, which the block jackknife's
+    sigma barely sees (its coverage with and without this term: docs/benchmarks.md)."""
     spread = float(np.sqrt(np.mean(angles**2)))
     return float(np.degrees(np.radians(off_axis_deg) / spread)) if spread > 0 else float("inf")

@@ -18,6 +18,8 @@ import struct
 from dataclasses import dataclass
 from enum import IntEnum
 
+from drivers.arm.damiao.motors import MotorLimits
+
 PARAM_ID = 0x7FF
 KP_MAX, KD_MAX = 500.0, 5.0
 PARAM_READ, PARAM_WRITE, REFRESH = 0x33, 0x55, 0xCC
@@ -71,36 +73,6 @@ _FIXES = {
 
 
 @dataclass(frozen=True)
-class MotorLimits:
-    """The ranges the MIT frame maps onto (rad, rad/s, N m): the motor's PMAX, VMAX and TMAX registers."""
-
-    p_max: float
-    v_max: float
-    t_max: float
-
-    def __post_init__(self) -> None:
-        if not all(math.isfinite(x) and x > 0 for x in (self.p_max, self.v_max, self.t_max)):
-            raise ValueError(f"motor limits must be finite and positive, got {self}")
-
-
-# Factory defaults of PMAX / VMAX / TMAX per model; the driver reads the registers at connect instead.
-MODELS: dict[str, MotorLimits] = {
-    "DM4310": MotorLimits(12.5, 30.0, 10.0),
-    "DM4310_48V": MotorLimits(12.5, 50.0, 10.0),
-    "DM4340": MotorLimits(12.5, 8.0, 28.0),
-    "DM4340_48V": MotorLimits(12.5, 10.0, 28.0),
-    "DM6006": MotorLimits(12.5, 45.0, 20.0),
-    "DM8006": MotorLimits(12.5, 45.0, 40.0),
-    "DM8009": MotorLimits(12.5, 45.0, 54.0),
-    "DM10010L": MotorLimits(12.5, 25.0, 200.0),
-    "DM10010": MotorLimits(12.5, 20.0, 200.0),
-    "DMH3510": MotorLimits(12.5, 280.0, 1.0),
-    "DMH6215": MotorLimits(12.5, 45.0, 10.0),
-    "DMG6220": MotorLimits(12.5, 45.0, 10.0),
-}
-
-
-@dataclass(frozen=True)
 class Feedback:
     """One decoded feedback frame: motor-side position (rad), velocity (rad/s), torque (N m), temperatures."""
 
@@ -129,7 +101,7 @@ class FrameError(ValueError):
 def _to_uint(x: float, lo: float, hi: float, bits: int) -> int:
     """x clamped to [lo, hi], mapped linearly onto 0 .. 2^bits - 1 (rounded to nearest). A non-finite x reads as 0
     (every range holds 0: no position offset, velocity, gain or torque), never as a range end."""
-    x = min(max(float(x), lo), hi) if math.isfinite(x) else 0.0  # scalar clamp (np.clip is 20x slower)
+    x = min(max(float(x), lo), hi) if math.isfinite(x) else 0.0  # a scalar clamp: np.clip is slow on scalars
     return int(round((x - lo) / (hi - lo) * ((1 << bits) - 1)))
 
 

@@ -1,18 +1,14 @@
-"""`--view`: frames, clouds and axes to rerun (rerun-sdk, extra `axisloop[viewer]`), and the episode's step lines.
+"""`--view` and `export --format rrd`: frames, clouds and axes to rerun (rerun-sdk, extra `axisloop[viewer]`).
 
 `RerunViewer` logs on the `time` timeline (seconds: arm time in an episode, camera time in a recording): the
 camera (its pose in the base frame and a pinhole, so colour, depth and the object mask sit in 3D), the
 gripper pose, the object cloud of the first frame, the axis acted on at each step, the true axis in
 simulation and the opening. Every log goes at once to the .rrd file and, when a display is available, to a
 live viewer spawned for it (rerun's multi-sink `set_sinks`): `rerun RUN/episode.rrd` replays it later.
-
-`EpisodeView` is what an episode is handed: one log line per step on the `deploy.control.steps` logger (the
-CLI prints it on stderr) and, with `--view`, the same calls forwarded to a `RerunViewer`.
 """
 
 from __future__ import annotations
 
-import logging
 import os
 import sys
 from pathlib import Path
@@ -20,15 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from deploy.errors import ConfigError
-from deploy.geometry.types import Axis, JointType
+from deploy.geometry.types import Axis
 from drivers.camera.base import Frame, Intrinsics
 
 AXIS_LENGTH_M = 0.6
-STEP_LOGGER = "deploy.control.steps"
 ESTIMATED_RGB = (230, 120, 20)
 TRUE_RGB = (40, 200, 60)
-
-step_log = logging.getLogger(STEP_LOGGER)
 
 
 class RerunViewer:
@@ -121,42 +114,6 @@ class RerunViewer:
         if self._rec is not None:
             self._rec.flush()
             self._rec.disconnect()
-
-
-class EpisodeView:
-    """What an episode reports to: a log line per step, and everything to `viewer` when there is one. The
-    episode calls it as it would a `RerunViewer` (frame, cloud, axis, close)."""
-
-    def __init__(self, viewer: RerunViewer | None = None) -> None:
-        self.viewer = viewer
-        self.steps = 0
-
-    def frame(self, t: float, frame: Frame, mask: np.ndarray | None = None,
-              tool_pose: np.ndarray | None = None) -> None:
-        if self.viewer is not None:
-            self.viewer.frame(t, frame, mask, tool_pose)
-
-    def cloud(self, points: np.ndarray) -> None:
-        if self.viewer is not None:
-            self.viewer.cloud(points)
-
-    def axis(self, t: float, axis: Axis, opened: float, source: str | None = None) -> None:
-        """Step `steps`: its line (opening with unit, where the axis came from, confidence), then the viewer."""
-        unit = "deg" if axis.joint_type is JointType.REVOLUTE else "m"
-        where = f"{axis.joint_type.value} from {source}" if source else axis.joint_type.value
-        step_log.info("step %d: opened %.3f %s, axis %s, confidence %.2f", self.steps, opened, unit, where,
-                      axis.confidence)
-        if self.viewer is not None:
-            self.viewer.axis(t, axis, opened, source, self.steps)
-        self.steps += 1
-
-    def true_axis(self, axis: Axis) -> None:
-        if self.viewer is not None:
-            self.viewer.true_axis(axis)
-
-    def close(self) -> None:
-        if self.viewer is not None:
-            self.viewer.close()
 
 
 def _has_display() -> bool:

@@ -21,17 +21,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from deploy.control.state import EpisodeResult
 from deploy.geometry.types import Axis, JointType
+from deploy.report.episode_plot import write_report
 from drivers.arm.motion import PathResult
 from drivers.camera.base import Frame
 from drivers.camera.frames_dir import FramesWriter
 
 if TYPE_CHECKING:
     from deploy.config import Config
-    from deploy.control.episode import EpisodeResult
 
 CONFIG_FILE = "config.json"
-AXIS_HALF_LENGTH_M = 0.4  # drawn axis segments reach this far either side of the origin
 
 
 class RunFolder:
@@ -76,7 +76,8 @@ class RunFolder:
     def finish(self, result: EpisodeResult, axis_error: Callable[[Axis], tuple[float, float]] | None = None,
                motors: list[dict] | None = None) -> None:
         """Close the recording and write steps.json and report.png (axis errors only with `axis_error`, which
-        evaluation passes in simulation; `motors`: a CAN arm's final motor states, as in the episode's JSON)."""
+        evaluation passes in simulation; `motors`: the arm's final motor states, as in the episode's JSON, kept
+        when it has any)."""
         if self._config is not None:
             self.write_config(self._config)
         if self._writer is not None:
@@ -87,7 +88,7 @@ class RunFolder:
                   "axis_position_error_m": None if err is None else err[1]}
                  for e, err in zip(result.estimates, errors, strict=True)]
         data = {"result": result.to_dict(), "steps": steps, "motions": self.motions}
-        if motors is not None:
+        if motors:
             data["motors"] = motors
         (self.path / "steps.json").write_text(json.dumps(data, indent=1) + "\n")
         write_report(self.path / "report.png", result, errors, truth=axis_error is not None)
@@ -95,60 +96,3 @@ class RunFolder:
 
 def _axis(d: dict) -> Axis:
     return Axis(JointType(d["joint_type"]), np.array(d["origin"]), np.array(d["direction"]))
-
-
-def project(points: np.ndarray, frame: Frame) -> np.ndarray:
-    """Pixel coordinates (N,2) of base-frame points (camera frame when the frame has no pose); NaN behind."""
-    T = np.eye(4) if frame.T_base_camera is None else np.linalg.inv(frame.T_base_camera)
-    cam = np.asarray(points, float) @ T[:3, :3].T + T[:3, 3]
-    z = np.where(cam[:, 2] > 1e-6, cam[:, 2], np.nan)
-    uv = (cam[:, :2] / z[:, None]) * [frame.intrinsics.fx, frame.intrinsics.fy]
-    return uv + [frame.intrinsics.cx, frame.intrinsics.cy]
-
-
-def write_report(path: Path, result: EpisodeResult, errors: list[tuple[float, float | None] | None],
-                 truth: bool = True) -> None:
-    """Three panels: axis per step over the first frame, opening vs time, axis error per step."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.ticker import MaxNLocator
-
-    first_frame = result.first_frame
-    fig, (ax_img, ax_open, ax_err) = plt.subplots(1, 3, figsize=(15, 4.2))
-    axes = [(e["step"], e["axis"]) for e in result.estimates if e["axis"] is not None]
-    if first_frame is not None:
-        ax_img.imshow(first_frame.color)
-        norm = plt.Normalize(axes[0][0], max(axes[-1][0], axes[0][0] + 1)) if axes else None
-        for step, axis in axes:
-            o, d = np.array(axis["origin"]), np.array(axis["direction"])
-            uv = project(np.array([o - AXIS_HALF_LENGTH_M * d, o + AXIS_HALF_LENGTH_M * d]), first_frame)
-            ax_img.plot(uv[:, 0], uv[:, 1], color=plt.cm.viridis(norm(step)), lw=1.5)
-        h, w = first_frame.color.shape[:2]
-        ax_img.set_xlim(0, w)
-        ax_img.set_ylim(h, 0)
-        if axes:  # a colour bar reads at any step count, where a legend of every step did not
-            bar = fig.colorbar(plt.cm.ScalarMappable(norm, "viridis"), ax=ax_img, label="step", fraction=0.05)
-            bar.ax.yaxis.set_major_locator(MaxNLocator(integer=True))
-    ax_img.set_title(f"axis estimates ({result.stop_reason.value})")
-    ax_img.axis("off")
-    if result.opening_curve:
-        t, opened = np.array(result.opening_curve).T
-        ax_open.plot(t, opened * result.scale, "o-")
-    ax_open.axhline(result.target * result.scale, color="k", ls="--", lw=1)
-    unit = "deg" if result.joint_type == "revolute" else "m"
-    ax_open.set(xlabel="arm time (s)", ylabel=f"estimated opening ({unit})", title="opening vs time")
-    rows = [(e["step"], err) for e, err in zip(result.estimates, errors, strict=True) if err is not None]
-    if rows:
-        steps = [s for s, _ in rows]
-        ax_err.plot(steps, [err[0] for _, err in rows], "o-", label="angle (deg)")
-        if result.joint_type == "revolute":  # a line's position along itself means nothing for a drawer
-            ax_err.plot(steps, [err[1] * 100 for _, err in rows], "s-", label="position (cm)")
-        ax_err.legend()
-        ax_err.xaxis.set_major_locator(MaxNLocator(integer=True))
-    ax_err.set(xlabel="step", title="axis error per step" if rows else
-               "axis error (no axis estimated)" if truth else "axis error (no truth)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=80)
-    plt.close(fig)

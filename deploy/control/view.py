@@ -1,0 +1,55 @@
+"""What an episode reports to as it goes (`EpisodeView`): one log line per step on the `deploy.control.steps` logger
+(the CLI prints it on stderr) and, with `--view`, everything forwarded to a rerun viewer (deploy/report/viewer.py)."""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from deploy.geometry.types import Axis, JointType
+from drivers.camera.base import Frame
+
+if TYPE_CHECKING:
+    from deploy.report.viewer import RerunViewer
+
+STEP_LOGGER = "deploy.control.steps"
+
+step_log = logging.getLogger(STEP_LOGGER)
+
+
+class EpisodeView:
+    """What an episode reports to: a log line per step, and everything to `viewer` when there is one. The
+    episode calls it as it would a `RerunViewer` (frame, cloud, axis, close)."""
+
+    def __init__(self, viewer: RerunViewer | None = None) -> None:
+        self.viewer = viewer
+        self.steps = 0
+
+    def frame(self, t: float, frame: Frame, mask: np.ndarray | None = None,
+              tool_pose: np.ndarray | None = None) -> None:
+        if self.viewer is not None:
+            self.viewer.frame(t, frame, mask, tool_pose)
+
+    def cloud(self, points: np.ndarray) -> None:
+        if self.viewer is not None:
+            self.viewer.cloud(points)
+
+    def axis(self, t: float, axis: Axis, opened: float, source: str | None = None) -> None:
+        """Step `steps`: its line (opening with unit, where the axis came from, confidence), then the viewer."""
+        unit = "deg" if axis.joint_type is JointType.REVOLUTE else "m"
+        where = f"{axis.joint_type.value} from {source}" if source else axis.joint_type.value
+        step_log.info("step %d: opened %.3f %s, axis %s, confidence %.2f", self.steps, opened, unit, where,
+                      axis.confidence)
+        if self.viewer is not None:
+            self.viewer.axis(t, axis, opened, source, self.steps)
+        self.steps += 1
+
+    def true_axis(self, axis: Axis) -> None:
+        if self.viewer is not None:
+            self.viewer.true_axis(axis)
+
+    def close(self) -> None:
+        if self.viewer is not None:
+            self.viewer.close()
