@@ -155,8 +155,7 @@ class AxisPipeline:
         if self.static and self.body_box is not None:
             self.scene.check_view(frame.depth_m, frame.T_base_camera)
             g = self.config.geometry
-            _, moving = moving_pixels(self.scene, frame.depth_m, self.region, mask, self.filter.radius_m,
-                                      self.filter.eps, (g.min_depth_m, g.max_depth_m))
+            _, moving = moving_pixels(self.scene, frame.depth_m, self.region, mask, (g.min_depth_m, g.max_depth_m))
             timings = {"moving_part": (time.perf_counter() - clock) * 1e3}
             object_pixels = int(np.count_nonzero(np.asarray(mask)[::g.decimation, ::g.decimation]))
             return self._estimate(moving, frame.index, frame.t, object_pixels, gripper_pose, timings)

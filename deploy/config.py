@@ -95,8 +95,9 @@ class GeometryConfig(_Section):
     """Body box and moving-part extraction.
 
     moving_part: "static-scene" (what left the first frame's static surfaces, inside the opening region:
-    deploy/geometry/static_scene.py; needs a fixed camera), "box" (the paper's: what left the first frame's body box)
-    or "auto" (the estimator's own: "box" for paper-obb, "static-scene" for the others).
+    deploy/geometry/static_scene.py, with its own outlier filter; needs a fixed camera), "box" (the paper's: what
+    left the first frame's body box, radius-filtered by `[filter]`) or "auto" (the estimator's own: "box" for
+    paper-obb, "static-scene" for the others). `[filter]` also cleans the first frame's cloud for the body box.
     """
 
     moving_part: Literal["auto", "static-scene", "box"] = Field(

@@ -66,7 +66,7 @@ def score(args: argparse.Namespace) -> None:
     results = []
     for k, path in enumerate(paths):
         print(f"scoring {path.name} ({k + 1}/{len(paths)})", file=sys.stderr)
-        results.append(score_episode(MotionEpisode.load(path), k))
+        results.append(score_episode(MotionEpisode.load(path)))
     summary = summarise(results)
     text = json.dumps({"summary": summary, "episodes": results} if args.full else summary, indent=1)
     if args.out:

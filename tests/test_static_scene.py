@@ -10,12 +10,10 @@ import pytest
 from static_scenes import frame, scene, truth
 
 from deploy.errors import PerceptionError
-from deploy.geometry.radius_filter import FILTER_PROFILES
 from deploy.geometry.static_scene import EDGE_REACH_PX, left_static, moving_pixels, opening_region, static_scene
 from deploy.geometry.types import Box
 from deploy.perception.static_tracker import StaticSceneTracker, front_region
 
-SPARSE = FILTER_PROFILES["sparse"]
 DRAWER_OPENINGS = (0.02, 0.05, 0.10, 0.20, 0.30)
 DOOR_OPENINGS = tuple(np.radians([5.0, 20.0, 45.0, 80.0]))
 
@@ -39,13 +37,13 @@ def started(kind: str) -> tuple[StaticSceneTracker, dict]:
 
 def test_static_surfaces_never_leave_the_static_scene_under_d415_noise():
     """Twenty later frames of the unchanged scene, each with its own D415 noise: no pixel of the whole image stands
-    in front of the first frame's static scene (no region, a lone-pixel filter only)."""
+    in front of the first frame's static scene (no region)."""
     first = frame(scene("drawer", 0.0), seed=0)
     static = static_scene(first.depth_m, first.intrinsics.K, 2, first.T_base_camera)
     everywhere = Box(np.zeros(3), np.eye(3), np.full(3, 100.0))
     for seed in range(1, 21):
         later = frame(scene("drawer", 0.0), seed=seed)
-        pixels, points = moving_pixels(static, later.depth_m, everywhere, None, SPARSE.radius_m, SPARSE.eps)
+        pixels, points = moving_pixels(static, later.depth_m, everywhere)
         assert not pixels.any() and len(points) == 0, seed
 
 

@@ -22,6 +22,7 @@ pixels), so such a pixel holds the part's surface, whatever the ray caster's lab
 from __future__ import annotations
 
 import time
+import zlib
 
 import cv2
 import numpy as np
@@ -29,6 +30,7 @@ import numpy as np
 from deploy.axis_pipeline import AxisPipeline
 from deploy.bench.motion_record import MotionEpisode
 from deploy.config import CALIBRATION_ERROR, Config
+from deploy.geometry.cloud import points_to_pixels
 from deploy.geometry.estimators.base import AxisEstimator
 from deploy.geometry.metrics import axis_angle_error_deg, axis_position_error_m
 from deploy.geometry.static_scene import EDGE_REACH_PX
@@ -39,6 +41,7 @@ METHODS = ("static", "static-body", "box-oracle", "box-rgbd")
 ESTIMATORS = ("screw", "screw-grip")
 EDGE_MIXING_PX = EDGE_REACH_PX  # a D415 pixel may hold the depth of a surface this far away (static_scene.py)
 MOVED = {"prismatic": 0.02, "revolute": np.radians(5.0)}  # frames scored for recall: the part opened this much
+OTHERS_MOVED = 0.01  # m or rad: another part moved (bumped, or swinging by itself): whatever it shows does move
 
 
 class _MovingOnly(AxisEstimator):
@@ -93,15 +96,13 @@ def first_masks(episode: MotionEpisode, robot: np.ndarray) -> tuple[np.ndarray, 
 
 def classify(points: np.ndarray, frame: Frame, classes: dict[str, np.ndarray]) -> dict[str, int]:
     """How many moving points fall on each truth class (points projected back to their pixels)."""
-    T = np.linalg.inv(frame.T_base_camera)
-    cam = points @ T[:3, :3].T + T[:3, 3]
     K = frame.intrinsics
-    u = np.clip(np.round(cam[:, 0] / cam[:, 2] * K.fx + K.cx).astype(int), 0, K.width - 1)
-    v = np.clip(np.round(cam[:, 1] / cam[:, 2] * K.fy + K.cy).astype(int), 0, K.height - 1)
-    scene = classes["scene"][v, u]
-    return {"points": len(points), "part": int(classes["part"][v, u].sum()),
-            "furniture": int(classes["furniture"][v, u].sum()), "robot": int(classes["robot"][v, u].sum()),
-            "scene": int(scene.sum()), "scene_beyond_edge": int((scene & ~classes["edge"][v, u]).sum())}
+    uv = np.round(points_to_pixels(points, K.K, frame.T_base_camera)).astype(int)
+    u, v = np.clip(uv[:, 0], 0, K.width - 1), np.clip(uv[:, 1], 0, K.height - 1)
+    scene, furniture, beyond = classes["scene"][v, u], classes["furniture"][v, u], ~classes["edge"][v, u]
+    return {"points": len(points), "part": int(classes["part"][v, u].sum()), "furniture": int(furniture.sum()),
+            "furniture_beyond_edge": int((furniture & beyond).sum()), "robot": int(classes["robot"][v, u].sum()),
+            "scene": int(scene.sum()), "scene_beyond_edge": int((scene & beyond).sum())}
 
 
 def _config(method: str, estimator: str, joint: str) -> Config:
@@ -172,18 +173,20 @@ def _axis_run(method: str, estimator: str, sensed: list, masks: list, episode: M
     return {**_final_axis_errors(final, episode, at), "frame_ms": ms}
 
 
-def score_episode(episode: MotionEpisode, seed: int, methods: tuple[str, ...] = METHODS) -> dict:
+def score_episode(episode: MotionEpisode, methods: tuple[str, ...] = METHODS) -> dict:
     """Per method: per-frame moving-part classes (frames 1..n), the object mask's IoU with the furniture (minus the
-    arm) and its share on the scene, and per estimator the final axis errors and per-frame CPU ms."""
+    arm) and its share on the scene, and per estimator the final axis errors and per-frame CPU ms. The calibration's
+    error is drawn from the episode's source and seed."""
     from deploy.perception.static_tracker import front_region
 
     clock = time.thread_time()
-    sensed = sensed_frames(episode, seed)
+    sensed = sensed_frames(episode, zlib.crc32(f"{episode.info['source']} {episode.info['seed']}".encode()))
     filter_ms = (time.thread_time() - clock) * 1e3 / len(sensed)
     front, _ = first_masks(episode, sensed[0][1])
     region = front_region(sensed[0][0], front, 0.6)
     classes = [truth_classes(episode, i) for i in range(len(sensed))]
-    out = {"info": episode.info, "self_filter_ms": filter_ms, "moved": _moved(episode).tolist(), "methods": {}}
+    out = {"info": episode.info, "self_filter_ms": filter_ms, "moved": _moved(episode).tolist(),
+           "others_moved": (episode.others_moved > OTHERS_MOVED).tolist(), "methods": {}}
     for method in methods:
         try:
             masks = _masks(method, sensed, episode, region)
@@ -230,34 +233,39 @@ def summarise(results: list[dict]) -> dict:
         if not episodes:
             continue
         out[task] = {"episodes": len(episodes)}
+        out[task]["episodes_with_other_parts_moving"] = sum(any(r["others_moved"]) for r in episodes)
         for method in METHODS:
-            runs = [(r["moved"][1:], r["methods"].get(method, {})) for r in episodes]
+            runs = [(r, r["methods"].get(method, {})) for r in episodes]
             failed = [run for _, run in runs if "failed" in run]
-            scored = [(moved, run) for moved, run in runs if "frames" in run]
+            scored = [(r, run) for r, run in runs if "frames" in run]
             out[task][method] = {"failed": len(failed), **_frame_figures(scored), **_axis_figures(scored)}
     return out
 
 
-def _frame_figures(scored: list[tuple[list, dict]]) -> dict:
+def _frame_figures(scored: list[tuple[dict, dict]]) -> dict:
+    """Frames where another part moved (OTHERS_MOVED) do not count toward the scene's shares: it did move."""
     frames = [f for _, run in scored for f in run["frames"]]
-    opened = [f for moved, run in scored for f, m in zip(run["frames"], moved, strict=True) if m]
+    still = [f for r, run in scored for f, other in zip(run["frames"], r["others_moved"][1:], strict=True)
+             if not other]
+    opened = [f for r, run in scored for f, m in zip(run["frames"], r["moved"][1:], strict=True) if m]
     precision = [f["part"] / f["points"] for f in opened if f["points"]]
     recall = [f["part"] / f["visible_part"] for f in opened if f["visible_part"]]
-    n = max(1, len(frames))
+    n, m = max(1, len(frames)), max(1, len(still))
     return {
-        "frames": len(frames), "opened_frames": len(opened),
+        "frames": len(frames), "opened_frames": len(opened), "frames_others_still": len(still),
         "precision_median": _q(precision, 50), "precision_p10": _q(precision, 10),
         "recall_median": _q(recall, 50), "recall_p10": _q(recall, 10),
-        "frames_scene_moving_beyond_edge": sum(f["scene_beyond_edge"] > 0 for f in frames) / n,
-        "frames_scene_moving": sum(f["scene"] > 0 for f in frames) / n,
-        "frames_own_furniture_moving": sum(f["furniture"] > 0 for f in frames) / n,
+        "frames_scene_moving_beyond_edge": sum(f["scene_beyond_edge"] > 0 for f in still) / m,
+        "frames_scene_moving": sum(f["scene"] > 0 for f in still) / m,
+        "frames_own_furniture_moving_beyond_edge": sum(f["furniture_beyond_edge"] > 0 for f in still) / m,
+        "frames_own_furniture_moving": sum(f["furniture"] > 0 for f in still) / m,
         "frames_arm_moving": sum(f["robot"] > 0 for f in frames) / n,
         "mask_iou_median": _q([f["mask_iou"] for f in frames], 50),
-        "mask_on_scene_max": max((f["mask_on_scene"] for f in frames), default=None),
+        "mask_on_scene_max": max((f["mask_on_scene"] for f in still), default=None),
     }
 
 
-def _axis_figures(scored: list[tuple[list, dict]]) -> dict:
+def _axis_figures(scored: list[tuple[dict, dict]]) -> dict:
     figures = {}
     for name in ESTIMATORS:
         axes = [run["axes"][name] for _, run in scored]

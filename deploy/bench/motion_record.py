@@ -22,14 +22,17 @@ from drivers.errors import ArmError
 
 OPEN_FRAMES = 12  # frames over the opening (a 2 s pull at 5 frames per second)
 HOLD_FRAMES = 2  # frames at the end, opened
+SETTLE_S = 1.0  # the world runs this long before the first frame: parts that start in contact come to rest
 NEAR_GRASP_M = 0.03  # a scripted grasp whose fingers met the front this near the handle is posed from there
 
 
 @dataclass(frozen=True)
 class MotionEpisode:
     """One scripted opening: per frame (n frames) depth_mm (n, H, W) uint16, links (n, H, W, 2) int16 (body, link),
-    q (n, 7), width_m (n,), ee_pose (n, 4, 4), grasped (n,) bool, joint_value (n,); and the scene's truth (`info`:
-    task, seed, split, source, part, joint type/origin/direction, body ids, K, T_true)."""
+    q (n, 7), width_m (n,), ee_pose (n, 4, 4), grasped (n,) bool, joint_value (n,), others_moved (n,): the largest
+    change of any other part's joint since the first frame (m or rad: a neighbour the arm bumped, or one that swings
+    by itself); and the scene's truth (`info`: task, seed, split, source, part, joint type/origin/direction, body ids,
+    K, T_true)."""
 
     depth_mm: np.ndarray
     links: np.ndarray
@@ -38,18 +41,19 @@ class MotionEpisode:
     ee_pose: np.ndarray
     grasped: np.ndarray
     joint_value: np.ndarray
+    others_moved: np.ndarray
     info: dict
 
     def save(self, path: Path) -> None:
-        np.savez_compressed(path, depth_mm=self.depth_mm, links=self.links, q=self.q, width_m=self.width_m,
-                            ee_pose=self.ee_pose, grasped=self.grasped, joint_value=self.joint_value,
-                            info=np.array(json.dumps(self.info)))
+        np.savez_compressed(path, **{k: getattr(self, k) for k in _ARRAYS}, info=np.array(json.dumps(self.info)))
 
     @classmethod
     def load(cls, path: Path) -> MotionEpisode:
         with np.load(path) as data:
-            arrays = {k: data[k] for k in ("depth_mm", "links", "q", "width_m", "ee_pose", "grasped", "joint_value")}
-            return cls(**arrays, info=json.loads(str(data["info"])))
+            return cls(**{k: data[k] for k in _ARRAYS}, info=json.loads(str(data["info"])))
+
+
+_ARRAYS = ("depth_mm", "links", "q", "width_m", "ee_pose", "grasped", "joint_value", "others_moved")
 
 
 def record_motion(task: str, seed: int, split: str, fps: float = 5.0, part: str | None = None,
@@ -58,7 +62,7 @@ def record_motion(task: str, seed: int, split: str, fps: float = 5.0, part: str 
     make_scenario) with per-frame truth. SceneError/PartError when the scene cannot be built, ArmError when the
     scripted grasp does not come within NEAR_GRASP_M of the handle, IKError when the arm cannot follow the
     opening."""
-    from drivers.arm.trajectory import MotionLimits
+    from drivers.arm.robot_config import panda_sim_config
     from sim_fallback.arm import SimArm
     from sim_fallback.camera import SimCamera, d415_intrinsics
     from sim_fallback.scenario import make_scenario
@@ -80,14 +84,20 @@ def record_motion(task: str, seed: int, split: str, fps: float = 5.0, part: str 
     target = DEFAULT_TARGET[task]
     with SimWorld(scenario) as sim:
         arm = SimArm(sim)
+        sim.clock.step(int(round(SETTLE_S / sim.clock.dt)))  # the room at rest before the first frame
         camera = TruthCamera(sim, intrinsics=d415_intrinsics(), seed=seed, fps=fps)
-        limits = MotionLimits.for_robot(sim.robot_spec, arm.kin, fraction=0.3)
+        limits = panda_sim_config().motion_limits(arm.kin, 0.3)
         rows: list[tuple] = []
         next_t = 0.0
 
+        others = [p for p in sim.all_parts if (p.body, p.joint) != (sim.cabinet_id, sim.cabinet_joint)]
+        rest = _joint_values(sim, others)
+
         def keep(depth_m: np.ndarray, state: ArmState, grasped: bool) -> None:
+            moved = float(np.abs(_joint_values(sim, others) - rest).max(initial=0.0))
             rows.append((np.round(depth_m * 1000).astype(np.uint16), camera.last_view.links.astype(np.int16),
-                         state.q.copy(), state.gripper_width_m, arm.kin.fk(state.q), grasped, sim.joint_value()))
+                         state.q.copy(), state.gripper_width_m, arm.kin.fk(state.q), grasped, sim.joint_value(),
+                         moved))
 
         def capture(state: ArmState, _t: float = 0.0) -> None:
             nonlocal next_t
@@ -109,9 +119,14 @@ def record_motion(task: str, seed: int, split: str, fps: float = 5.0, part: str 
                 "joint_type": truth.joint_type, "origin": truth.origin.tolist(), "direction": truth.direction.tolist(),
                 "body": truth.body_id, "part_links": list(truth.links), "robot": sim.robot_id,
                 "K": camera.intrinsics.K.tolist(), "T_true": camera.T_base_camera.tolist()}
-    columns = list(zip(*rows, strict=True))
-    return MotionEpisode(np.stack(columns[0]), np.stack(columns[1]), np.stack(columns[2]), np.array(columns[3]),
-                         np.stack(columns[4]), np.array(columns[5]), np.array(columns[6]), info)
+    columns = [np.stack(c) for c in zip(*rows, strict=True)]
+    return MotionEpisode(*columns, info=info)
+
+
+def _joint_values(sim, parts) -> np.ndarray:
+    import pybullet as pb
+
+    return np.array([pb.getJointState(p.body, p.joint, physicsClientId=sim.client)[0] for p in parts])
 
 
 

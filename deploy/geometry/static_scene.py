@@ -9,11 +9,12 @@ difference of two D415 readings, NOISE_SIGMAS standard deviations of it, plus on
 - the inside a door reveals lies behind the first frame's surfaces: static;
 - pixels without depth in a later frame (holes, IR shadows, the arm's pixels that the self-filter removed) are
   unknown, neither static nor moving; where the first frame had no depth (an IR shadow, a dark patch, the arm, nothing
-  in range) the static scene is the nearest surface around the hole (each hole pixel takes the nearest depth of the
-  first-frame pixels as near to it as the hole's nearest rim): what later stands in front of that has left it.
+  in range) the static scene is the nearest surface on the hole's rim: what later stands in front of that has left it.
 What left it counts as the moving part only inside the opening region (where the target part can be while it opens:
-its front's outline swept out to how far an opening reaches) and inside the frame's object mask (which keeps the
-arm's pixels out). The camera must not move: the comparison is pixel by pixel.
+its front's outline swept out to how far an opening reaches), inside the frame's object mask (which keeps the arm's
+pixels out), and in pieces larger than a stereo matching window (a noise excursion spreads over one window, a part
+covers many): the moving part's own outlier filter, the same at every distance. The camera must not move: the
+comparison is pixel by pixel.
 """
 
 from __future__ import annotations
@@ -25,7 +26,6 @@ import numpy as np
 
 from deploy.errors import PerceptionError
 from deploy.geometry.cloud import depth_to_points
-from deploy.geometry.radius_filter import radius_outlier_mask
 from deploy.geometry.types import Box
 
 EDGE_REACH_PX = 3  # a D415 pixel's depth can come from a surface this far away (its matching window, at 640x480)
@@ -112,13 +112,12 @@ def opening_reach_m(front: Box, outward: np.ndarray, drawer_reach_m: float) -> f
     return max([drawer_reach_m, *across])
 
 
-def moving_pixels(scene: StaticScene, depth_m: np.ndarray, region: Box, allowed: np.ndarray | None,
-                  radius_m: float, eps: int, depth_range_m: tuple[float, float] = (0.0, np.inf)
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def moving_pixels(scene: StaticScene, depth_m: np.ndarray, region: Box, allowed: np.ndarray | None = None,
+                  depth_range_m: tuple[float, float] = (0.0, np.inf)) -> tuple[np.ndarray, np.ndarray]:
     """The moving part of a later frame: the (h, w) bool pixels of the reduced image and their (N, 3) points (base
     frame with a pose), row-major. A pixel counts when its depth is within `depth_range_m` and left the static scene,
-    it lies in `allowed` (an (H, W) object mask, None: anywhere), its point lies in `region`, and the point keeps
-    `eps` others within `radius_m` (the radius filter)."""
+    it lies in `allowed` (an (H, W) object mask, None: anywhere) and its point in `region`, and it belongs to a
+    connected piece of such pixels larger than a stereo matching window."""
     candidates = left_static(scene, depth_m)
     if allowed is not None:
         candidates &= np.asarray(allowed, bool)[::scene.step, ::scene.step]
@@ -126,29 +125,39 @@ def moving_pixels(scene: StaticScene, depth_m: np.ndarray, region: Box, allowed:
     candidates &= (depth >= depth_range_m[0]) & (depth <= depth_range_m[1])
     points = depth_to_points(depth, scene.K, mask=candidates, T_base_camera=scene.T_base_camera)
     rows, cols = np.nonzero(candidates)
-    keep = region.contains(points)
-    if len(points):
-        keep[keep] = radius_outlier_mask(points[keep], radius_m, eps)
+    inside = region.contains(points)
     pixels = np.zeros(candidates.shape, bool)
-    pixels[rows[keep], cols[keep]] = True
-    return pixels, points[keep]
+    pixels[rows[inside], cols[inside]] = True
+    pixels = _without_specks(pixels, scene.step)
+    return pixels, points[pixels[rows, cols]]
+
+
+def _without_specks(pixels: np.ndarray, step: int) -> np.ndarray:
+    """`pixels` without the 8-connected pieces smaller than a stereo matching window (2 EDGE_REACH_PX + 1 pixels
+    square at full resolution) on the image reduced by `step`."""
+    window = int(np.ceil((2 * EDGE_REACH_PX + 1) / step))
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(pixels.astype(np.uint8), connectivity=8)
+    large = stats[:, cv2.CC_STAT_AREA] >= window * window
+    large[0] = False
+    return large[labels]
 
 
 def _fill_holes(near: np.ndarray) -> np.ndarray:
-    """`near` (inf in holes) with each hole pixel set to the smallest depth within its distance to the hole's rim
-    (spread one pixel a pass); 0 where the image has no depth at all."""
-    near = near.copy()
+    """`near` (inf in holes) with each hole (8-connected) set to the smallest depth on its rim: for a plane, and for
+    any surface whose nearest point over the hole lies on its rim, nothing the hole hides is nearer. 0 where a hole
+    has no rim (an image without depth)."""
     holes = ~np.isfinite(near)
-    square = np.ones((3, 3), np.uint8)
-    while holes.any():
-        spread = cv2.erode(near, square, borderType=cv2.BORDER_REPLICATE)
-        reached = holes & np.isfinite(spread)
-        if not reached.any():
-            break
-        near[reached] = spread[reached]
-        holes &= ~reached
-    near[holes] = 0.0
-    return near
+    if not holes.any():
+        return near
+    count, labels = cv2.connectedComponents(holes.astype(np.uint8), connectivity=8)
+    beside = cv2.dilate(labels.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.int64)  # a hole's label
+    rim = ~holes & (beside > 0)
+    smallest = np.full(count, np.inf, np.float32)
+    np.minimum.at(smallest, beside[rim], near[rim])
+    smallest[~np.isfinite(smallest)] = 0.0
+    filled = near.copy()
+    filled[holes] = smallest[labels[holes]]
+    return filled
 
 
 def _same_pose(a: np.ndarray, b: np.ndarray) -> bool:

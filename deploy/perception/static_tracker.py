@@ -15,7 +15,6 @@ import numpy as np
 from deploy.errors import PerceptionError
 from deploy.geometry.boxes import front_box, front_direction
 from deploy.geometry.cloud import depth_to_points
-from deploy.geometry.radius_filter import FILTER_PROFILES
 from deploy.geometry.static_scene import (
     StaticScene,
     left_static,
@@ -29,7 +28,6 @@ from deploy.perception.base import Segmenter
 from drivers.camera.base import Frame
 
 TRACK_STEP = 2  # every 2nd pixel in each direction (the axis pipeline's decimation)
-_SPECKS = FILTER_PROFILES["sparse"]  # the moving part's radius filter: a lone pixel is noise, not a part
 
 
 def front_region(frame: Frame, front_mask: np.ndarray, reach_m: float) -> Box:
@@ -53,18 +51,17 @@ class StaticSceneTracker:
     """The object's mask on later frames of a fixed camera: `track(frame)` (see the module docstring). `moving` is
     the last frame's moving part (every TRACK_STEP-th pixel)."""
 
-    def __init__(self, first: Frame, furniture: np.ndarray, region: Box, radius_m: float = _SPECKS.radius_m,
-                 eps: int = _SPECKS.eps) -> None:
+    def __init__(self, first: Frame, furniture: np.ndarray, region: Box) -> None:
         self.scene: StaticScene = static_scene(first.depth_m, first.intrinsics.K, TRACK_STEP, first.T_base_camera)
         self.furniture = np.asarray(furniture, bool)[::TRACK_STEP, ::TRACK_STEP]
-        self.region, self.radius_m, self.eps = region, radius_m, eps
+        self.region = region
         self.moving = np.zeros(self.furniture.shape, bool)
 
     def track(self, frame: Frame) -> np.ndarray:
         """The object's (H, W) mask on `frame` (its arm's depth already removed); PerceptionError when the camera
         moved since the first frame."""
         self.scene.check_view(frame.depth_m, frame.T_base_camera)
-        self.moving, _ = moving_pixels(self.scene, frame.depth_m, self.region, None, self.radius_m, self.eps)
+        self.moving, _ = moving_pixels(self.scene, frame.depth_m, self.region)
         depth = frame.depth_m[::TRACK_STEP, ::TRACK_STEP]
         static = self.furniture & (depth > 0) & ~left_static(self.scene, frame.depth_m)
         h, w = frame.depth_m.shape
