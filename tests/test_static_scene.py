@@ -149,3 +149,59 @@ def test_no_truth_reaches_the_tracker():
         tracker = StaticSceneTracker(replace(f0, **extra), t["furniture"], front_region(f0, t["part"], 0.6))
         masks.append(tracker.track(replace(later, **extra)))
     assert masks[0].any() and np.array_equal(masks[0], masks[1])
+
+
+def test_todays_detector_followed_by_the_static_scene_never_takes_a_neighbour():
+    """The rgbd detector takes the whole run (counter and neighbours with it); followed by the static scene, the
+    opening drawer is still the only thing that moves."""
+    from deploy.perception.rgbd import RGBDSegmenter
+    from deploy.perception.static_tracker import StaticSceneSegmenter
+
+    segmenter = StaticSceneSegmenter(RGBDSegmenter())
+    first = segmenter.start(frame(scene("drawer", 0.0), seed=0))
+    assert (first & truth(scene("drawer", 0.0))["fronts"]).any()  # the detection holds neighbours' fronts
+    for k, opening in enumerate((0.1, 0.25), start=1):
+        t = truth(scene("drawer", opening))
+        mask = segmenter.track(frame(scene("drawer", opening), seed=k, index=k))
+        moving = segmenter.tracker.moving
+        assert (moving & reduced(t["part"])).sum() > 500
+        assert not (moving & beyond_edge(t) & ~reduced(t["part"])).any()
+        assert (mask & t["part"]).sum() >= 0.5 * t["part"].sum()
+
+
+@pytest.mark.parametrize("kind, estimator", [("drawer", "screw-grip"), ("door", "screw-grip"), ("drawer", "screw")])
+def test_the_pipeline_estimates_the_axis_from_the_static_scene(kind, estimator):
+    """The axis pipeline's default moving part (static-scene, in the opening region of the pointed front) over an
+    opening among identical neighbours: the axis within 2 deg; paper-obb keeps the paper's box cut."""
+    from deploy.axis_pipeline import AxisPipeline
+    from deploy.config import Config
+    from deploy.geometry.metrics import axis_angle_error_deg
+    from deploy.geometry.types import Axis
+
+    config = Config().for_camera("sim").replace(estimator={"name": estimator, "joint": "auto"})
+    tracker, t0 = started(kind)
+    first = frame(scene(kind, 0.0), seed=0)
+    pipe = AxisPipeline(config, region=tracker.region)
+    assert pipe.static and not AxisPipeline(config.replace(estimator={"name": "paper-obb"})).static
+    pipe.update_frame(first, t0["furniture"])
+    openings = np.linspace(0.0, 0.25 if kind == "drawer" else np.radians(40.0), 11)[1:]
+    for k, opening in enumerate(openings, start=1):
+        later = frame(scene(kind, opening), seed=k, index=k)
+        step = pipe.update_frame(later, tracker.track(later), gripper_pose(kind, opening))
+    assert isinstance(step.result, Axis)
+    true = np.array([-1.0, 0.0, 0.0]) if kind == "drawer" else np.array([0.0, 0.0, 1.0])
+    assert axis_angle_error_deg(true, step.result.direction) < 2.0
+
+
+def gripper_pose(kind: str, opening: float) -> np.ndarray:
+    """The held handle's pose in the synthetic run (the arm's forward kinematics would give it)."""
+    from static_scenes import FRONT_X, TARGET_Y, UNIT_W
+
+    T = np.eye(4)
+    if kind == "drawer":
+        T[:3, 3] = [FRONT_X - 0.04 - opening, TARGET_Y + UNIT_W / 2, 0.78]
+        return T
+    c, s = np.cos(opening), np.sin(opening)
+    T[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+    T[:3, 3] = np.array([FRONT_X - 0.02, TARGET_Y + 0.003, 0.58]) + T[:3, :3] @ [-0.039, UNIT_W - 0.056, 0.0]
+    return T

@@ -53,8 +53,9 @@ class _MovingOnly(AxisEstimator):
         return NoAxis("moving part only")
 
 
-def sensed_frames(episode: MotionEpisode, seed: int) -> list[tuple[Frame, np.ndarray]]:
-    """Each frame as the controller gets it (calibrated pose, the arm's depth removed) with the arm's mask."""
+def sensed_frames(episode: MotionEpisode, seed: int) -> list[tuple[Frame, np.ndarray, float]]:
+    """Each frame as the controller gets it (calibrated pose, the arm's depth removed) with the arm's mask and the
+    self-filter's CPU ms."""
     from deploy.perception.bench import _self_filter
     from deploy.rig import simulated_calibration
 
@@ -68,7 +69,9 @@ def sensed_frames(episode: MotionEpisode, seed: int) -> list[tuple[Frame, np.nda
     out = []
     for i in range(len(episode.depth_mm)):
         frame = Frame(i, i / 5.0, color, episode.depth_mm[i].astype(np.float32) / 1000.0, intrinsics, T)
-        out.append(self_filter.apply(frame, episode.q[i], float(episode.width_m[i])))
+        clock = time.thread_time()
+        seen, robot = self_filter.apply(frame, episode.q[i], float(episode.width_m[i]))
+        out.append((seen, robot, (time.thread_time() - clock) * 1e3))
     return out
 
 
@@ -117,11 +120,11 @@ def _masks(method: str, sensed: list[tuple[Frame, np.ndarray]], episode: MotionE
     from deploy.perception.registry import make_segmenter
     from deploy.perception.static_tracker import StaticSceneTracker, front_region
 
-    frame0, robot0 = sensed[0]
+    frame0, robot0, _ = sensed[0]
     front, furniture = first_masks(episode, robot0)
     out = []
     if method == "box-oracle":
-        for i, (_, robot) in enumerate(sensed):
+        for i, (_, robot, _) in enumerate(sensed):
             body = episode.links[i, ..., 0] == episode.info["body"]
             out.append((body & ~robot, 0.0))
         return out
@@ -134,7 +137,7 @@ def _masks(method: str, sensed: list[tuple[Frame, np.ndarray]], episode: MotionE
         track = StaticSceneTracker(frame0, furniture, region).track
         first = furniture
     out.append((first & ~robot0, 0.0))
-    for frame, robot in sensed[1:]:
+    for frame, robot, _ in sensed[1:]:
         clock = time.thread_time()
         mask = track(frame) & ~robot
         out.append((mask, (time.thread_time() - clock) * 1e3))
@@ -156,17 +159,17 @@ def _final_axis_errors(result, episode: MotionEpisode, at: np.ndarray) -> dict:
 
 def _axis_run(method: str, estimator: str, sensed: list, masks: list, episode: MotionEpisode, region) -> dict:
     """The axis pipeline over the first frame and the frames where the gripper held the handle (as `deploy axis
-    estimate`), its final estimate's errors and per held frame the CPU ms of mask + pipeline."""
+    estimate`), its final estimate's errors and per held frame the CPU ms of self-filter, mask and pipeline."""
     pipe = AxisPipeline(_config(method, estimator, episode.info["joint_type"]),
                         region=region if method == "static" else None)
     final, ms = NoAxis("no frame held the handle"), []
-    for i, ((frame, _), (mask, mask_ms)) in enumerate(zip(sensed, masks, strict=True)):
+    for i, ((frame, _, filter_ms), (mask, mask_ms)) in enumerate(zip(sensed, masks, strict=True)):
         if i > 0 and not episode.grasped[i]:
             continue
         clock = time.thread_time()
         step = pipe.update_frame(frame, mask, episode.ee_pose[i] if episode.grasped[i] else None)
         if i > 0:
-            ms.append(mask_ms + (time.thread_time() - clock) * 1e3)
+            ms.append(filter_ms + mask_ms + (time.thread_time() - clock) * 1e3)
         final = step.result if isinstance(step.result, Axis) or not isinstance(final, Axis) else final
     held = np.flatnonzero(episode.grasped)
     at = episode.ee_pose[held[0], :3, 3] if len(held) else np.asarray(episode.info["origin"])
@@ -179,13 +182,11 @@ def score_episode(episode: MotionEpisode, methods: tuple[str, ...] = METHODS) ->
     error is drawn from the episode's source and seed."""
     from deploy.perception.static_tracker import front_region
 
-    clock = time.thread_time()
     sensed = sensed_frames(episode, zlib.crc32(f"{episode.info['source']} {episode.info['seed']}".encode()))
-    filter_ms = (time.thread_time() - clock) * 1e3 / len(sensed)
     front, _ = first_masks(episode, sensed[0][1])
     region = front_region(sensed[0][0], front, 0.6)
     classes = [truth_classes(episode, i) for i in range(len(sensed))]
-    out = {"info": episode.info, "self_filter_ms": filter_ms, "moved": _moved(episode).tolist(),
+    out = {"info": episode.info, "moved": _moved(episode).tolist(),
            "others_moved": (episode.others_moved > OTHERS_MOVED).tolist(), "methods": {}}
     for method in methods:
         try:
@@ -196,7 +197,7 @@ def score_episode(episode: MotionEpisode, methods: tuple[str, ...] = METHODS) ->
         pipe = AxisPipeline(_config(method, "screw", episode.info["joint_type"]), estimator=_MovingOnly(),
                             region=region if method == "static" else None)
         frames = []
-        for i, ((frame, robot), (mask, _)) in enumerate(zip(sensed, masks, strict=True)):
+        for i, ((frame, robot, _), (mask, _)) in enumerate(zip(sensed, masks, strict=True)):
             step = pipe.update_frame(frame, mask)
             if i == 0:
                 continue
