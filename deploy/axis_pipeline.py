@@ -1,7 +1,10 @@
 """One geometry step per camera frame: cloud -> radius filter -> body box or moving part -> axis estimate.
 
-The first frame fixes the body box (handle removed); every later frame's moving part joins a sliding
-window of observations from which the estimator re-estimates the axis.
+The first frame fixes the body box (handle removed) and, for the static-scene moving part, the static scene and the
+opening region; every later frame's moving part joins a sliding window of observations from which the estimator
+re-estimates the axis. The moving part is what left the first frame's static surfaces within the opening region
+(`[geometry] moving_part` "static-scene", deploy/geometry/static_scene.py), or what left its body box (the paper's,
+"box"); "auto" gives the estimator its own (paper-obb: the box).
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from deploy.geometry.estimators.base import AxisEstimator, Observation
 from deploy.geometry.estimators.registry import make_estimator
 from deploy.geometry.moving_part import moving_part
 from deploy.geometry.radius_filter import radius_filter
+from deploy.geometry.static_scene import StaticScene, moving_pixels, opening_reach_m, opening_region, static_scene
 from deploy.geometry.types import AxisResult, Box, JointType, NoAxis
 from drivers.camera.base import Frame
 
@@ -33,6 +37,7 @@ class StepResult:
     object_points: int
     moving_points: int
     timings_ms: dict[str, float] = field(default_factory=dict)
+    moving: np.ndarray | None = None  # the moving part's points (None on the first frame)
 
 
 def frame_points(frame: Frame, mask: np.ndarray, config: Config) -> np.ndarray:
@@ -56,9 +61,14 @@ def viewpoint(frame: Frame) -> np.ndarray:
 
 
 class AxisPipeline:
-    """Stateful runner of the per-frame geometry (the functions it calls are pure)."""
+    """Stateful runner of the per-frame geometry (the functions it calls are pure).
 
-    def __init__(self, config: Config, estimator: AxisEstimator | None = None):
+    `region`: where the target part can be while it opens (`static_scene.opening_region` of its front), for the
+    static-scene moving part; None: the first frame's body box's front face, reaching `perception.opening_reach_m`
+    (or the front's width, if larger) out of it.
+    """
+
+    def __init__(self, config: Config, estimator: AxisEstimator | None = None, region: Box | None = None):
         self.config = config
         self.filter = config.filter.resolve()
         self.estimator = estimator or make_estimator(config.estimator.name, config.estimator)
@@ -68,6 +78,10 @@ class AxisPipeline:
         self.body_box: Box | None = None
         self.front = np.zeros(3)  # outward normal of the body box's front face (toward the camera)
         self.handle_points = np.empty((0, 3))
+        mode = config.geometry.moving_part
+        self.static = mode == "static-scene" or (mode == "auto" and not self.estimator.box_moving_part)
+        self.region = region
+        self.scene: StaticScene | None = None
 
     def cut_box(self) -> Box:
         """The box the moving part is cut out of: the body box, reaching geometry.inside_depth_m behind the
@@ -85,7 +99,8 @@ class AxisPipeline:
     def update(
         self, points: np.ndarray, index: int, t: float, view: np.ndarray, gripper_pose: np.ndarray | None = None
     ) -> StepResult:
-        """Feed one frame's object cloud; the first call fixes the body box and returns NoAxis.
+        """Feed one frame's object cloud; the first call fixes the body box and returns NoAxis; later calls cut the
+        moving part out of the body box (the static-scene moving part needs the depth image: `update_frame`).
 
         The whole cloud is radius-filtered on the first frame only (for the body box). Later frames
         filter just the points outside the box, which is all the moving part needs: the paper filters
@@ -98,17 +113,25 @@ class AxisPipeline:
             kept = radius_filter(points, self.filter.radius_m, self.filter.eps)
             timings["filter"] = (time.perf_counter() - clock) * 1e3
             return self._first(kept, index, t, view, timings)
+        if self.static:
+            raise ValueError("AxisPipeline.update: the static-scene moving part compares depth images: feed frames "
+                             "with update_frame, or set [geometry] moving_part = \"box\"")
         clock = time.perf_counter()
         moving = moving_part(
             points, self.cut_box(), margin_m=self.config.geometry.body_margin_m,
             radius_m=self.filter.radius_m, eps=self.filter.eps,
         )
         timings["moving_part"] = (time.perf_counter() - clock) * 1e3
+        return self._estimate(moving, index, t, len(points), gripper_pose, timings)
+
+    def _estimate(self, moving: np.ndarray, index: int, t: float, object_points: int,
+                  gripper_pose: np.ndarray | None, timings: dict) -> StepResult:
+        """The moving part joins the window; the estimator's answer on it."""
         self.window.append(Observation(index, t, moving, self.body_box, gripper_pose))
         clock = time.perf_counter()
         result = self.estimator.estimate(list(self.window), self.joint)
         timings["estimate"] = (time.perf_counter() - clock) * 1e3
-        return StepResult(index, t, result, len(points), len(moving), timings)
+        return StepResult(index, t, result, object_points, len(moving), timings, moving)
 
     def _first(self, kept: np.ndarray, index: int, t: float, view: np.ndarray, timings: dict) -> StepResult:
         if len(kept) < 4:
@@ -125,10 +148,31 @@ class AxisPipeline:
                           timings)
 
     def update_frame(self, frame: Frame, mask: np.ndarray, gripper_pose: np.ndarray | None = None) -> StepResult:
-        """`update` on a camera frame and its object mask."""
+        """`update` on a camera frame and its object mask (the arm's pixels out of it). With the static-scene moving
+        part the first frame also fixes the static scene, and on later frames the moving part is what left it within
+        the opening region and the mask; PerceptionError when the camera moved since the first frame."""
         clock = time.perf_counter()
+        if self.static and self.body_box is not None:
+            self.scene.check_view(frame.depth_m, frame.T_base_camera)
+            g = self.config.geometry
+            _, moving = moving_pixels(self.scene, frame.depth_m, self.region, mask, (g.min_depth_m, g.max_depth_m))
+            timings = {"moving_part": (time.perf_counter() - clock) * 1e3}
+            object_pixels = int(np.count_nonzero(np.asarray(mask)[::g.decimation, ::g.decimation]))
+            return self._estimate(moving, frame.index, frame.t, object_pixels, gripper_pose, timings)
         points = frame_points(frame, mask, self.config)
         cloud_ms = (time.perf_counter() - clock) * 1e3
         step = self.update(points, frame.index, frame.t, viewpoint(frame), gripper_pose)
         step.timings_ms["cloud"] = cloud_ms
+        if self.static and self.body_box is not None:
+            clock = time.perf_counter()
+            self._fix_scene(frame)
+            step.timings_ms["static_scene"] = (time.perf_counter() - clock) * 1e3
         return step
+
+    def _fix_scene(self, frame: Frame) -> None:
+        """The first frame's static scene, and the opening region when none was given."""
+        self.scene = static_scene(frame.depth_m, frame.intrinsics.K, self.config.geometry.decimation,
+                                  frame.T_base_camera)
+        if self.region is None:
+            reach = opening_reach_m(self.body_box, self.front, self.config.perception.opening_reach_m)
+            self.region = opening_region(self.body_box, self.front, reach)

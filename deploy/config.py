@@ -92,17 +92,26 @@ def unitless_radius(data: dict[str, Any]) -> str | None:
 
 
 class GeometryConfig(_Section):
-    """Body box and moving-part extraction."""
+    """Body box and moving-part extraction.
 
+    moving_part: "static-scene" (what left the first frame's static surfaces, inside the opening region:
+    deploy/geometry/static_scene.py, with its own outlier filter; needs a fixed camera), "box" (the paper's: what
+    left the first frame's body box, radius-filtered by `[filter]`) or "auto" (the estimator's own: "box" for
+    paper-obb, "static-scene" for the others). `[filter]` also cleans the first frame's cloud for the body box.
+    """
+
+    moving_part: Literal["auto", "static-scene", "box"] = Field(
+        default="auto", description="static-scene (what left the first frame's static surfaces), box (what left its "
+        "body box: the paper's) or auto (box for paper-obb, static-scene otherwise)")
     box: Literal["front", "yaw", "oriented"] = Field(
         default="front", description="body box: front (vertical sides turned to the front face's plane), yaw (the "
         "paper's smallest top-view box) or oriented (3D)")
     remove_handle: bool = True
     body_margin_m: float = Field(default=0.01, ge=0, le=0.1)
     inside_depth_m: float = Field(
-        default=1.0, ge=0, le=5, description="doors (estimator.joint revolute): the moving part is cut out "
-        "by the body box reaching this far behind the front, because the cabinet's inside that an opening "
-        "door reveals does not move (a drawer's revealed inside is the drawer)")
+        default=1.0, ge=0, le=5, description="moving_part box, doors (estimator.joint revolute): the moving "
+        "part is cut out by the body box reaching this far behind the front, because the cabinet's inside that an "
+        "opening door reveals does not move (a drawer's revealed inside is the drawer)")
     min_depth_m: float = Field(default=0.1, ge=0)
     max_depth_m: float = Field(default=3.0, gt=0)
     decimation: int = Field(default=2, ge=1, le=8, description="use every n-th pixel in each direction")

@@ -71,14 +71,14 @@ def front_and_inside() -> tuple[np.ndarray, np.ndarray]:
 @pytest.mark.parametrize("joint, inside_depth_m, interior_counts",
                          [("revolute", 1.0, False), ("revolute", 0.0, True), ("prismatic", 1.0, True)])
 def test_the_cabinets_inside_revealed_by_a_door_is_not_the_moving_part(joint, inside_depth_m, interior_counts):
-    """The first frame sees only the front (a thin body box); opening reveals the inside 30 cm behind it:
-    static behind a door, the drawer itself behind a drawer's front."""
+    """The box cut: the first frame sees only the front (a thin body box); opening reveals the inside 30 cm behind
+    it: static behind a door, the drawer itself behind a drawer's front."""
     from deploy.axis_pipeline import AxisPipeline
     from deploy.config import Config
 
     front, inside = front_and_inside()
     config = Config().model_copy(update={
-        "geometry": Config().geometry.model_copy(update={"inside_depth_m": inside_depth_m}),
+        "geometry": Config().geometry.model_copy(update={"inside_depth_m": inside_depth_m, "moving_part": "box"}),
         "estimator": Config().estimator.model_copy(update={"joint": joint})})
     pipe = AxisPipeline(config)
     camera = np.array([1.5, 0.2, 0.8])
@@ -88,13 +88,13 @@ def test_the_cabinets_inside_revealed_by_a_door_is_not_the_moving_part(joint, in
 
 
 def test_a_door_classified_after_the_first_frame_gets_the_deep_box():
-    """`--joint auto` sets the pipeline's joint once the probe pull has classified it."""
+    """The box cut: `--joint auto` sets the pipeline's joint once the probe pull has classified it."""
     from deploy.axis_pipeline import AxisPipeline
     from deploy.config import Config
     from deploy.geometry.types import JointType
 
     front, inside = front_and_inside()
-    pipe = AxisPipeline(Config())
+    pipe = AxisPipeline(Config().replace(geometry={"moving_part": "box"}))
     camera = np.array([1.5, 0.2, 0.8])
     pipe.update(front, 0, 0.0, camera)
     assert pipe.update(np.vstack([front, inside]), 1, 0.1, camera).moving_points > 5000

@@ -40,8 +40,9 @@ class PerceptionConfig(BaseModel):
     detect_max_range_m: float = Field(default=1.5, gt=0, description="rgbd: ... and at most this far")
     track_margin_m: float = Field(default=0.02, ge=0, le=0.2, description="rgbd: the tracking region's margin "
                                   "around the detected object")
-    opening_reach_m: float = Field(default=0.6, ge=0, le=2.0, description="rgbd: how far the opening part may "
-                                   "come out of the front (a door's width, if larger, counts)")
+    opening_reach_m: float = Field(default=0.6, ge=0, le=2.0, description="rgbd and the static-scene moving part: "
+                                   "how far the opening part may come out of the front (a door's width, if larger, "
+                                   "counts)")
 
 
 def perception_config(**overrides: object) -> PerceptionConfig:

@@ -37,6 +37,8 @@ class AxisEstimator(ABC):
 
     name: str
     use_gripper: bool = False  # whether it reads the gripper's path (the observations' gripper poses)
+    box_moving_part: bool = False  # whether its rules take the moving part as what left the first frame's object box
+    # (the paper's); `[geometry] moving_part = "auto"` gives it that one, the others what left the static scene
 
     @abstractmethod
     def estimate(self, window: Sequence[Observation], joint: JointType | None = None) -> AxisResult: ...

@@ -38,6 +38,7 @@ class PaperOBBEstimator(AxisEstimator):
     """The paper's box-based estimator (see the module docstring for the rules)."""
 
     name = "paper-obb"
+    box_moving_part = True
 
     def __init__(
         self,
