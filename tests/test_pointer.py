@@ -14,7 +14,8 @@ import pytest
 
 from deploy.config import CALIBRATION_ERROR
 from deploy.errors import PointerError
-from deploy.perception.pointing import Pointer, point_at
+from deploy.perception.base import Pointer
+from deploy.perception.pointing import point_at
 from deploy.rig import simulated_calibration
 from drivers.camera.base import Frame
 from sim_fallback.camera import SimCamera
@@ -111,7 +112,7 @@ def test_the_pointed_drawer_of_three_identical_ones_gives_its_own_handle(three_d
     scene = three_drawers
     names = ["top drawer", "middle drawer", "bottom drawer"]
     for name in names:
-        found = point_at(scene.frame, scene.robot, Pointer(pixel=scene.pixel(name)))
+        found = point_at(scene.frame, scene.robot, Pointer(*scene.pixel(name)))
         errors = {other: float(np.linalg.norm(found.handle.centre - scene.grip(other))) for other in names}
         assert errors[name] < GRIP_TOLERANCE_M, (name, errors)
         assert min(errors, key=errors.get) == name
@@ -121,7 +122,7 @@ def test_the_pointed_drawer_of_three_identical_ones_gives_its_own_handle(three_d
 
 def test_front_plane_outline_and_furniture_of_a_drawer(three_drawers):
     scene = three_drawers
-    found = point_at(scene.frame, scene.robot, Pointer(pixel=scene.pixel("middle drawer")))
+    found = point_at(scene.frame, scene.robot, Pointer(*scene.pixel("middle drawer")))
     front = found.front
     assert abs(front.plane.normal[2]) < 1e-9  # fronts are vertical
     camera = scene.frame.T_base_camera[:3, 3]
@@ -148,7 +149,7 @@ def test_a_handle_with_no_depth_at_all_is_found_from_its_colour(three_drawers):
     depth = scene.frame.depth_m.copy()
     depth[handle] = 0.0  # a thin shiny bar the D415 loses entirely
     frame = replace(scene.frame, depth_m=depth)
-    found = point_at(frame, scene.robot, Pointer(pixel=scene.pixel(name)))
+    found = point_at(frame, scene.robot, Pointer(*scene.pixel(name)))
     assert np.linalg.norm(found.handle.centre - scene.grip(name)) < GRIP_TOLERANCE_M
     assert found.handle.style == "bar"
 
@@ -167,7 +168,7 @@ def test_the_arm_over_part_of_the_handle(three_drawers):
     pixel = scene.pixel(name)
     if robot[pixel[1], pixel[0]]:
         pixel = inside_pixel(scene.front_truth(name) & ~robot)
-    found = point_at(replace(scene.frame, depth_m=depth), robot, Pointer(pixel=pixel))
+    found = point_at(replace(scene.frame, depth_m=depth), robot, Pointer(*pixel))
     assert np.linalg.norm(found.handle.centre - scene.grip(name)) < 0.1  # the half it sees
     assert found.handle.hidden > 0 and found.handle.graspability < 1.0
     assert found.handle.style == "bar"
@@ -181,7 +182,7 @@ def test_every_handle_style_is_found_on_a_kitchen_unit(style):
     """The first test-split drawer kitchen whose units have handles of `style` (kitchens share one style)."""
     scene = kitchen_scene("drawer", FIRST_KITCHEN_WITH[style], "test")
     assert scene_style(FIRST_KITCHEN_WITH[style]) == style
-    found = point_at(scene.frame, scene.robot, Pointer(pixel=scene.pixel(scene.target)))
+    found = point_at(scene.frame, scene.robot, Pointer(*scene.pixel(scene.target)))
     assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle
     assert found.handle.style == STYLE_CLASS[style]
     assert found.handle.reason
@@ -205,28 +206,28 @@ def test_a_front_without_a_handle_is_refused_in_one_line(three_drawers):
     name = "middle drawer"
     with pytest.raises(PointerError, match=r"^--point \d+ \d+: the pointed front \(.* m\) shows no handle, knob or "
                                            r"pull: a push-to-open front .*point at a front with a handle$"):
-        point_at(frame, scene.robot, Pointer(pixel=scene.pixel(name)))
+        point_at(frame, scene.robot, Pointer(*scene.pixel(name)))
 
 
 def test_bad_pointers_are_refused_in_one_line(three_drawers):
     scene = three_drawers
     frame, robot = scene.frame, scene.robot
     with pytest.raises(PointerError, match=r"^--point 700 100: pixel \(700, 100\) is outside the 640x480 image"):
-        point_at(frame, robot, Pointer(pixel=(700, 100)))
+        point_at(frame, robot, Pointer(700, 100))
     with pytest.raises(PointerError, match=r"--box 10 10 5 20: the box is empty"):
-        point_at(frame, robot, Pointer(box=(10, 10, 5, 20)))
+        point_at(frame, robot, Pointer.of(None, (10, 10, 5, 20)))
     for surface, said in (("floor", "on the floor"), ("wall", "a wall"), ("countertop", "a counter")):
         pixel = inside_pixel(scene.statics[surface] & ~robot)
         with pytest.raises(PointerError, match=said) as refused:
-            point_at(frame, robot, Pointer(pixel=pixel))
+            point_at(frame, robot, Pointer(*pixel))
         assert "\n" not in str(refused.value) and "point at the drawer's or door's front" in str(refused.value)
     arm = inside_pixel(robot)
     with pytest.raises(PointerError, match=r"is on the arm, which hides the part there: move the arm"):
-        point_at(frame, robot, Pointer(pixel=arm))
+        point_at(frame, robot, Pointer(*arm))
     with pytest.raises(PointerError, match=r"beyond its 0.30 m reach: move the robot closer"):
-        point_at(frame, robot, Pointer(pixel=scene.pixel("middle drawer")), reach_m=0.3)
+        point_at(frame, robot, Pointer(*scene.pixel("middle drawer")), reach_m=0.3)
     with pytest.raises(PointerError, match="has no camera pose"):
-        point_at(replace(frame, T_base_camera=None), robot, Pointer(pixel=scene.pixel("middle drawer")))
+        point_at(replace(frame, T_base_camera=None), robot, Pointer(*scene.pixel("middle drawer")))
 
 
 def test_a_box_around_the_front_gives_it_too(three_drawers):
@@ -234,7 +235,7 @@ def test_a_box_around_the_front_gives_it_too(three_drawers):
     truth = scene.front_truth("middle drawer")
     rows, cols = np.nonzero(truth)
     box = (float(cols.min()), float(rows.min()), float(cols.max() + 1), float(rows.max() + 1))
-    found = point_at(scene.frame, scene.robot, Pointer(box=box))
+    found = point_at(scene.frame, scene.robot, Pointer.of(None, box))
     assert np.linalg.norm(found.handle.centre - scene.grip("middle drawer")) < GRIP_TOLERANCE_M
     assert iou(found.front.mask, truth) > 0.6
 
@@ -244,7 +245,7 @@ def test_no_truth_reaches_the_pointer(three_drawers, monkeypatch):
     scrambled labels and masks give the same, and the world's truth is never asked for."""
     scene = three_drawers
     pixel = scene.pixel("middle drawer")
-    first = point_at(scene.frame, scene.robot, Pointer(pixel=pixel))
+    first = point_at(scene.frame, scene.robot, Pointer(*pixel))
     rng = np.random.default_rng(0)
     noisy = replace(scene.frame, segmentation=rng.integers(0, 4, scene.frame.depth_m.shape, dtype=np.uint8),
                     mask=rng.random(scene.frame.depth_m.shape) > 0.5)
@@ -255,7 +256,7 @@ def test_no_truth_reaches_the_pointer(three_drawers, monkeypatch):
     for name in ("truth", "part_truth", "target_handle", "handle_pose", "joint_value"):
         monkeypatch.setattr(SimWorld, name, no_truth)
     monkeypatch.setattr(SimCamera, "link_image", no_truth)
-    again = point_at(noisy, scene.robot, Pointer(pixel=pixel))
+    again = point_at(noisy, scene.robot, Pointer(*pixel))
     np.testing.assert_array_equal(again.front.mask, first.front.mask)
     np.testing.assert_array_equal(again.furniture.mask, first.furniture.mask)
     np.testing.assert_allclose(again.handle.centre, first.handle.centre)

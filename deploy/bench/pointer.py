@@ -22,7 +22,8 @@ import numpy as np
 
 from deploy.config import CALIBRATION_ERROR
 from deploy.errors import PointerError
-from deploy.perception.pointing import Pointer, point_at
+from deploy.perception.base import Pointer
+from deploy.perception.pointing import point_at
 
 STYLE_CLASSES = {"bar": "bar", "long-bar": "bar", "knob": "knob", "edge-pull": "pull", "recessed": "pull",
                  "cup": "pull", "none": "none"}
@@ -63,7 +64,7 @@ def bench_scene(task: str, seed: int, split: str, target=None, part: str | None 
         return {**row, "error": "the target part is not seen"}
     start = time.perf_counter()
     try:
-        found = point_at(frame, robot, Pointer(pixel=pixel))
+        found = point_at(frame, robot, Pointer(*pixel))
     except PointerError as e:
         return {**row, "error": str(e), "ms": (time.perf_counter() - start) * 1e3,
                 "bad_inputs": _bad_inputs(frame, robot, statics)}
@@ -115,7 +116,7 @@ def _bad_inputs(frame, robot: np.ndarray, statics: dict[str, np.ndarray]) -> dic
         tries[name] = (int(u), int(v))
     for name, pixel in tries.items():
         try:
-            point_at(frame, robot, Pointer(pixel=pixel))
+            point_at(frame, robot, Pointer(*pixel))
             lines[name] = "accepted"
         except PointerError as e:
             lines[name] = str(e)

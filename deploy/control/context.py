@@ -13,6 +13,7 @@ from deploy.config import Config
 from deploy.control.observer import Observer
 from deploy.control.state import EpisodeState
 from deploy.control.view import EpisodeView
+from deploy.perception.handle import GripperSize
 from deploy.policies import OpeningPolicy
 from deploy.report.run_folder import RunFolder
 from drivers.arm.base import Arm, ArmState
@@ -34,7 +35,8 @@ FREE_SPACE_SHARE = 0.3  # free-space joint moves at this share of the robot conf
 class Episode:
     """What every stage works with: the arm, the run's settings and its policy, the robot config's free-space
     limits (`joint_limits`), grip force and compliance (how pulls yield), the observer (the only way to what the
-    camera saw), the state record, what the episode reports to (`view`) and the run folder."""
+    camera saw), the state record, what the episode reports to (`view`), the run folder and how wide the gripper
+    opens (`gripper`, to judge a handle)."""
 
     arm: Arm
     config: Config
@@ -46,13 +48,15 @@ class Episode:
     state: EpisodeState
     view: EpisodeView
     folder: RunFolder | None = None
+    gripper: GripperSize = GripperSize()
 
     @classmethod
     def of_robot(cls, arm: Arm, config: Config, robot: RobotConfig, observer: Observer, state: EpisodeState,
                  view: EpisodeView, folder: RunFolder | None = None) -> Episode:
         """The episode of `arm` on `robot`'s config: its free-space limits, grip force and compliance."""
+        gripper = GripperSize(robot.gripper.max_width_m if robot.gripper else 0.0)
         return cls(arm, config, config.opening.strategy(), robot.motion_limits(arm.kin, FREE_SPACE_SHARE),
-                   robot.grip_force_n, robot.compliance.gains(), observer, state, view, folder)
+                   robot.grip_force_n, robot.compliance.gains(), observer, state, view, folder, gripper)
 
     @property
     def kin(self) -> Kinematics:

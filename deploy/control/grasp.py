@@ -11,6 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from deploy.geometry.boxes import front_direction
 from deploy.geometry.types import Axis, Box, JointType
+from deploy.perception.handle import Handle as PointedHandle
 from drivers.arm.grasping import GRASP_DEPTH_M, GRASP_PITCH_RAD, LIMIT_MARGIN_RAD, UP, pregrasp_pose
 from drivers.arm.grasping import grasp_pose as bar_grasp_pose
 from drivers.arm.kinematics import Kinematics, well_conditioned_start
@@ -30,12 +31,24 @@ HANDLE_MIN_STANDOFF_M, HANDLE_MAX_STANDOFF_M = 0.01, 0.08  # a handle stands thi
 
 @dataclass(frozen=True)
 class Handle:
-    """A handle seen on the first frame: grip centre, outward front normal, bar direction (unit)."""
+    """A handle seen on the first frame: grip centre, outward front normal, bar direction (unit); `found` says how
+    (for the log)."""
 
     center: np.ndarray
     normal: np.ndarray
     bar: np.ndarray
     points: int
+    found: str = "protruding points"
+
+
+def pointed_handle(handle: PointedHandle) -> Handle:
+    """The grasp's handle of a pointed front's (deploy/perception/handle.py): its grip centre, the front's normal
+    made horizontal (fronts are vertical; the grasp tilts its own approach) and the bar across the fingers' closing
+    direction, in the front's plane."""
+    normal = np.array([handle.normal[0], handle.normal[1], 0.0])
+    normal /= np.linalg.norm(normal)
+    bar = np.cross(normal, handle.close)
+    return Handle(np.asarray(handle.centre, float), normal, bar / np.linalg.norm(bar), 0, handle.kind)
 
 
 def _local_plane(points: np.ndarray, near: np.ndarray, radius_m: float) -> tuple[np.ndarray, np.ndarray] | None:

@@ -3,6 +3,12 @@ segmented and fed to the axis pipeline (the gripper's pose with them only where 
 frame fixes the body box. The self-filter removes the arm's own pixels (depth and mask) before anything else sees
 a frame; the run folder keeps what the camera saw, marking whether the gripper held the handle.
 
+With a pointer (the user's `--point` / `--box`, in simulation the simulated user's pixel) the first frame's pointed
+part (deploy/perception/pointing.py) gives the object: the furniture's and the front's pixels are the static
+reference, later masks come from the static scene (`StaticSceneTracker`) and the moving part is what leaves it in
+front of the pointed front (its opening region). A segmenter that reads the simulator's labels (the oracle ablation)
+keeps its own masks.
+
 The observer owns the camera, the segmenter and the axis pipeline; the stages ask it questions (what the first
 frame showed, the latest axis, the latest view, the window, how the arm hides the object, its timings) and never
 read or write its fields."""
@@ -21,10 +27,15 @@ from deploy.axis_pipeline import AxisPipeline, frame_points
 from deploy.config import Config
 from deploy.control.state import EpisodeStop, StopReason
 from deploy.control.view import EpisodeView
+from deploy.errors import PointerError
 from deploy.geometry.estimators.base import Observation
 from deploy.geometry.types import AxisResult, Box, JointType, NoAxis
 from deploy.perception.base import Pointer, Segmenter
+from deploy.perception.handle import GripperSize
+from deploy.perception.pointing import PointedPart, point_at
+from deploy.perception.registry import needs
 from deploy.perception.self_filter import SelfFilter
+from deploy.perception.static_tracker import StaticSceneTracker, front_region
 from deploy.report.run_folder import RunFolder
 from drivers.arm.base import ArmState
 from drivers.arm.kinematics import Kinematics
@@ -71,6 +82,8 @@ class Observer:
             "name": config.acting_estimator, "joint": "auto" if joint is None else joint.value})
         self._pipeline = AxisPipeline(self._pipeline_config)
         self._first: FirstLook | None = None
+        self._pointed: PointedPart | None = None
+        self._tracker: StaticSceneTracker | None = None  # follows the pointed part's furniture
         self._near_object = np.zeros((0, 0), bool)  # the first frame's object mask, dilated
         self._last_seen: tuple[Frame, np.ndarray] | None = None
         self._mask_pixels = 0
@@ -89,6 +102,11 @@ class Observer:
     def first_look(self) -> FirstLook | None:
         """What the first frame showed (None before `first`)."""
         return self._first
+
+    @property
+    def pointed(self) -> PointedPart | None:
+        """The part the user pointed at on the first frame (None without a pointer, or with a labelling segmenter)."""
+        return self._pointed
 
     def latest_axis(self) -> AxisResult:
         """The axis pipeline's latest estimate (NoAxis with the reason before there is one)."""
@@ -134,17 +152,21 @@ class Observer:
         """The joint the probe pull classified: the pipeline cuts a door's moving part out of a deeper box."""
         self._pipeline.joint = joint
 
-    def first(self, arm_state: Callable[[], ArmState], commanded: Callable[[], np.ndarray | None] | None = None
-              ) -> FirstLook:
+    def first(self, arm_state: Callable[[], ArmState], commanded: Callable[[], np.ndarray | None] | None = None,
+              gripper: GripperSize | None = None) -> FirstLook:
         """Read and segment the first frame (the arm's state, and `commanded()` joints, read after it), fix the body
-        box; what it showed. Called again, it starts over (a new body box)."""
+        box; what it showed. With a pointer the pointed part is found first (PointerError: one line on what was seen
+        there), `gripper` judging its handle. Called again, it starts over (a new body box)."""
         raw = self._camera.read()
         state = arm_state()
         q_commanded = None if commanded is None else commanded()
         frame, robot = self._without_robot(raw, state)
-        self._pipeline = AxisPipeline(self._pipeline_config)
-        perception = self._config.perception
-        mask = self._segmenter.start(frame, perception.object_prompt, Pointer.of(perception.point)) & ~robot
+        try:
+            mask = self._start(frame, robot, gripper)
+        except PointerError:  # the run folder keeps the frame the user pointed at
+            self._log(raw, np.zeros(raw.depth_m.shape, bool), state, self._kin.fk(state.q), first=True,
+                      commanded=q_commanded)
+            raise
         self._mask_pixels = int(np.count_nonzero(mask))
         if self._mask_pixels == 0:
             raise EpisodeStop(StopReason.NO_OBJECT,
@@ -183,7 +205,7 @@ class Observer:
         for raw, state, grasped, commanded in pending:
             start, cpu = time.perf_counter(), time.thread_time()
             frame, robot = self._without_robot(raw, state)
-            mask = self._segmenter.track(frame) & ~robot
+            mask = self._track(frame) & ~robot
             pose = self._kin.fk(state.q)
             self._log(raw, mask, state, pose, grasped=grasped, commanded=commanded)
             if np.count_nonzero(mask) < self._config.opening.min_mask_fraction * self._mask_pixels:
@@ -199,11 +221,34 @@ class Observer:
             self._frame_cpu_ms.append((time.thread_time() - cpu) * 1e3)
         self._seconds += time.perf_counter() - clock
 
-    def look(self, state: ArmState) -> tuple[Frame, np.ndarray]:
-        """A fresh frame (the arm at `state`, its pixels removed) and its object cloud (base frame), outside any
-        motion (re-grasp)."""
+    def look(self, state: ArmState) -> tuple[Frame, np.ndarray, np.ndarray]:
+        """A fresh frame (the arm at `state`, its pixels removed), its object cloud (base frame) and the arm's pixels,
+        outside any motion (re-grasp)."""
         frame, robot = self._without_robot(self._camera.read(), state)
-        return frame, self.points(frame, self._segmenter.track(frame) & ~robot)
+        return frame, self.points(frame, self._track(frame) & ~robot), robot
+
+    def _start(self, frame: Frame, robot: np.ndarray, gripper: GripperSize | None) -> np.ndarray:
+        """The first frame's object mask, and the pipeline (and tracker) that follow it: the pointed part's furniture
+        and front, in the static scene, when the user pointed (and the segmenter reads no labels); else the
+        segmenter's."""
+        perception = self._config.perception
+        pointer = Pointer.of(perception.point, perception.box)
+        self._pointed = self._tracker = None
+        if pointer is None or needs(self._segmenter.name, "labels"):
+            self._pipeline = AxisPipeline(self._pipeline_config)
+            return self._segmenter.start(frame, perception.object_prompt, Pointer.of(perception.point)) & ~robot
+        self._pointed = point_at(frame, robot, pointer, gripper=gripper)
+        mask = (self._pointed.furniture.mask | self._pointed.front.mask) & ~robot
+        region = front_region(frame, self._pointed.front.mask, perception.opening_reach_m)
+        self._tracker = StaticSceneTracker(frame, mask, region)
+        self._pipeline = AxisPipeline(self._pipeline_config, region=region)
+        log.info("pointed part (%s): a %.2f x %.2f m front with a %s, furniture %d pixels", pointer,
+                 self._pointed.front.width_m, self._pointed.front.height_m, self._pointed.handle.kind,
+                 int(np.count_nonzero(mask)))
+        return mask
+
+    def _track(self, frame: Frame) -> np.ndarray:
+        return self._segmenter.track(frame) if self._tracker is None else self._tracker.track(frame)
 
     def _require_first(self) -> FirstLook:
         if self._first is None:

@@ -19,6 +19,7 @@ from deploy.control.grasp import (
     find_handle,
     grasp_pose,
     hinge_prior,
+    pointed_handle,
     pregrasp_configuration,
     pregrasp_pose,
     protruding_points,
@@ -27,8 +28,12 @@ from deploy.control.grasp import (
 from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
 from deploy.control.state import EpisodeStop, StopReason, display_scale, opening_unit
 from deploy.control.view import step_log
+from deploy.errors import PointerError
+from deploy.geometry.cloud import points_to_pixels
 from deploy.geometry.estimators.trajectory import fit_trajectory
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
+from deploy.perception.base import Pointer
+from deploy.perception.pointing import point_at
 from drivers.arm.motion import (
     Outcome,
     PathFn,
@@ -99,8 +104,8 @@ def perceive(episode: Episode, dry_run: bool = False) -> Handle:
         raise EpisodeStop(StopReason.NO_HANDLE, "no handle found on the first frame (too few points protrude "
                           "from the front): check the camera view and the mask")
     episode.state.handle = handle
-    log.info("handle found: centre %s m, front normal %s, bar %s, %d points", _vec(handle.center),
-             _vec(handle.normal), _vec(handle.bar), handle.points)
+    log.info("handle found (%s): centre %s m, front normal %s, bar %s, %d points", handle.found,
+             _vec(handle.center), _vec(handle.normal), _vec(handle.bar), handle.points)
     return handle
 
 
@@ -109,8 +114,19 @@ def _vec(v: np.ndarray) -> str:
 
 
 def _find_handle(episode: Episode) -> Handle | None:
-    observer = episode.observer
-    look = observer.first(episode.arm.state, episode.arm.commanded_q)
+    """The first frame's handle: the pointed front's when the user pointed (EpisodeStop with the pointer's line
+    when it shows none that the gripper can hold), else the points protruding from the body box's front."""
+    observer, arm = episode.observer, episode.arm
+    try:
+        look = observer.first(arm.state, arm.commanded_q, episode.gripper)
+    except PointerError as refused:
+        raise EpisodeStop(StopReason.POINTER_REFUSED, str(refused)) from None
+    pointed = observer.pointed
+    if pointed is not None:
+        if pointed.handle.graspability <= 0.0:
+            raise EpisodeStop(StopReason.NO_HANDLE, f"the pointed front's {pointed.handle.kind} cannot be held: "
+                              f"{pointed.handle.reason}; point at a part with another handle")
+        return pointed_handle(pointed.handle)
     points = observer.handle_points()
     return None if look.body_box is None else find_handle(
         points, look.points, look.body_box, viewpoint(look.frame), episode.state.joint is JointType.REVOLUTE)
@@ -302,8 +318,8 @@ def regrasp(episode: Episode) -> None:
     episode.wait(CLOSE_TIME_S)
     T = episode.tool()
     follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), RETREAT_M, episode.line_limits(), episode.show_arm)
-    frame, points = episode.observer.look(arm.state())
-    handle = _slipped_handle(episode, frame, points, held)
+    frame, points, robot = episode.observer.look(arm.state())
+    handle = _slipped_handle(episode, frame, points, robot, held)
     if handle is None:
         raise EpisodeStop(StopReason.GRASP_LOST, f"the handle slipped out of the gripper and was not found again "
                           f"within {REGRASP_RADIUS_M * 100:.0f} cm of where it was held or of the estimated path "
@@ -321,18 +337,37 @@ def regrasp(episode: Episode) -> None:
     state.opened_before, state.p_grasp = state.opened, p_new
 
 
-def _slipped_handle(episode: Episode, frame: Frame, points: np.ndarray, held: np.ndarray) -> Handle | None:
+def _slipped_handle(episode: Episode, frame: Frame, points: np.ndarray, robot: np.ndarray, held: np.ndarray
+                    ) -> Handle | None:
     """The handle found near where it was `held`, else near where the part would be gone back by some of its
-    opening along the estimated axis (every REGRASP_RADIUS_M of the path, nearest first)."""
+    opening along the estimated axis (every REGRASP_RADIUS_M of the path, nearest first): on the pointed front
+    seen there when the user pointed, else the points protruding from the front there."""
     state, eye = episode.state, viewpoint(frame)
     travel = 0.0 if state.axis is None else \
         max(state.opened, state.opened_before + opening(state.axis, state.p_grasp, held))
     for near in back_along_path(state.axis, held, travel, REGRASP_RADIUS_M):
-        handle = find_handle(protruding_points(points, near, eye), points, episode.observer.first_look.body_box, eye,
-                             state.joint_type() is JointType.REVOLUTE)
+        handle = _pointed_near(episode, frame, robot, near) if episode.observer.pointed is not None else None
+        if handle is None:
+            handle = find_handle(protruding_points(points, near, eye), points, episode.observer.first_look.body_box,
+                                 eye, state.joint_type() is JointType.REVOLUTE)
         if handle is not None:
             return handle
     return None
+
+
+def _pointed_near(episode: Episode, frame: Frame, robot: np.ndarray, near: np.ndarray) -> Handle | None:
+    """The handle of the front seen at `near` (base frame) in `frame`, pointed at as the user did on the first
+    frame, when it lies within REGRASP_RADIUS_M of `near`: the same front, moved; None otherwise."""
+    u, v = points_to_pixels(near, frame.intrinsics.K, frame.T_base_camera)[0]
+    if not Pointer(u, v).inside(*frame.depth_m.shape[::-1]):  # behind the camera (NaN) or off the image
+        return None
+    try:
+        found = point_at(frame, robot, Pointer(u, v), gripper=episode.gripper)
+    except PointerError:
+        return None
+    handle = pointed_handle(found.handle)
+    close = np.linalg.norm(handle.center - near) < REGRASP_RADIUS_M and found.handle.graspability > 0.0
+    return handle if close else None
 
 
 # --- helpers ---------------------------------------------------------------------------------------------

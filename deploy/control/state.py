@@ -29,6 +29,7 @@ class StopReason(str, Enum):
     MAX_STEPS = "max steps"
     NO_HANDLE = "no handle"
     NO_OBJECT = "no object"
+    POINTER_REFUSED = "pointer refused"
     INTERRUPTED = "interrupted"
 
 

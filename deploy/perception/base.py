@@ -13,15 +13,24 @@ from drivers.camera.base import Frame
 
 @dataclass(frozen=True)
 class Pointer:
-    """What the user showed of the part to open: the pixel (u: column, v: row) they pointed at on it in the first
-    frame (`deploy open* --point U V`; in simulation the simulated user's)."""
+    """What the user showed of the part to open in the first frame: the pixel (u: column, v: row) they pointed at on
+    its front (`deploy open* --point U V`; in simulation the simulated user's), and/or a `box` (x0, y0, x1, y1) around
+    it (`--box`); a pointer given by its box alone has the box's centre as its pixel."""
 
     u: float
     v: float
+    box: tuple[float, float, float, float] | None = None
 
     @classmethod
-    def of(cls, point: tuple[float, float] | None) -> Pointer | None:
-        return None if point is None else cls(float(point[0]), float(point[1]))
+    def of(cls, point: tuple[float, float] | None,
+           box: tuple[float, float, float, float] | None = None) -> Pointer | None:
+        """The pointer of a `point` and / or a `box` (None when neither is given)."""
+        box = None if box is None else tuple(float(b) for b in box)  # type: ignore[assignment]
+        if point is not None:
+            return cls(float(point[0]), float(point[1]), box)
+        if box is not None:
+            return cls((box[0] + box[2]) / 2, (box[1] + box[3]) / 2, box)
+        return None
 
     def inside(self, width: int, height: int) -> bool:
         """Whether the pixel lies on a width x height image."""
@@ -30,6 +39,12 @@ class Pointer:
     def pixel(self) -> tuple[int, int]:
         """(row, column) of the pixel."""
         return int(self.v), int(self.u)
+
+    def __str__(self) -> str:
+        """The option that gave it, as the user typed it."""
+        if self.box is None:
+            return f"--point {self.u:g} {self.v:g}"
+        return "--box " + " ".join(f"{b:g}" for b in self.box)
 
 
 class Segmenter(ABC):

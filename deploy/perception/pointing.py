@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from deploy.errors import PointerError
+from deploy.perception.base import Pointer
 from deploy.perception.front import (
     MAX_FRONT_HEIGHT_M,
     MAX_FRONT_WIDTH_M,
@@ -31,24 +32,6 @@ MIN_FRONT_M = 0.06  # the narrowest real fronts (a spice drawer) are about 10 cm
 WALL_BEHIND_M = 0.15  # furniture stands out of the wall by more than this (wall units 30 cm deep) ...
 WALL_SHARE = 0.005  # ... so around a front the camera sees at least this share of the image farther back
 MIN_SEEN_SHARE = 0.3  # a front the arm hides more of than this is not seen well enough to grasp
-
-
-@dataclass(frozen=True)
-class Pointer:
-    """What the user gives: a `pixel` (u, v) on the part's front, or a `box` (x0, y0, x1, y1) around it (pixels of
-    the first frame)."""
-
-    pixel: tuple[float, float] | None = None
-    box: tuple[float, float, float, float] | None = None
-
-    def __post_init__(self) -> None:
-        if (self.pixel is None) == (self.box is None):
-            raise ValueError("Pointer: give either a pixel or a box")
-
-    def __str__(self) -> str:
-        if self.pixel is not None:
-            return f"--point {self.pixel[0]:g} {self.pixel[1]:g}"
-        return "--box " + " ".join(f"{v:g}" for v in self.box)  # type: ignore[union-attr]
 
 
 @dataclass(frozen=True)
@@ -111,14 +94,12 @@ def seed_pixel(frame: Frame, pointer: Pointer) -> tuple[int, int]:
     """The pixel the front is looked for from: the pointer's pixel, or its box's centre; PointerError when it lies
     off the image."""
     h, w = frame.depth_m.shape
-    if pointer.pixel is not None:
-        u, v = pointer.pixel
-    else:
-        x0, y0, x1, y1 = pointer.box  # type: ignore[misc]
+    if pointer.box is not None:
+        x0, y0, x1, y1 = pointer.box
         if not (x1 > x0 and y1 > y0):
             raise PointerError(f"{pointer}: the box is empty: give X0 Y0 X1 Y1 with X1 > X0 and Y1 > Y0, around the "
                                "part's front")
-        u, v = (x0 + x1) / 2, (y0 + y1) / 2
+    u, v = pointer.u, pointer.v
     if not (0 <= u < w and 0 <= v < h):
         raise PointerError(f"{pointer}: pixel ({u:g}, {v:g}) is outside the {w}x{h} image: give a pixel on the part's "
                            f"front with 0 <= U < {w} and 0 <= V < {h} (`deploy cameras snapshot` shows the image)")
