@@ -32,13 +32,14 @@ HANDLE_MIN_STANDOFF_M, HANDLE_MAX_STANDOFF_M = 0.01, 0.08  # a handle stands thi
 @dataclass(frozen=True)
 class Handle:
     """A handle seen on the first frame: grip centre, outward front normal, bar direction (unit); `found` says how
-    (for the log)."""
+    (for the log); `open_m` how wide the gripper opens to approach it (None: fully)."""
 
     center: np.ndarray
     normal: np.ndarray
     bar: np.ndarray
     points: int
     found: str = "protruding points"
+    open_m: float | None = None
 
 
 def pointed_handle(handle: PointedHandle) -> Handle:
@@ -48,7 +49,7 @@ def pointed_handle(handle: PointedHandle) -> Handle:
     normal = np.array([handle.normal[0], handle.normal[1], 0.0])
     normal /= np.linalg.norm(normal)
     bar = np.cross(normal, handle.close)
-    return Handle(np.asarray(handle.centre, float), normal, bar / np.linalg.norm(bar), 0, handle.kind)
+    return Handle(np.asarray(handle.centre, float), normal, bar / np.linalg.norm(bar), 0, handle.kind, handle.open_m)
 
 
 def _local_plane(points: np.ndarray, near: np.ndarray, radius_m: float) -> tuple[np.ndarray, np.ndarray] | None:

@@ -184,7 +184,7 @@ def grasp(episode: Episode, handle: Handle) -> None:
     log.info("grasp plan: grasp at %s m, approach %.3f m straight in, pre-grasp joints %s rad", _vec(T_grasp[:3, 3]),
              approach, _vec(q_pre))
     episode.view.grasp(episode.now(), T_grasp)
-    arm.set_gripper(1.0)  # fully open (clipped to the gripper's width)
+    arm.set_gripper(1.0 if handle.open_m is None else handle.open_m)  # 1 m: fully open (clipped to its width)
     move_to_joints(arm, q_pre, episode.joint_limits)
     _measure_torque_offset(episode)
     open_width = arm.state().gripper_width_m

@@ -41,7 +41,8 @@ class Handle:
     "none"; `length_m` along it, `thickness_m` across it (what the fingers close on), `relief_m` how far its grip
     centre stands out of the front (negative: in a pocket), `clearance_m` the room behind the grip centre for the
     fingertips; `graspability` in 0-1 (0: the gripper cannot hold it), `hidden` the share of it the arm hides,
-    `reason` one line on how it should be held or why it cannot."""
+    `reason` one line on how it should be held or why it cannot; `open_m` how wide the fingers open to approach it
+    (the gripper's opening; inside a recessed pull's pocket, what the pocket leaves them)."""
 
     style: str
     kind: str
@@ -56,6 +57,7 @@ class Handle:
     graspability: float
     hidden: float
     reason: str
+    open_m: float
 
 
 def own_blob(blobs: list[Blob], view: PlaneView, rows: tuple[int, int], cols: tuple[int, int]) -> Blob | None:
@@ -91,6 +93,11 @@ def describe(blob: Blob, view: PlaneView, rows: tuple[int, int], gripper: Grippe
     points = blob.points
     kind = _kind(blob, view, rows)
     thickness = _thickness(blob, axis, across, view.res_m)
+    if kind == "recessed pull":  # its pocket's mouth: where the rays enter the front (the measured points of its
+        # walls and back lie beside it, seen obliquely), and the pocket's width across it
+        cells = np.stack([view.s(blob.cols), view.z(blob.rows)], axis=1)
+        blob = replace(blob, centre=(cells.min(axis=0) + cells.max(axis=0)) / 2)
+        thickness = float(np.ptp(cells @ across)) + view.res_m
     outer = float(np.percentile(points[:, 2], 90)) if len(points) else 0.0
     if blob.seen_in_colour_only:  # no depth on it: where its line of sight stands the usual standoff out
         centre = _along_sight(plane.point(blob.centre[0], blob.centre[1]), camera, plane, COLOUR_ONLY_RELIEF_M)
@@ -110,8 +117,10 @@ def describe(blob: Blob, view: PlaneView, rows: tuple[int, int], gripper: Grippe
     hidden = _hidden_share(blob, view, axis)
     score, reason = _graspability(kind, thickness, clearance, hidden, gripper)
     style = {"bar": "bar", "knob": "knob"}.get(kind, "pull")
+    opening = gripper.max_opening_m if kind != "recessed pull" else min(thickness / 2, gripper.max_opening_m)
+    # in a pocket the fingers open to half its width: a quarter of it each side for a finger and the grip's error
     return Handle(style, kind, centre, bar, close, plane.normal.copy(), blob.length_m, thickness, relief, clearance,
-                  score, hidden, reason)
+                  score, hidden, reason, opening)
 
 
 def _along_sight(on_plane: np.ndarray, camera: np.ndarray, plane, offset: float) -> np.ndarray:
@@ -182,9 +191,13 @@ def _hidden_share(blob: Blob, view: PlaneView, axis: np.ndarray) -> float:
 
 def _graspability(kind: str, thickness: float, clearance: float, hidden: float,
                   gripper: GripperSize) -> tuple[float, str]:
-    """A 0-1 score and one line: whether the fingers open wide enough around it and reach behind it."""
+    """A 0-1 score and one line: whether the fingers open wide enough around it (a recessed pull's pocket, which
+    `thickness` measures: whether it holds two fingers) and reach behind it."""
     width = thickness + FINGER_SPAN_M
-    if width > gripper.max_opening_m:
+    if kind == "recessed pull" and thickness <= FINGER_SPAN_M:
+        return 0.0, (f"the recessed pull's pocket is {thickness * 100:.1f} cm across: too narrow for two fingers "
+                     f"({FINGER_SPAN_M * 100:.1f} cm)")
+    if kind != "recessed pull" and width > gripper.max_opening_m:
         return 0.0, (f"the {kind} is {thickness * 100:.1f} cm thick: two fingers need {width * 100:.1f} cm, more than "
                      f"the gripper's {gripper.max_opening_m * 100:.1f} cm opening")
     reach = min(1.0, max(clearance, 0.0) / FINGER_REACH_M)
