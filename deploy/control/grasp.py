@@ -32,7 +32,8 @@ HANDLE_MIN_STANDOFF_M, HANDLE_MAX_STANDOFF_M = 0.01, 0.08  # a handle stands thi
 @dataclass(frozen=True)
 class Handle:
     """A handle seen on the first frame: grip centre, outward front normal, bar direction (unit); `found` says how
-    (for the log); `open_m` how wide the gripper opens to approach it (None: fully)."""
+    (for the log); `open_m` how wide the gripper opens to approach it (None: fully), `thickness_m` what the fingers
+    close on (None: not known)."""
 
     center: np.ndarray
     normal: np.ndarray
@@ -40,6 +41,7 @@ class Handle:
     points: int
     found: str = "protruding points"
     open_m: float | None = None
+    thickness_m: float | None = None
 
 
 def pointed_handle(handle: PointedHandle) -> Handle:
@@ -49,7 +51,9 @@ def pointed_handle(handle: PointedHandle) -> Handle:
     normal = np.array([handle.normal[0], handle.normal[1], 0.0])
     normal /= np.linalg.norm(normal)
     bar = np.cross(normal, handle.close)
-    return Handle(np.asarray(handle.centre, float), normal, bar / np.linalg.norm(bar), 0, handle.kind, handle.open_m)
+    thickness = None if handle.kind == "recessed pull" else handle.thickness_m  # a pocket's width is not its bar's
+    return Handle(np.asarray(handle.centre, float), normal, bar / np.linalg.norm(bar), 0, handle.kind, handle.open_m,
+                  thickness)
 
 
 def _local_plane(points: np.ndarray, near: np.ndarray, radius_m: float) -> tuple[np.ndarray, np.ndarray] | None:
@@ -168,21 +172,26 @@ def pregrasp_configuration(
     )
 
 
-def hinge_prior(handle: Handle, object_points: np.ndarray, body_box: Box) -> Axis:
+def hinge_prior(handle: Handle, object_points: np.ndarray, body_box: Box, front_corners: np.ndarray | None = None
+                ) -> Axis:
     """A door's likely hinge before any motion: the vertical edge of the front face farthest from the
     handle (handles sit near the free edge), at the handle's height; opening pulls the handle outward.
 
-    The front face is the object points within FACE_BAND_M of the front plane (its depth the median of
-    the points near the handle); its edges are the 2nd and 98th lateral percentiles. With too few face
-    points the body box's front edges are used instead.
+    The front face is the pointed front's rectangle when given (`front_corners`, (4, 3) base frame); else the
+    object points within FACE_BAND_M of the front plane (its depth the median of the points near the handle), its
+    edges the 2nd and 98th lateral percentiles; with too few face points the body box's front edges.
     """
     side = np.cross(UP, handle.normal)
     pts = np.asarray(object_points, float).reshape(-1, 3)
     depth = pts @ handle.normal
     near = np.linalg.norm(pts - handle.center, axis=1) < FRONT_RADIUS_M
-    enough = near.sum() >= MIN_FRONT_POINTS
+    enough = near.sum() >= MIN_FRONT_POINTS and front_corners is None
     face = pts[np.abs(depth - np.median(depth[near])) < FACE_BAND_M] if enough else pts[:0]
-    if len(face) >= MIN_FRONT_POINTS:
+    if front_corners is not None:
+        corners = np.asarray(front_corners, float)
+        lateral = np.array([(corners @ side).min(), (corners @ side).max()])
+        plane = float(np.mean(corners @ handle.normal))
+    elif len(face) >= MIN_FRONT_POINTS:
         lateral = np.percentile(face @ side, [2, 98])
         plane = float(np.median(face @ handle.normal))
     else:

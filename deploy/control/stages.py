@@ -26,6 +26,7 @@ from deploy.control.grasp import (
     pull_poses,
 )
 from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
+from deploy.control.scene_clearance import clear_grasps, scene_tree
 from deploy.control.state import EpisodeStop, StopReason, display_scale, opening_unit
 from deploy.control.view import step_log
 from deploy.errors import PointerError
@@ -46,6 +47,7 @@ from drivers.arm.motion import (
 from drivers.arm.trajectory import MotionLimits
 from drivers.arm.wrench import WrenchEstimator, torque_offset
 from drivers.camera.base import Frame
+from drivers.errors import IKError
 
 log = logging.getLogger(__name__)
 
@@ -159,9 +161,7 @@ def _clear_view(episode: Episode) -> np.ndarray | None:
 def plan(episode: Episode, handle: Handle) -> tuple[StopReason, str]:
     """`--dry-run`: the grasp, approach and first pull planned and checked by IK, nothing commanded."""
     state, kin = episode.state, episode.kin
-    T_grasp = grasp_pose(handle)
-    q_pre = pregrasp_configuration(kin, episode.arm.state().q, T_grasp, _planned_pulls(episode, handle, T_grasp),
-                                   episode.config.opening.approach_m)
+    T_grasp, _, q_pre = _grasp_plan(episode, handle)
     state.axis = _prior(episode, handle)
     log.info("grasp plan (dry run): grasp at %s m, pre-grasp joints %s rad, prior axis %s along %s",
              _vec(T_grasp[:3, 3]), _vec(q_pre), state.axis.joint_type.value, _vec(state.axis.direction))
@@ -179,12 +179,11 @@ def grasp(episode: Episode, handle: Handle) -> None:
     clock = time.perf_counter()
     arm, kin, state = episode.arm, episode.kin, episode.state
     approach = episode.config.opening.approach_m
-    T_grasp = grasp_pose(handle)
-    q_pre = pregrasp_configuration(kin, arm.state().q, T_grasp, _planned_pulls(episode, handle, T_grasp), approach)
+    T_grasp, opening, q_pre = _grasp_plan(episode, handle)
     log.info("grasp plan: grasp at %s m, approach %.3f m straight in, pre-grasp joints %s rad", _vec(T_grasp[:3, 3]),
              approach, _vec(q_pre))
     episode.view.grasp(episode.now(), T_grasp)
-    arm.set_gripper(1.0 if handle.open_m is None else handle.open_m)  # 1 m: fully open (clipped to its width)
+    arm.set_gripper(opening)
     move_to_joints(arm, q_pre, episode.joint_limits)
     _measure_torque_offset(episode)
     open_width = arm.state().gripper_width_m
@@ -428,6 +427,26 @@ def _close_and_check(episode: Episode, open_width: float, failure: StopReason, c
                           "mm): it missed the handle; check the handle detection and the camera calibration")
 
 
+def _grasp_plan(episode: Episode, handle: Handle) -> tuple[np.ndarray, float, np.ndarray]:
+    """The grasp pose, how wide the fingers open for it and the pre-grasp joints: with a pointed part, the first
+    grasp whose approach and first pull keep clear of the scene the first frame showed and that the arm carries
+    (EpisodeStop when none keeps clear, IKError when the arm carries none); else the usual one, fully open."""
+    pointed, widest, kin = episode.observer.pointed, episode.gripper.max_opening_m, episode.kin
+    approach, q = episode.config.opening.approach_m, episode.arm.state().q
+    if pointed is None:
+        T = grasp_pose(handle)
+        opening = widest if handle.open_m is None else handle.open_m
+        return T, opening, pregrasp_configuration(kin, q, T, _planned_pulls(episode, handle, T), approach)
+    scene = scene_tree(episode.observer.first_look.frame, pointed)
+    refused = None
+    for T, opening in clear_grasps(handle, scene, lambda T: _planned_pulls(episode, handle, T), approach, widest):
+        try:
+            return T, opening, pregrasp_configuration(kin, q, T, _planned_pulls(episode, handle, T), approach)
+        except IKError as e:
+            refused = refused or e
+    raise refused
+
+
 def _planned_pulls(episode: Episode, handle: Handle, T_grasp: np.ndarray) -> list[list[np.ndarray]]:
     """The pulls the pre-grasp configuration is planned for, most wanted first: a door's arc about its likely
     hinge (PLANNED_DOOR_ARCS_DEG; the wrist turns with the door from the start), then straight out along the front
@@ -451,8 +470,8 @@ def _planned_pulls(episode: Episode, handle: Handle, T_grasp: np.ndarray) -> lis
 def _prior(episode: Episode, handle: Handle) -> Axis:
     """The axis before any motion: a door's likely hinge, or a line along the front normal."""
     if episode.state.joint is JointType.REVOLUTE:
-        first = episode.observer.first_look
-        return hinge_prior(handle, first.points, first.body_box)
+        first, pointed = episode.observer.first_look, episode.observer.pointed
+        return hinge_prior(handle, first.points, first.body_box, None if pointed is None else pointed.front.corners)
     return Axis(JointType.PRISMATIC, handle.center, handle.normal, confidence=0.0)
 
 

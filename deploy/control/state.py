@@ -30,6 +30,7 @@ class StopReason(str, Enum):
     NO_HANDLE = "no handle"
     NO_OBJECT = "no object"
     POINTER_REFUSED = "pointer refused"
+    NO_CLEAR_PATH = "no clear path"
     INTERRUPTED = "interrupted"
 
 

@@ -3,7 +3,7 @@ frame, metres).
 
 The gripper is a few boxes in its tool frame (z: approach, y: the fingers' closing direction); the scene is the first
 frame's points with the part being opened left out (it moves with the gripper). A pose touches the scene when a
-scene point lies inside one of the boxes grown by the clearance.
+scene point lies within the clearance of one of the boxes (or, for a negative clearance, that deep inside one).
 """
 
 from __future__ import annotations
@@ -23,13 +23,18 @@ class ToolBox:
     half: tuple[float, float, float]
 
 
-def parallel_gripper(max_opening_m: float) -> tuple[ToolBox, ...]:
-    """A parallel gripper around a tool frame at its finger pads: two fingers 5 cm long either side of the opening,
-    and the hand behind them, as wide as the opening plus its finger guides and 6 cm thick (a Franka hand is
-    20 x 6.3 cm); the wrist behind the hand is left out (the fingers and hand reach the scene first)."""
-    half_open = max_opening_m / 2
-    return (ToolBox("fingers", (0.0, 0.0, -0.02), (0.01, half_open + 0.01, 0.03)),
-            ToolBox("hand", (0.0, 0.0, -0.08), (0.032, half_open + 0.06, 0.03)))
+def parallel_gripper(opening_m: float, max_opening_m: float) -> tuple[ToolBox, ...]:
+    """A parallel gripper opened `opening_m` around a tool frame between its finger pads, as a Franka hand's meshes
+    give it: fingers 2 cm wide either side of the opening, 5.4 cm long to 0.7 cm past the tool frame, tapering from
+    2.6 cm thick at the hand to 1.4 cm at the tip (three steps); the hand behind them, 9.2 cm deep, as wide as the
+    widest opening plus 6 cm each side (20 cm), 4 cm thick in its half nearer the fingers and 6.4 cm in the other; the
+    wrist behind the hand is left out (the fingers and hand reach the scene first)."""
+    half_open = opening_m / 2
+    return (ToolBox("fingertips", (0.0, 0.0, -0.0015), (0.01, half_open + 0.015, 0.0085)),
+            ToolBox("fingers", (0.0, 0.0, -0.0185), (0.01, half_open + 0.02, 0.0085)),
+            ToolBox("fingers", (0.0, 0.0, -0.037), (0.01, half_open + 0.026, 0.01)),
+            ToolBox("hand", (0.0, 0.0, -0.062), (0.02, max_opening_m / 2 + 0.06, 0.023)),
+            ToolBox("hand", (0.0, 0.0, -0.108), (0.032, max_opening_m / 2 + 0.06, 0.023)))
 
 
 @dataclass(frozen=True)
@@ -43,20 +48,21 @@ class Contact:
 
 def first_contact(scene: cKDTree, poses: list[np.ndarray], boxes: tuple[ToolBox, ...],
                   clearance_m: float) -> Contact | None:
-    """The first of `poses` (4x4 tool poses, base frame) at which a scene point lies inside a gripper box grown by
-    `clearance_m`; None when the whole path keeps clear."""
+    """The first of `poses` (4x4 tool poses, base frame) at which a scene point lies within `clearance_m` of a gripper
+    box (a negative clearance: that deep inside it); None when the whole path keeps clear."""
     points = scene.data
     for i, T in enumerate(poses):
         R, p = np.asarray(T, float)[:3, :3], np.asarray(T, float)[:3, 3]
         for box in boxes:
-            centre, half = np.array(box.centre), np.array(box.half) + clearance_m
-            near = scene.query_ball_point(p + R @ centre, float(np.linalg.norm(half)))
+            centre, half = np.array(box.centre), np.array(box.half)
+            near = scene.query_ball_point(p + R @ centre, float(np.linalg.norm(half)) + max(clearance_m, 0.0))
             if not near:
                 continue
-            local = (points[near] - p) @ R - centre
-            inside = np.all(np.abs(local) <= half, axis=1)
-            if inside.any():
-                return Contact(i, box.name, points[near][np.argmax(inside)])
+            gap = np.abs((points[near] - p) @ R - centre) - half  # per axis: > 0 outside the box's faces
+            distance = np.where(np.all(gap <= 0, axis=1), gap.max(axis=1),  # inside: minus the depth
+                                np.linalg.norm(np.maximum(gap, 0.0), axis=1))
+            if distance.min() <= clearance_m:
+                return Contact(i, box.name, points[near][np.argmin(distance)])
     return None
 
 

@@ -1,0 +1,85 @@
+"""A grasp whose approach and first pull keep clear of the scene the first frame showed: a counter's overhang, a
+neighbour's handle or front, a wall beside the unit (deploy/geometry/clearance.py). The scene is the first frame's
+depth (the arm's pixels removed) in the base frame, less the pointed front and its handle, which move with the
+gripper; the grasps tried are the usual one, the one approaching level (no downward tilt), and both again with the
+fingers opened only as wide as the handle needs."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from deploy.control.grasp import Handle, grasp_pose
+from deploy.control.state import EpisodeStop, StopReason
+from deploy.geometry.clearance import first_contact, line_poses, parallel_gripper, standing_out
+from deploy.geometry.cloud import depth_to_points
+from deploy.perception.handle import EDGE_BAND_M
+from deploy.perception.handle_blobs import MAX_STANDOFF_M
+from deploy.perception.pointing import PointedPart
+from drivers.arm.grasping import GRASP_PITCH_RAD, pregrasp_pose
+from drivers.camera.base import Frame
+
+CLEARANCE_M = -0.005  # the gripper hits the scene where a scene point lies this deep inside it: nearer ones are
+# within the calibration's error (5 mm) and the depth's noise, a graze the compliant approach and pull tolerate
+PLANE_BAND_M = 0.01  # the fronts' plane and what lies behind it: the fingers stop in front of it (the D415's noise)
+SCENE_STEP = 4  # the scene is every 4th pixel in each direction (about 1 cm apart at 1 m)
+APPROACH_STEP_M = 0.02  # the approach is checked this finely
+PITCHES_RAD = (GRASP_PITCH_RAD, 0.0)  # the grasps tried, in order: tilted down (the usual), then level
+GRIP_MARGIN_M = 0.02  # fingers opened only as wide as a handle needs clear it by this much each side: the pointed
+# handle's error (about 1 cm), the calibration's 5 mm and a margin
+
+Pulls = Callable[[np.ndarray], list[list[np.ndarray]]]  # a grasp pose -> the pulls planned from it, most wanted first
+
+
+def scene_tree(frame: Frame, pointed: PointedPart) -> cKDTree:
+    """The scene a gripper at the pointed front can touch, from `frame` (the first, the arm's depth removed)."""
+    step = SCENE_STEP
+    K = np.diag([1.0 / step, 1.0 / step, 1.0]) @ frame.intrinsics.K
+    points = depth_to_points(frame.depth_m[::step, ::step], K, T_base_camera=frame.T_base_camera)
+    front = pointed.front
+    plane = front.plane
+    half = (front.width_m / 2 + EDGE_BAND_M, front.height_m / 2 + EDGE_BAND_M)  # with an edge pull's tab
+    return cKDTree(standing_out(points, plane.origin, plane.right, plane.up, plane.normal, half, PLANE_BAND_M,
+                                MAX_STANDOFF_M))
+
+
+def clear_grasps(handle: Handle, scene: cKDTree, pulls: Pulls, approach_m: float, max_opening_m: float
+                 ) -> list[tuple[np.ndarray, float]]:
+    """The grasps (pose and finger opening) whose approach (from `approach_m` out, the fingers open) and first planned
+    pull (the fingers closed on the handle) keep clear of `scene` (CLEARANCE_M), in the order wanted: tilted down then
+    level
+    (PITCHES_RAD), each with the fingers opened as the handle asks, then only as wide as it needs (its thickness and
+    GRIP_MARGIN_M each side). EpisodeStop saying where the gripper would touch the scene when none does."""
+    openings = [handle.open_m or max_opening_m]
+    closed = 0.0 if handle.thickness_m is None else handle.thickness_m
+    if handle.thickness_m is not None and closed + 2 * GRIP_MARGIN_M < openings[0]:
+        openings.append(closed + 2 * GRIP_MARGIN_M)
+    clear, contact, during = [], None, ""
+    for pitch in PITCHES_RAD:
+        T = grasp_pose(handle, pitch_rad=pitch)
+        pull = first_contact(scene, pulls(T)[0], parallel_gripper(closed, max_opening_m), CLEARANCE_M)
+        path = line_poses(pregrasp_pose(T, approach_m), T, APPROACH_STEP_M)
+        for opening in openings:
+            touch = pull or first_contact(scene, path, parallel_gripper(opening, max_opening_m), CLEARANCE_M)
+            if touch is None:
+                clear.append((T, opening))
+            elif contact is None:
+                contact, during = touch, "first pull" if pull is not None else "approach"
+    if clear:
+        return clear
+    p = contact.point
+    raise EpisodeStop(StopReason.NO_CLEAR_PATH, f"the gripper's {contact.box} would touch the scene at ({p[0]:.2f}, "
+                      f"{p[1]:.2f}, {p[2]:.2f}) m during the {during} ({_where(p, handle)}), however it approached: "
+                      "clear what stands there, or move the robot so that it reaches the handle from another side")
+
+
+def _where(point: np.ndarray, handle: Handle) -> str:
+    """Where `point` lies from the handle, in words."""
+    d = point - handle.center
+    up = float(d[2])
+    side = float(d @ np.cross(np.array([0.0, 0.0, 1.0]), handle.normal))
+    if abs(up) >= abs(side):
+        return f"{abs(up) * 100:.0f} cm {'above' if up > 0 else 'below'} the handle"
+    return f"{abs(side) * 100:.0f} cm beside the handle"
