@@ -49,9 +49,8 @@ def clear_grasps(handle: Handle, scene: cKDTree, pulls: Pulls, approach_m: float
                  ) -> list[tuple[np.ndarray, float]]:
     """The grasps (pose and finger opening) whose approach (from `approach_m` out, the fingers open) and first planned
     pull (the fingers closed on the handle) keep clear of `scene` (CLEARANCE_M), in the order wanted: tilted down then
-    level
-    (PITCHES_RAD), each with the fingers opened as the handle asks, then only as wide as it needs (its thickness and
-    GRIP_MARGIN_M each side). EpisodeStop saying where the gripper would touch the scene when none does."""
+    level (PITCHES_RAD), each with the fingers opened as the handle asks, then only as wide as it needs (its thickness
+    and GRIP_MARGIN_M each side). EpisodeStop saying where the gripper would touch the scene when none does."""
     openings = [handle.open_m or max_opening_m]
     closed = 0.0 if handle.thickness_m is None else handle.thickness_m
     if handle.thickness_m is not None and closed + 2 * GRIP_MARGIN_M < openings[0]:

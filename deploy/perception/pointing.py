@@ -118,7 +118,10 @@ def _check_seen(front: Front, pointer: Pointer, pixel: tuple[int, int]) -> None:
 
 def _check_not_wall(frame: Frame, robot: np.ndarray, front: Front, pointer: Pointer, pixel: tuple[int, int]) -> None:
     """PointerError when nothing in view lies behind the pointed surface's plane: furniture stands out of the room's
-    walls (a counter's top, a unit's top, the wall above or beside it lie behind its fronts), a wall does not."""
+    walls (a counter's top, a unit's top, the wall above or beside it lie behind its fronts), a wall does not. A
+    surface cut from its neighbours by gaps on two sides is a front however close the camera is (walls have none)."""
+    if sum(why == "gap" for why in front.ended.values()) >= 2:
+        return
     _, _, offset = plane_coordinates(front.plane, frame.depth_m, frame.intrinsics.K, frame.T_base_camera)
     with np.errstate(invalid="ignore"):
         behind = np.count_nonzero((offset < -WALL_BEHIND_M) & ~robot)
