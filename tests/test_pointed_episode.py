@@ -1,0 +1,98 @@
+"""Kitchen episodes that open the part the user pointed at: among three identical drawers the pointed one is grasped
+and opened, a door opens, a pointer on the floor stops the episode with its one line, and none of it reads the
+world's truth or the simulator's labels.
+
+The world's truth is read by the tests only: before the episode (where the handles are) and after it (the score)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from cli_run import run
+from test_pointer import inside_pixel, kitchen_scene
+
+from deploy.bench.open import simulate_episode
+from deploy.control import session, stages
+from deploy.control.state import StopReason
+from sim_fallback.camera import SimCamera
+from sim_fallback.furniture_body import grip_frame
+from sim_fallback.world import SimWorld
+
+TRUTH = ("truth", "part_truth", "target_handle", "handle_pose", "joint_value", "joint_friction",
+         "sweep_hits_robot_base")  # what SimWorld tells of the world's truth
+GRASP_TOLERANCE_M = 0.02
+THREE_DRAWERS = 3  # a kitchen test seed whose "middle drawer" is in a stack of three with identical bars
+
+
+@pytest.fixture
+def blind(monkeypatch):
+    """While an episode runs, reading the world's truth fails the test, and the simulator's labels are noise. Yields
+    the handles the episode's perception found."""
+    running, found = [], []
+    real_run, real_perceive = session.run_episode, stages.perceive
+
+    def run_episode(*args, **kwargs):
+        running.append(True)
+        try:
+            return real_run(*args, **kwargs)
+        finally:
+            running.pop()
+
+    def perceive(*args, **kwargs):
+        found.append(real_perceive(*args, **kwargs))
+        return found[-1]
+
+    def guarded(name, real):
+        def read(*args, **kwargs):
+            assert not running, f"the episode read the world's truth ({name})"
+            return real(*args, **kwargs)
+        return read
+
+    rng = np.random.default_rng(0)
+    monkeypatch.setattr(SimCamera, "_labels", lambda self, seg: rng.integers(0, 4, seg.shape, dtype=np.uint8))
+    monkeypatch.setattr(session, "run_episode", run_episode)
+    monkeypatch.setattr(stages, "perceive", perceive)
+    for name in TRUTH:
+        monkeypatch.setattr(SimWorld, name, guarded(name, getattr(SimWorld, name)))
+    monkeypatch.setattr(SimCamera, "link_image", guarded("link_image", SimCamera.link_image))
+    return found
+
+
+def test_the_pointed_drawer_of_three_identical_ones_is_grasped_and_opened_without_truth(blind):
+    grips = {}
+
+    def handles(world, _arm):
+        grips.update({name: grip_frame(world.client, p.body, p.joint, p.part)[0] for name, p in world.parts.items()})
+
+    result = simulate_episode("drawer", THREE_DRAWERS, "test", target=0.1, part="middle drawer", setup=handles)
+    assert {"top drawer", "middle drawer", "bottom drawer"} <= set(grips)
+    assert result["part"] == "middle drawer" and result["pointer"]["source"] == "simulated user"
+    assert result["stop_reason"] == StopReason.TARGET_REACHED and result["success"], result["message"]
+    assert result["true_opened_m"] >= 0.1
+    grasped = blind[0].center
+    distances = {name: float(np.linalg.norm(grasped - grip)) for name, grip in grips.items()}
+    assert distances["middle drawer"] < GRASP_TOLERANCE_M, distances
+    assert min(d for name, d in distances.items() if name != "middle drawer") > 0.1, distances
+
+
+def test_a_pointed_door_opens_without_truth(blind):
+    result = simulate_episode("door", 5, "test", target=20.0)
+    assert result["world"] == "kitchen" and blind and blind[0].found != "protruding points"
+    assert result["stop_reason"] == StopReason.TARGET_REACHED and result["success"], result["message"]
+    assert result["true_opened_deg"] >= 20.0
+
+
+def test_a_pointer_on_the_floor_stops_the_episode_with_its_line(capsys, tmp_path):
+    scene = kitchen_scene("drawer", 2)
+    u, v = inside_pixel(scene.statics["floor"] & ~scene.robot)
+    code, out, _ = run(capsys, "open-drawer", "--seed", 2, "--split", "test", "--point", u, v, "--run-dir",
+                       tmp_path / "run", "--json")
+    data = json.loads(out)
+    assert code == 1 and data["stop_reason"] == StopReason.POINTER_REFUSED and data["steps"] == 0
+    message = data["message"]
+    assert message.startswith(f"--point {u} {v}: ") and "on the floor" in message and "\n" not in message
+    assert "point at the drawer's or door's front" in message
+    assert data["pointer"] == {"u": float(u), "v": float(v), "source": "--point"}
+    assert (tmp_path / "run").is_dir()  # the run folder keeps the frame the user pointed at
