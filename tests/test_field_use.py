@@ -234,8 +234,8 @@ def test_run_folder_keeps_the_resolved_config(capsys, tmp_path):
     kept = json.loads((tmp_path / "run" / "config.json").read_text())
     assert set(kept) == {"filter", "geometry", "estimator", "opening", "perception", "filter_used", "acted_with",
                          "scene"}
-    assert kept["scene"]["world"] == "box" and kept["scene"]["pointer"]["source"] == "simulated user"
-    assert kept["perception"]["point"] == [kept["scene"]["pointer"]["u"], kept["scene"]["pointer"]["v"]]
+    assert kept["scene"]["world"] == "box" and kept["scene"]["pointer"] is None  # the box world: no pointer
+    assert kept["perception"]["point"] is None
     assert kept["acted_with"] == {"estimator": "screw-grip", "fusion": "force"}
     assert kept["filter"] == {"profile": "sim", "radius_m": 0.04, "eps": None}  # the camera chose the profile
     assert kept["filter_used"] == {"radius_m": 0.04, "eps": 100} == {k: json.loads(out)["filter"][k]

@@ -129,22 +129,33 @@ def test_bench_open_reports_per_object_and_part_with_the_scene_and_sensors(tmp_p
     assert counted == 2 and sum(data["objects"]["12"]["failures"].values()) == 2 - data["objects"]["12"]["successes"]
 
 
-def test_the_pointer_reaches_the_segmenter(monkeypatch, tmp_path):
-    started = []
-    real = RGBDSegmenter.start
+def test_the_pointer_reaches_the_pointed_part_finder_and_the_box_world_has_none(monkeypatch, tmp_path):
+    """--point goes to the pointed-part finder (deploy/perception/pointing.py), not the segmenter; the box world (one
+    cabinet in empty space, the paper's setting) has no simulated user and its segmenter starts without a pointer."""
+    from deploy.control import observer
+
+    started, pointed = [], []
+    real_start, real_point_at = RGBDSegmenter.start, observer.point_at
 
     def start(self, frame, prompt=None, pointer=None):
         started.append(pointer)
-        return real(self, frame, prompt, pointer)
+        return real_start(self, frame, prompt, pointer)
+
+    def point_at(frame, robot, pointer, **kwargs):
+        pointed.append(pointer)
+        return real_point_at(frame, robot, pointer, **kwargs)
 
     monkeypatch.setattr(RGBDSegmenter, "start", start)
-    data = open_object(OpenRequest(task="drawer", world="box", dry_run=True, segmenter="rgbd", point=(300.0, 250.0),
+    monkeypatch.setattr(observer, "point_at", point_at)
+    data = open_object(OpenRequest(task="drawer", dry_run=True, segmenter="rgbd", point=(300.0, 250.0),
                                    run_dir=tmp_path / "run"))
-    assert started == [Pointer(300.0, 250.0)]
+    assert pointed == [Pointer(300.0, 250.0)] and started == []
     assert data["pointer"] == {"u": 300.0, "v": 250.0, "source": "--point"}
     config = json.loads((tmp_path / "run" / "config.json").read_text())
     assert config["perception"]["point"] == [300.0, 250.0] and config["scene"]["pointer"]["source"] == "--point"
-    assert config["scene"]["world"] == "box" and config["scene"]["sensors"]["depth"] == "D415 artefact model"
+    assert config["scene"]["world"] == "kitchen" and config["scene"]["sensors"]["depth"] == "D415 artefact model"
+    box = open_object(OpenRequest(task="drawer", world="box", dry_run=True, segmenter="rgbd"), keep_run_dir=False)
+    assert box["pointer"] is None and started == [None] and len(pointed) == 1
 
 
 def test_rgbd_detects_the_furniture_the_pointer_shows():

@@ -294,22 +294,21 @@ TRUTH = ("truth", "part_truth", "target_handle", "handle_pose", "joint_value", "
 
 def test_no_world_truth_reaches_the_controller_in_a_kitchen(monkeypatch):
     """In a kitchen (the default world) garbage labels change nothing, nothing reads the world's truth while the
-    episode runs, and the segmenter starts from colour, depth, a calibrated pose and one pixel on the part."""
+    episode runs, and the pointed part is found from colour, depth, a calibrated pose and one pixel on the part."""
     from deploy.bench.open import simulate_episode
-    from deploy.control import session
+    from deploy.control import observer, session
     from deploy.perception.base import Pointer
-    from deploy.perception.rgbd import RGBDSegmenter
     from sim_fallback.camera import SimCamera
 
     first = simulate_episode("drawer", 2, "test", target=0.1, max_steps=1)
     rng = np.random.default_rng(0)
     monkeypatch.setattr(SimCamera, "_labels", lambda self, seg: rng.integers(0, 4, seg.shape, dtype=np.uint8))
     seen, running, reads = [], [], []
-    real_start, real_run = RGBDSegmenter.start, session.run_episode
+    real_point_at, real_run = observer.point_at, session.run_episode
 
-    def start(self, frame, prompt=None, pointer=None):
+    def point_at(frame, robot, pointer, **kwargs):
         seen.append((frame.segmentation, frame.mask, frame.T_base_camera, pointer))
-        return real_start(self, frame, prompt, pointer)
+        return real_point_at(frame, robot, pointer, **kwargs)
 
     def run_episode(*args, **kwargs):
         running.append(True)
@@ -325,7 +324,7 @@ def test_no_world_truth_reaches_the_controller_in_a_kitchen(monkeypatch):
             return real(*args, **kwargs)
         return read
 
-    monkeypatch.setattr(RGBDSegmenter, "start", start)
+    monkeypatch.setattr(observer, "point_at", point_at)
     monkeypatch.setattr(session, "run_episode", run_episode)
     for name in TRUTH:
         monkeypatch.setattr(SimWorld, name, spy(name, getattr(SimWorld, name)))
@@ -334,7 +333,7 @@ def test_no_world_truth_reaches_the_controller_in_a_kitchen(monkeypatch):
     sc = make_scenario("kitchen", "drawer", 2, "test")
     assert again["world"] == "kitchen" and again["part"] == sc.part
     assert reads == []
-    assert len(seen) == 1 and all(labels is None and mask is None for labels, mask, _, _ in seen)
+    assert seen and all(labels is None and mask is None for labels, mask, _, _ in seen)  # again after clearing the view
     assert not np.allclose(seen[0][2], sc.T_base_camera)  # a calibrated pose, not the true one
     point = again["pointer"]
     assert point["source"] == "simulated user" and seen[0][3] == Pointer(point["u"], point["v"])

@@ -137,7 +137,8 @@ def bench_open(
         "joint": "auto" if options.get("auto_joint") else "told", "segmenter": segmenter, "condition": condition,
         "calibration_error": {"translation_mm": calibration_error[0], "rotation_deg": calibration_error[1]},
         "world": world, "assets": None if assets is None else str(assets), "part": part,
-        "scale": scale if assets is not None else None, "pointer": POINTER, "sensors": _sensors(results),
+        "scale": scale if assets is not None else None, "pointer": POINTER if world != "box" else None,
+        "sensors": _sensors(results),
         **_rates(task, results), "per_part": _per_part(results),
         **({"objects": _per_object(results), "unusable_objects": unusable} if assets is not None else {}),
     }

@@ -183,8 +183,8 @@ def _with_object(request: OpenRequest) -> OpenRequest:
 
 def _pointed(config: Config, rig: Rig, evaluation: Any, seed: int) -> tuple[Config, dict | None]:
     """`config` with the pixel the user points at: --point (or the config's; refused off the camera's image), else in
-    simulation the simulated user's on the target part's front (said on the step log), else none; and the pointer
-    as the run records it (u, v, source)."""
+    a simulated kitchen the simulated user's on the target part's front (said on the step log), else none (the box
+    world, hardware); and the pointer as the run records it (u, v, source)."""
     point = config.perception.point
     intrinsics = rig.camera.intrinsics if rig.camera is not None else None
     if point is not None and intrinsics is not None and not Pointer.of(point).inside(intrinsics.width,
@@ -194,6 +194,9 @@ def _pointed(config: Config, rig: Rig, evaluation: Any, seed: int) -> tuple[Conf
                           f"{intrinsics.height - 1}) of the part to open in the first frame")
     if point is not None:
         return config, {"u": point[0], "v": point[1], "source": "--point"}
+    if evaluation is not None and rig.world.scenario.world == "box":  # the paper's setting: one cabinet in empty
+        # space, found without a pointer (today's pipeline, the ablation)
+        return config, None
     user = evaluation.user_point(rig.sim_camera, seed) if evaluation is not None else None
     if user is None:
         if evaluation is not None:

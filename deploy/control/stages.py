@@ -106,8 +106,9 @@ def perceive(episode: Episode, dry_run: bool = False) -> Handle:
         raise EpisodeStop(StopReason.NO_HANDLE, "no handle found on the first frame (too few points protrude "
                           "from the front): check the camera view and the mask")
     episode.state.handle = handle
-    log.info("handle found (%s): centre %s m, front normal %s, bar %s, %d points", handle.found,
-             _vec(handle.center), _vec(handle.normal), _vec(handle.bar), handle.points)
+    how = f"{handle.points} {handle.found}" if handle.points else f"a {handle.found} on the pointed front"
+    log.info("handle found: centre %s m, front normal %s, bar %s (%s)", _vec(handle.center), _vec(handle.normal),
+             _vec(handle.bar), how)
     return handle
 
 
