@@ -44,13 +44,17 @@ class Handle:
     thickness_m: float | None = None
 
 
-def pointed_handle(handle: PointedHandle) -> Handle:
+def pointed_handle(handle: PointedHandle, vertical_default: bool) -> Handle:
     """The grasp's handle of a pointed front's (deploy/perception/handle.py): its grip centre, the front's normal
     made horizontal (fronts are vertical; the grasp tilts its own approach) and the bar across the fingers' closing
-    direction, in the front's plane."""
+    direction, in the front's plane; a knob, held the same way round, gets a vertical bar when `vertical_default`
+    (a door's: the fingers then close level, as the door turns) and else a horizontal one."""
     normal = np.array([handle.normal[0], handle.normal[1], 0.0])
     normal /= np.linalg.norm(normal)
-    bar = np.cross(normal, handle.close)
+    if handle.kind == "knob":
+        bar = UP.copy() if vertical_default else np.cross(normal, UP)
+    else:
+        bar = np.cross(normal, handle.close)
     thickness = None if handle.kind == "recessed pull" else handle.thickness_m  # a pocket's width is not its bar's
     return Handle(np.asarray(handle.centre, float), normal, bar / np.linalg.norm(bar), 0, handle.kind, handle.open_m,
                   thickness)

@@ -1,12 +1,14 @@
 """A grasp whose approach and first pull keep clear of the scene the first frame showed: a counter's overhang, a
 neighbour's handle or front, a wall beside the unit (deploy/geometry/clearance.py). The scene is the first frame's
 depth (the arm's pixels removed) in the base frame, less the pointed front and its handle, which move with the
-gripper; the grasps tried are the usual one, the one approaching level (no downward tilt), and both again with the
-fingers opened only as wide as the handle needs."""
+gripper; the grasps tried are the usual one, the one approaching level (no downward tilt), both again with the
+fingers opened only as wide as the handle needs, and for a knob all of these turned a quarter."""
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -48,16 +50,18 @@ def scene_tree(frame: Frame, pointed: PointedPart) -> cKDTree:
 def clear_grasps(handle: Handle, scene: cKDTree, pulls: Pulls, approach_m: float, max_opening_m: float
                  ) -> list[tuple[np.ndarray, float]]:
     """The grasps (pose and finger opening) whose approach (from `approach_m` out, the fingers open) and first planned
-    pull (the fingers closed on the handle) keep clear of `scene` (CLEARANCE_M), in the order wanted: tilted down then
-    level (PITCHES_RAD), each with the fingers opened as the handle asks, then only as wide as it needs (its thickness
-    and GRIP_MARGIN_M each side). EpisodeStop saying where the gripper would touch the scene when none does."""
+    pull (the fingers closed on the handle) keep clear of `scene` (CLEARANCE_M), in the order wanted: a knob held as
+    found then turned a quarter, each tilted down then level (PITCHES_RAD), each with the fingers opened as the
+    handle asks, then only as wide as it needs (its thickness and GRIP_MARGIN_M each side). EpisodeStop saying where
+    the gripper would touch the scene when none does."""
     openings = [handle.open_m or max_opening_m]
     closed = 0.0 if handle.thickness_m is None else handle.thickness_m
     if handle.thickness_m is not None and closed + 2 * GRIP_MARGIN_M < openings[0]:
         openings.append(closed + 2 * GRIP_MARGIN_M)
+    turned = replace(handle, bar=np.cross(handle.normal, handle.bar))  # a knob is held either way round
     clear, contact, during = [], None, ""
-    for pitch in PITCHES_RAD:
-        T = grasp_pose(handle, pitch_rad=pitch)
+    for held, pitch in itertools.product([handle, turned] if handle.found == "knob" else [handle], PITCHES_RAD):
+        T = grasp_pose(held, pitch_rad=pitch)
         pull = first_contact(scene, pulls(T)[0], parallel_gripper(closed, max_opening_m), CLEARANCE_M)
         path = line_poses(pregrasp_pose(T, approach_m), T, APPROACH_STEP_M)
         for opening in openings:

@@ -129,7 +129,7 @@ def _find_handle(episode: Episode) -> Handle | None:
         if pointed.handle.graspability <= 0.0:
             raise EpisodeStop(StopReason.NO_HANDLE, f"the pointed front's {pointed.handle.kind} cannot be held: "
                               f"{pointed.handle.reason}; point at a part with another handle")
-        return pointed_handle(pointed.handle)
+        return pointed_handle(pointed.handle, episode.state.joint is JointType.REVOLUTE)
     points = observer.handle_points()
     return None if look.body_box is None else find_handle(
         points, look.points, look.body_box, viewpoint(look.frame), episode.state.joint is JointType.REVOLUTE)
@@ -365,7 +365,7 @@ def _pointed_near(episode: Episode, frame: Frame, robot: np.ndarray, near: np.nd
         found = point_at(frame, robot, Pointer(u, v), gripper=episode.gripper)
     except PointerError:
         return None
-    handle = pointed_handle(found.handle)
+    handle = pointed_handle(found.handle, episode.state.joint_type() is JointType.REVOLUTE)
     close = np.linalg.norm(handle.center - near) < REGRASP_RADIUS_M and found.handle.graspability > 0.0
     return handle if close else None
 
