@@ -29,8 +29,8 @@ PLANE_BAND_M = 0.01  # the fronts' plane and what lies behind it: the fingers st
 SCENE_STEP = 4  # the scene is every 4th pixel in each direction (about 1 cm apart at 1 m)
 APPROACH_STEP_M = 0.02  # the approach is checked this finely
 PITCHES_RAD = (GRASP_PITCH_RAD, 0.0)  # the grasps tried, in order: tilted down (the usual), then level
-GRIP_MARGIN_M = 0.02  # fingers opened only as wide as a handle needs clear it by this much each side: the pointed
-# handle's error (about 1 cm), the calibration's 5 mm and a margin
+GRIP_MARGIN_M = 0.015  # fingers opened only as wide as a handle needs clear it by this much each side: the pointed
+# handle's error (about 1 cm) and the calibration's 5 mm
 
 Pulls = Callable[[np.ndarray], list[list[np.ndarray]]]  # a grasp pose -> the pulls planned from it, most wanted first
 
