@@ -27,13 +27,17 @@ PLANE_TOLERANCE_M = 0.004  # RANSAC inlier distance of the front plane
 FACE_BAND_M = 0.01  # points this close to the front plane belong to the front face
 REGRASP_RADIUS_M = 0.12  # a slipped handle is looked for this close to where the gripper held it
 HANDLE_MIN_STANDOFF_M, HANDLE_MAX_STANDOFF_M = 0.01, 0.08  # a handle stands this far out of its front
+FINGERTIPS_PAST_TOOL_M = 0.01  # a Franka hand's fingertips reach 7 mm past its tool frame; with a 3 mm margin: the
+# grasp goes no deeper than the room behind the handle's grip centre less this (a short tab, a knob near its front)
+MIN_GRASP_DEPTH_M = -0.005  # ... and the tool frame at most this far short of the grip centre (the pads still close
+# on it: they are 2 cm long)
 
 
 @dataclass(frozen=True)
 class Handle:
     """A handle seen on the first frame: grip centre, outward front normal, bar direction (unit); `found` says how
     (for the log); `open_m` how wide the gripper opens to approach it (None: fully), `thickness_m` what the fingers
-    close on (None: not known)."""
+    close on (None: not known), `depth_m` how far past the grip centre the tool frame goes."""
 
     center: np.ndarray
     normal: np.ndarray
@@ -42,6 +46,7 @@ class Handle:
     found: str = "protruding points"
     open_m: float | None = None
     thickness_m: float | None = None
+    depth_m: float = GRASP_DEPTH_M
 
 
 def pointed_handle(handle: PointedHandle, vertical_default: bool) -> Handle:
@@ -56,8 +61,9 @@ def pointed_handle(handle: PointedHandle, vertical_default: bool) -> Handle:
     else:
         bar = np.cross(normal, handle.close)
     thickness = None if handle.kind == "recessed pull" else handle.thickness_m  # a pocket's width is not its bar's
+    depth = float(np.clip(handle.clearance_m - FINGERTIPS_PAST_TOOL_M, MIN_GRASP_DEPTH_M, GRASP_DEPTH_M))
     return Handle(np.asarray(handle.centre, float), normal, bar / np.linalg.norm(bar), 0, handle.kind, handle.open_m,
-                  thickness)
+                  thickness, depth)
 
 
 def _local_plane(points: np.ndarray, near: np.ndarray, radius_m: float) -> tuple[np.ndarray, np.ndarray] | None:
@@ -145,9 +151,11 @@ def back_along_path(axis: Axis | None, point: np.ndarray, travel: float, spacing
     return [axis.origin + Rotation.from_rotvec(d * t).apply(r) for t in turns]
 
 
-def grasp_pose(handle: Handle, depth_m: float = GRASP_DEPTH_M, pitch_rad: float = GRASP_PITCH_RAD) -> np.ndarray:
-    """Tool pose (4x4) grasping the handle from the front (drivers.arm.grasping.grasp_pose)."""
-    return bar_grasp_pose(handle.center, handle.normal, handle.bar, depth_m, pitch_rad)
+def grasp_pose(handle: Handle, depth_m: float | None = None, pitch_rad: float = GRASP_PITCH_RAD) -> np.ndarray:
+    """Tool pose (4x4) grasping the handle from the front (drivers.arm.grasping.grasp_pose), the tool frame `depth_m`
+    past its grip centre (None: the handle's)."""
+    return bar_grasp_pose(handle.center, handle.normal, handle.bar, handle.depth_m if depth_m is None else depth_m,
+                          pitch_rad)
 
 
 def pull_poses(path: PathFn, length: float, step: float) -> list[np.ndarray]:

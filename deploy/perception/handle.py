@@ -107,6 +107,8 @@ def describe(blob: Blob, view: PlaneView, rows: tuple[int, int], gripper: Grippe
         relief = outer / 2
     elif kind == "recessed pull":  # its lip, just inside the pocket's mouth (the pocket's back is what depth sees)
         relief, clearance = -POCKET_LIP_M, -outer - POCKET_LIP_M
+    elif kind == "cup":  # the fingers close across the shell's height, on its outer plate (a plate's thickness)
+        relief = outer - OUTER_LAYER_M / 2
     else:  # the fingers close around its middle, half its thickness behind its front surface
         relief = outer - thickness / 2
     if kind not in ("recessed pull",) and not blob.seen_in_colour_only:
