@@ -28,6 +28,10 @@ class PointerError(PerceptionError):
     and what to do."""
 
 
+class PartHiddenError(PointerError):
+    """The arm hides the pointed part (or the pixel itself): moving the arm aside and looking again may show it."""
+
+
 class ModelError(PerceptionError):
     """A model checkpoint that is missing, incomplete or does not load."""
 

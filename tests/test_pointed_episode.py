@@ -1,13 +1,15 @@
 """Kitchen episodes that open the part the user pointed at: among three identical drawers the pointed one is grasped
-and opened, a door opens, a pointer on the floor stops the episode with its one line, and none of it reads the
-world's truth or the simulator's labels.
+and opened, a door opens, a pointer on the floor stops the episode with its one line, a part the arm hides is seen
+once the arm has swung aside, and none of it reads the world's truth or the simulator's labels.
 
 The world's truth is read by the tests only: before the episode (where the handles are) and after it (the score)."""
 
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
+import cv2
 import numpy as np
 import pytest
 from cli_run import run
@@ -15,6 +17,7 @@ from test_pointer import inside_pixel, kitchen_scene
 
 from deploy.bench.open import simulate_episode
 from deploy.control import session, stages
+from deploy.control.session import OpenRequest, open_object
 from deploy.control.state import StopReason
 from sim_fallback.camera import SimCamera
 from sim_fallback.furniture_body import grip_frame
@@ -96,3 +99,22 @@ def test_a_pointer_on_the_floor_stops_the_episode_with_its_line(capsys, tmp_path
     assert "point at the drawer's or door's front" in message
     assert data["pointer"] == {"u": float(u), "v": float(v), "source": "--point"}
     assert (tmp_path / "run").is_dir()  # the run folder keeps the frame the user pointed at
+
+
+def test_a_pointed_part_the_arm_hides_is_seen_after_swinging_the_arm_aside(caplog):
+    """Kitchen test seed 9: the arm at its start pose hides part of the target drawer. A pixel on the arm beside the
+    front: a dry run says it would swing the arm aside and stops with the pointer's line; a run swings it, finds the
+    front there and opens it."""
+    scene = kitchen_scene("drawer", 9)
+    body, links, _ = scene.parts[scene.target]
+    front = (scene.links[..., 0] == body) & (scene.links[..., 1] == links[0])
+    rows, cols = np.nonzero(cv2.dilate(front.astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool) & scene.robot)
+    u, v = int(cols[len(cols) // 2]), int(rows[len(rows) // 2])
+    request = OpenRequest(task="drawer", seed=9, split="test", point=(u, v), distance_m=0.1)
+    with caplog.at_level("INFO", logger="deploy.control.stages"):
+        planned = open_object(replace(request, dry_run=True), keep_run_dir=False)
+    assert "a run would first turn panda_joint1" in caplog.text
+    assert planned["stop_reason"] == StopReason.POINTER_REFUSED
+    assert planned["message"].startswith(f"--point {u} {v}: pixel ({u}, {v}) is on the arm")
+    opened = open_object(request, keep_run_dir=False)
+    assert opened["stop_reason"] == StopReason.TARGET_REACHED and opened["true_opened_m"] >= 0.1, opened["message"]

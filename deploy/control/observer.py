@@ -44,6 +44,8 @@ from drivers.camera.base import Camera, Frame
 log = logging.getLogger(__name__)
 
 NEAR_OBJECT_PX = 9  # the arm's pixels within this square around the object's count as near it
+NEAR_POINTER_PX = 90  # a pointed part the arm hides: the arm's pixels this near the pointed pixel count (a 30 cm front
+# at 1 m is about 180 pixels across)
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,7 @@ class Observer:
             "name": config.acting_estimator, "joint": "auto" if joint is None else joint.value})
         self._pipeline = AxisPipeline(self._pipeline_config)
         self._first: FirstLook | None = None
+        self._looked: Frame | None = None  # the first frame, the arm's pixels removed
         self._pointed: PointedPart | None = None
         self._tracker: StaticSceneTracker | None = None  # follows the pointed part's furniture
         self._near_object = np.zeros((0, 0), bool)  # the first frame's object mask, dilated
@@ -136,11 +139,11 @@ class Observer:
         return int(np.count_nonzero(self._near_object & self._require_first().robot))
 
     def arm_hiding(self, q: np.ndarray, gripper_width_m: float) -> int | None:
-        """How many pixels near the object on the first frame the arm at joints `q` would hide; None without a
-        self-filter to tell."""
-        if self._self_filter is None or self._first is None:
+        """How many pixels near the object on the first frame (around the pointed pixel when the pointed part was not
+        found) the arm at joints `q` would hide; None without a self-filter to tell."""
+        if self._self_filter is None or self._looked is None:
             return None
-        robot = self._self_filter.mask(self._first.frame, q, gripper_width_m, depth_test=False)
+        robot = self._self_filter.mask(self._looked, q, gripper_width_m, depth_test=False)
         return int(np.count_nonzero(self._near_object & robot))
 
     def times(self) -> FrameTimes:
@@ -161,11 +164,13 @@ class Observer:
         state = arm_state()
         q_commanded = None if commanded is None else commanded()
         frame, robot = self._without_robot(raw, state)
+        self._looked = frame
         try:
             mask = self._start(frame, robot, gripper)
         except PointerError:  # the run folder keeps the frame the user pointed at
             self._log(raw, np.zeros(raw.depth_m.shape, bool), state, self._kin.fk(state.q), first=True,
                       commanded=q_commanded)
+            self._near_object = _around(self._config.perception.point, frame.depth_m.shape)
             raise
         self._mask_pixels = int(np.count_nonzero(mask))
         if self._mask_pixels == 0:
@@ -177,9 +182,10 @@ class Observer:
         self._first = FirstLook(frame, mask, robot, points, self._pipeline.body_box, self._pipeline.handle_points)
         kernel = np.ones((NEAR_OBJECT_PX, NEAR_OBJECT_PX), np.uint8)
         self._near_object = cv2.dilate(mask.astype(np.uint8), kernel).astype(bool)
-        log.info("first frame %d: segmenter %s found the object (prompt %r): %d pixels in box %s px, %d points",
-                 frame.index, self._segmenter.name, self._config.perception.object_prompt,
-                 self._mask_pixels, _box_text(mask), len(points))
+        found = "the pointed part's furniture" if self._pointed is not None else \
+            f"segmenter {self._segmenter.name} found the object (prompt {self._config.perception.object_prompt!r})"
+        log.info("first frame %d: %s: %d pixels in box %s px, %d points", frame.index, found, self._mask_pixels,
+                 _box_text(mask), len(points))
         self._view.cloud(points)
         self._next_frame_t = state.t
         return self._first
@@ -268,6 +274,15 @@ class Observer:
             self._folder.write_frame(frame, mask, state, pose, first=first, grasped=grasped, commanded=commanded)
         self._view.frame(state.t - self._t0, frame, mask, pose)
         self._view.arm(state.t - self._t0, state, commanded)
+
+
+def _around(point: tuple[float, float] | None, shape: tuple[int, int]) -> np.ndarray:
+    """The pixels within NEAR_POINTER_PX of the pointed pixel (none without one)."""
+    near = np.zeros(shape, bool)
+    if point is not None:
+        v, u = np.ogrid[:shape[0], :shape[1]]
+        near = (u - point[0]) ** 2 + (v - point[1]) ** 2 <= NEAR_POINTER_PX ** 2
+    return near
 
 
 def _box_text(mask: np.ndarray) -> str:

@@ -29,7 +29,7 @@ from deploy.control.policy import choose_axis, opening, orient_axis, seen_openin
 from deploy.control.scene_clearance import clear_grasps, scene_tree
 from deploy.control.state import EpisodeStop, StopReason, display_scale, opening_unit
 from deploy.control.view import step_log
-from deploy.errors import PointerError
+from deploy.errors import PartHiddenError, PointerError
 from deploy.geometry.cloud import points_to_pixels
 from deploy.geometry.estimators.trajectory import fit_trajectory
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
@@ -92,7 +92,11 @@ def perceive(episode: Episode, dry_run: bool = False) -> Handle:
     apart, else the points protruding from the front). When the arm hides the handle or touches the object in
     the image, it swings out of the view first and the camera looks again (a dry run only says so)."""
     clock = time.perf_counter()
-    handle = _find_handle(episode)
+    hidden = None
+    try:
+        handle = _find_handle(episode)
+    except PartHiddenError as e:  # the arm hides the pointed part
+        handle, hidden = None, e
     clear = _clear_view(episode) if handle is None or _arm_in_the_way(episode) else None
     if clear is not None and dry_run:
         log.info("dry run: the arm hides part of the object; a run would first turn %s to %.2f rad and look again",
@@ -100,7 +104,9 @@ def perceive(episode: Episode, dry_run: bool = False) -> Handle:
     elif clear is not None:
         move_to_joints(episode.arm, clear, episode.joint_limits)
         episode.wait(SETTLE_S)
-        handle = _find_handle(episode)
+        handle, hidden = _find_handle(episode, again=True), None
+    if hidden is not None:
+        raise EpisodeStop(StopReason.POINTER_REFUSED, str(hidden))
     episode.state.timings["perceive_s"] += time.perf_counter() - clock
     if handle is None:
         raise EpisodeStop(StopReason.NO_HANDLE, "no handle found on the first frame (too few points protrude "
@@ -116,13 +122,16 @@ def _vec(v: np.ndarray) -> str:
     return str(np.round(np.asarray(v, float), 3).tolist())
 
 
-def _find_handle(episode: Episode) -> Handle | None:
+def _find_handle(episode: Episode, again: bool = False) -> Handle | None:
     """The first frame's handle: the pointed front's when the user pointed (EpisodeStop with the pointer's line
-    when it shows none that the gripper can hold), else the points protruding from the body box's front."""
+    when it shows none that the gripper can hold; PartHiddenError when the arm hides it, unless looking `again`),
+    else the points protruding from the body box's front."""
     observer, arm = episode.observer, episode.arm
     try:
         look = observer.first(arm.state, arm.commanded_q, episode.gripper)
     except PointerError as refused:
+        if isinstance(refused, PartHiddenError) and not again:
+            raise
         raise EpisodeStop(StopReason.POINTER_REFUSED, str(refused)) from None
     pointed = observer.pointed
     if pointed is not None:

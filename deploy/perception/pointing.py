@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from deploy.errors import PointerError
+from deploy.errors import PartHiddenError, PointerError
 from deploy.perception.base import Pointer
 from deploy.perception.front import (
     MAX_FRONT_HEIGHT_M,
@@ -60,8 +60,9 @@ def point_at(frame: Frame, robot: np.ndarray, pointer: Pointer, reach_m: float |
     if pointer.box is not None:
         u, v = box_seed(frame, robot, pointer.box)
     if robot[v, u]:
-        raise PointerError(f"{pointer}: pixel ({u}, {v}) is on the arm, which hides the part there: move the arm out "
-                           "of the view (the episode swings it aside) or point at a part of the front it does not hide")
+        raise PartHiddenError(f"{pointer}: pixel ({u}, {v}) is on the arm, which hides the part there: move the arm "
+                              "out of the view (the episode swings it aside) or point at a part of the front it does "
+                              "not hide")
     try:
         front = find_front(frame, robot, u, v, pointer.box)
     except PointerError as e:
@@ -111,9 +112,9 @@ def _check_seen(front: Front, pointer: Pointer, pixel: tuple[int, int]) -> None:
     e = front.extent
     seen = front.view.seen[e.top:e.bottom + 1, e.left:e.right + 1]
     if seen.mean() < MIN_SEEN_SHARE:
-        raise PointerError(f"{pointer}: pixel ({pixel[0]}, {pixel[1]}): the arm hides {100 * (1 - seen.mean()):.0f} % "
-                           "of the pointed front: move the arm out of the view (the episode swings it aside) and look "
-                           "again")
+        hidden = 100 * (1 - seen.mean())
+        raise PartHiddenError(f"{pointer}: pixel ({pixel[0]}, {pixel[1]}): the arm hides {hidden:.0f} % of the pointed "
+                              "front: move the arm out of the view (the episode swings it aside) and look again")
 
 
 def _check_not_wall(frame: Frame, robot: np.ndarray, front: Front, pointer: Pointer, pixel: tuple[int, int]) -> None:
@@ -151,8 +152,11 @@ def find_handle(front: Front, frame: Frame, gripper: GripperSize, pointer: Point
     blob = own_blob(blobs, front.view, (e.top, e.bottom), (e.left, e.right))
     if blob is None:
         seen = front.view.seen[e.top:e.bottom + 1, e.left:e.right + 1].mean()
-        hidden = f"; the arm hides {100 * (1 - seen):.0f} % of it: move the arm away and look again" if seen < 0.9 \
-            else ": a push-to-open front needs a push first (not supported); point at a front with a handle"
-        raise PointerError(f"{pointer}: the pointed front ({front.width_m:.2f} x {front.height_m:.2f} m) shows no "
-                           f"handle, knob or pull{hidden}")
+        size = f"{front.width_m:.2f} x {front.height_m:.2f} m"
+        said = f"{pointer}: the pointed front ({size}) shows no handle, knob or pull"
+        if seen < 0.9:
+            raise PartHiddenError(f"{said}; the arm hides {100 * (1 - seen):.0f} % of it: move the arm away and look "
+                                  "again")
+        raise PointerError(f"{said}: a push-to-open front needs a push first (not supported); point at a front with a "
+                           "handle")
     return describe(blob, front.view, (e.top, e.bottom), gripper, np.asarray(frame.T_base_camera)[:3, 3])
