@@ -105,8 +105,10 @@ def describe(blob: Blob, view: PlaneView, rows: tuple[int, int], gripper: Grippe
         relief = clearance = COLOUR_ONLY_RELIEF_M
     elif kind == "edge pull":  # a tab out of the edge: the grip halfway out
         relief = outer / 2
-    elif kind == "recessed pull":  # its lip, just inside the pocket's mouth (the pocket's back is what depth sees)
-        relief, clearance = -POCKET_LIP_M, -outer - POCKET_LIP_M
+    elif kind == "recessed pull":  # its lip, just inside the pocket's mouth; the fingertips have room down to the
+        # pocket's back, its deepest points
+        back = float(np.percentile(points[:, 2], 10)) if len(points) else outer
+        relief, clearance = -POCKET_LIP_M, -back - POCKET_LIP_M
     elif kind == "cup":  # the fingers close across the shell's height, on its outer plate (a plate's thickness)
         relief = outer - OUTER_LAYER_M / 2
     else:  # the fingers close around its middle, half its thickness behind its front surface
