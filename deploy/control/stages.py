@@ -88,9 +88,10 @@ def run(episode: Episode, dry_run: bool = False) -> tuple[StopReason, str]:
 
 
 def perceive(episode: Episode, dry_run: bool = False) -> Handle:
-    """The first frame: the object's mask and body box, the handle (its own mask when the segmenter tells it
-    apart, else the points protruding from the front). When the arm hides the handle or touches the object in
-    the image, it swings out of the view first and the camera looks again (a dry run only says so)."""
+    """The first frame: the object's mask and body box, the handle (the pointed front's when the user pointed; else
+    its own mask when the segmenter tells it apart, else the points protruding from the front). When the arm hides
+    the handle or the pointed part, or touches the object in the image, it swings out of the view first and the
+    camera looks again (a dry run only says so, and stops with the pointer's line when the arm hides the part)."""
     clock = time.perf_counter()
     hidden = None
     try:
