@@ -21,8 +21,8 @@ HoldOpt = Annotated[float, typer.Option("--hold", min=0.0,
 
 
 def _print_motors(title: str, motors: list[dict]) -> None:
-    keys = [k for k in ("name", "can_id", "master_id", "status", "q", "tau", "t_mos_c", "p_max", "v_max", "t_max")
-            if motors and k in motors[0]]
+    keys = [k for k in ("name", "can_id", "master_id", "status", "q", "tau", "t_mos_c", "p_max", "v_max", "t_max",
+                        "timeout_ms", "fd") if motors and k in motors[0]]
     print_table(title, keys, [[f"{m[k]:.2f}" if isinstance(m[k], float) else str(m[k]) for k in keys]
                               for m in motors])
 

@@ -22,6 +22,7 @@ the bus scan live in drivers/arm/motor_channels.py (re-exported here).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -31,7 +32,7 @@ from drivers.arm.base import GRIP_FORCE_N, Arm, ArmState
 from drivers.arm.can_bus import CanBus
 from drivers.arm.control_loop import ControlLoop, LoopStats
 from drivers.arm.damiao import PARAM_ID, Special, Status, refresh_request, special
-from drivers.arm.disable import disable_and_confirm, motor_states, with_summary
+from drivers.arm.disable import disable_and_confirm, motor_states, wait_for_timeouts, with_summary
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.motor_channels import (
     PMAX_MARGIN,
@@ -45,6 +46,7 @@ from drivers.arm.motor_channels import (
     receive_feedback,
     request_feedback,
     scan_bus,
+    set_timeout,
 )
 from drivers.arm.robot_config import RobotConfig
 from drivers.arm.safety import SafetyGuard, SafetyLimits
@@ -84,6 +86,8 @@ class CanArm(Arm):
         self._signals = StopSignals(self._stopped_by)
         self._enabled, self._closed = False, False
         self._unconfirmed: set[str] = set()  # motors whose last disable went unanswered
+        self._timed_out: set[str] = set()  # ... and that have disabled themselves by their communication timeout
+        self._last_command_s = -np.inf  # time.perf_counter() of the last command sent to the motors
         self._gravity_data = self.kin.model.createData()  # the loop thread's own Pinocchio workspace
         self._tau_max = np.array([j.tau_max for j in config.joints])
         n = len(self.joints)
@@ -112,7 +116,10 @@ class CanArm(Arm):
             raise ArmError(f"arm {self.config.name!r} was disconnected: open a new one")
         self.loop.clear_fault()
         try:
-            enable_motors(self.bus, self.channels, self.limits, self.config.watchdog.reply_timeout_s, self.loop.now)
+            watchdog = self.config.watchdog
+            enable_motors(self.bus, self.channels, self.limits, watchdog.reply_timeout_s, self.loop.now,
+                          watchdog.motor_timeout_s)
+            self._last_command_s = time.perf_counter()
             check_start_position(self.joints, self._measured_q(), self.limits)
         except ArmError:
             self._disable_all()
@@ -227,7 +234,7 @@ class CanArm(Arm):
     def motor_states(self) -> list[dict]:
         """Every motor's state (name, CAN id, enabled, status); `enabled` where a disable went unanswered."""
         with self._lock:
-            return motor_states(self.channels, self._unconfirmed)
+            return motor_states(self.channels, self._unconfirmed, self._timed_out)
 
     def __enter__(self) -> CanArm:
         """Connect; a failed connect leaves as `__exit__` does (`with` calls none after a failed enter)."""
@@ -266,6 +273,7 @@ class CanArm(Arm):
                     self.gripper, self.config.gripper, self._grip_width, self._grip_force)))
         for can_id, data in frames:
             self.bus.send(can_id, data)
+        self._last_command_s = time.perf_counter()
 
     def _read_feedback(self) -> None:
         """Read feedback until every motor answered this cycle or half a period passed; check it."""
@@ -293,9 +301,12 @@ class CanArm(Arm):
             raise ArmError(f"arm {self.config.name!r} is not enabled (stopped or never connected): connect() first")
 
     def _disable_all(self) -> None:
+        """Disable every motor; those that do not confirm but hold a communication timeout are waited out (they
+        disable themselves once no command has reached them for that long)."""
         unconfirmed = disable_and_confirm(self.bus, self.channels, self.config.watchdog.reply_timeout_s, self._lock,
                                           self.loop.now)
         self._unconfirmed = {c.name for c in unconfirmed}
+        self._timed_out = {c.name for c in wait_for_timeouts(unconfirmed, self._last_command_s)}
 
     def _on_trip(self, fault: ArmError) -> ArmError:
         """The loop tripped: disable every motor; the fault's message then names any that did not confirm."""
@@ -324,13 +335,15 @@ def disconnect_reporting(arm: CanArm, exc: BaseException | None) -> None:
 
 
 def enable_motors(bus: CanBus, channels: list[MotorChannel], limits: SafetyLimits, timeout_s: float,
-                  now: Callable[[], float]) -> None:
+                  now: Callable[[], float], motor_timeout_s: float) -> None:
     """Read each motor's PMAX/VMAX/TMAX, check the joints' ranges against them (`channels`: the joints in order,
-    then the gripper), enable each motor; ArmError naming the motor and the fix otherwise."""
+    then the gripper), set and read back each motor's communication timeout (`motor_timeout_s`), enable each motor;
+    ArmError naming the motor and the fix otherwise."""
     for i, c in enumerate(channels):
         c.limits = read_limits(bus, c, timeout_s)
         if i < len(limits.q_min):
             check_motor_range(c, limits, i)
+        set_timeout(bus, c, motor_timeout_s, timeout_s)
     for c in channels:
         request_feedback(bus, c, special(Special.ENABLE), c.config.can_id, timeout_s, now)
         if c.feedback.status != Status.ENABLED:

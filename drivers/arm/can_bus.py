@@ -28,7 +28,7 @@ FIX_BUS_OFF = ("check the CAN wiring, both 120 ohm terminations and the motor po
                "(`sudo ip link set can0 down && sudo ip link set can0 up type can bitrate 1000000 restart-ms 100`)")
 FIX_PASSIVE = "too many bus errors: check the bitrate matches the motors, the wiring and the terminations"
 # the pip package an interface of python-can needs (its extra); the others need their vendor's driver
-INTERFACE_PACKAGES = {"slcan": "pyserial", "serial": "pyserial", "robotell": "pyserial", "seeedstudio": "pyserial",
+INTERFACE_PACKAGES = {"damiao": "python-can-damiao", "slcan": "pyserial", "serial": "pyserial", "robotell": "pyserial", "seeedstudio": "pyserial",
                       "gs_usb": "gs-usb", "cantact": "cantact", "canalystii": "canalystii", "neovi": "python-ics",
                       "nixnet": "nixnet", "udp_multicast": "msgpack"}
 FIX_NOBUFS = ("the transmit queue is full (frames are not acknowledged): check that the motors are powered and "
@@ -53,7 +53,9 @@ class CanBus:
         kwargs: dict = {"interface": interface, "channel": channel}
         if interface not in ("virtual", "socketcan"):  # socketcan's bitrate is set with `ip link`
             kwargs["bitrate"] = bitrate
-        if fd:
+        if fd and interface == "virtual":  # python-can's in-process bus carries FD frames once told its protocol
+            kwargs["protocol"] = can.CanProtocol.CAN_FD
+        elif fd:
             kwargs.update(fd=True, data_bitrate=data_bitrate)
         can_log = logging.getLogger("can")
         level = can_log.level
@@ -61,7 +63,8 @@ class CanBus:
         try:
             self._bus = can.Bus(**kwargs)
         except (can.CanError, OSError, ValueError, ImportError) as exc:
-            if isinstance(exc, can.CanInterfaceNotImplementedError) and interface in can.interfaces.VALID_INTERFACES:
+            known = interface in can.interfaces.VALID_INTERFACES or interface in INTERFACE_PACKAGES
+            if isinstance(exc, can.CanInterfaceNotImplementedError) and known:
                 raise missing_driver_error(exc, interface) from exc
             raise CanBusError(
                 f"CAN interface {interface!r} channel {channel!r} cannot be opened ({exc}): check the adapter is "
@@ -78,7 +81,8 @@ class CanBus:
         return cls(c.channel, c.interface, c.bitrate, c.fd, c.data_bitrate, pump=pump)
 
     def send(self, arbitration_id: int, data: bytes) -> None:
-        """Send one standard-id frame; CanBusError naming the cause when the bus refuses it."""
+        """Send one standard-id frame (CAN FD with bitrate switch on an FD bus); CanBusError naming the cause when
+        the bus refuses it."""
         msg = can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False, is_fd=self.fd,
                           bitrate_switch=self.fd)
         try:

@@ -110,6 +110,11 @@ class RobotConfig(StrictModel):
             if len(set(ids)) != len(ids):
                 raise ValueError(f"two motors share a {key}: {ids}")
         self._master_ids_apart()
+        late_s = (self.watchdog.max_late_cycles + 1) / self.control_rate_hz
+        if self.watchdog.motor_timeout_s <= late_s:
+            raise ValueError(f"watchdog.motor_timeout_s {self.watchdog.motor_timeout_s:g} s would disable the motors "
+                             f"between two commands of a running arm (a cycle may come {late_s:g} s after the last "
+                             "at this control rate and max_late_cycles): give more")
         for j, q in zip(self.joints, self.q_ready, strict=True):
             if j.q_min is not None and j.q_max is not None and j.q_min >= j.q_max:
                 raise ValueError(f"joint {j.name}: q_min must be below q_max")
