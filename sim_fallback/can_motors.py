@@ -93,6 +93,7 @@ class SimMotor:
     replies: int = 0
     mit_frames: int = 0
     timeout_steps: int = 0  # REG_TIMEOUT: 0 = never
+    timeout_locked: bool = False  # a firmware that answers a write of REG_TIMEOUT but keeps its value
     last_command_s: float = 0.0  # the motors' clock at the last command it received
     lost: bool = False  # disabled by its communication timeout
 
@@ -397,7 +398,7 @@ class SimMotorBus:
         if op == REFRESH:
             self._reply_feedback(m)
             return
-        if op == PARAM_WRITE and register == REG_TIMEOUT:
+        if op == PARAM_WRITE and register == REG_TIMEOUT and not m.timeout_locked:
             m.timeout_steps = int(unpack_param_reply(data).value)
         values = {REG_PMAX: m.limits.p_max, REG_VMAX: m.limits.v_max, REG_TMAX: m.limits.t_max,
                   REG_MST_ID: m.config.master_id, REG_TIMEOUT: m.timeout_steps}

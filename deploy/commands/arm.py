@@ -20,9 +20,12 @@ HoldOpt = Annotated[float, typer.Option("--hold", min=0.0,
                                         help="Seconds to hold the goal before damping and disabling.")]
 
 
-def _print_motors(title: str, motors: list[dict]) -> None:
-    keys = [k for k in ("name", "can_id", "master_id", "status", "q", "tau", "t_mos_c", "p_max", "v_max", "t_max",
-                        "timeout_ms", "fd") if motors and k in motors[0]]
+SCAN_KEYS = ("can_id", "master_id", "status", "p_max", "v_max", "t_max", "timeout_ms", "fd")
+STATUS_KEYS = ("name", "can_id", "status", "q", "tau", "t_mos_c", "timeout_ms")  # the rest: --json
+
+
+def _print_motors(title: str, motors: list[dict], keys: tuple[str, ...]) -> None:
+    keys = [k for k in keys if motors and k in motors[0]]
     print_table(title, keys, [[f"{m[k]:.2f}" if isinstance(m[k], float) else str(m[k]) for k in keys]
                               for m in motors])
 
@@ -59,7 +62,7 @@ def scan_cmd(
     if json_out:
         print_json({"motors": motors})
     elif motors:
-        _print_motors(f"motors answering on ids {first_id}..{last_id}", motors)
+        _print_motors(f"motors answering on ids {first_id}..{last_id}", motors, SCAN_KEYS)
     else:
         err_console.print(f"no motor answered on ids {first_id}..{last_id}: check power, wiring and bitrate")
     if not motors:
@@ -89,7 +92,7 @@ def status_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, sim_fault: SimFa
     else:
         print_rows("arm", {k: v for k, v in data.items() if not k.startswith("motors")}, digits=None)
         if after:
-            _print_motors("motors (while enabled)", data["motors"])
+            _print_motors("motors (while enabled)", data["motors"], STATUS_KEYS)
             console.print(f"then damped; {disable_summary(after)}")
     if any(m["enabled"] for m in after):  # a motor did not confirm the disable: it may still be enabled
         raise typer.Exit(1)
