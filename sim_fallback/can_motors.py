@@ -57,8 +57,8 @@ from drivers.arm.damiao import (
     pack_feedback,
     pack_param_reply,
     unpack_mit,
-    unpack_param_request,
     unpack_param_reply,
+    unpack_param_request,
 )
 from drivers.arm.robot_config import MotorConfig, RobotConfig
 

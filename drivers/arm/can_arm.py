@@ -85,9 +85,8 @@ class CanArm(Arm):
         self._lock = self.loop.lock
         self._signals = StopSignals(self._stopped_by)
         self._enabled, self._closed = False, False
-        self._unconfirmed: set[str] = set()  # motors whose last disable went unanswered
-        self._timed_out: set[str] = set()  # ... and that have disabled themselves by their communication timeout
-        self._last_command_s = -np.inf  # time.perf_counter() of the last command sent to the motors
+        # motors whose last disable went unanswered; those of them their communication timeout has disabled since
+        self._unconfirmed, self._timed_out, self._last_command_s = set(), set(), -np.inf
         self._gravity_data = self.kin.model.createData()  # the loop thread's own Pinocchio workspace
         self._tau_max = np.array([j.tau_max for j in config.joints])
         n = len(self.joints)
@@ -116,9 +115,8 @@ class CanArm(Arm):
             raise ArmError(f"arm {self.config.name!r} was disconnected: open a new one")
         self.loop.clear_fault()
         try:
-            watchdog = self.config.watchdog
-            enable_motors(self.bus, self.channels, self.limits, watchdog.reply_timeout_s, self.loop.now,
-                          watchdog.motor_timeout_s)
+            w = self.config.watchdog
+            enable_motors(self.bus, self.channels, self.limits, w.reply_timeout_s, self.loop.now, w.motor_timeout_s)
             self._last_command_s = time.perf_counter()
             check_start_position(self.joints, self._measured_q(), self.limits)
         except ArmError:
@@ -252,10 +250,6 @@ class CanArm(Arm):
     def fault(self) -> ArmError | None:
         return self.loop.fault
 
-    def gravity_torques(self, q: np.ndarray) -> np.ndarray:
-        """Joint torques (N m) holding the arm still against gravity at q (URDF inertias, Pinocchio RNEA)."""
-        return pin.computeGeneralizedGravity(self.kin.model, self._gravity_data, np.asarray(q, float)).copy()
-
     # --- the control cycle (called by the loop) --------------------------------------------------------------
 
     def _send_commands(self) -> None:
@@ -286,10 +280,12 @@ class CanArm(Arm):
             check_feedback(c, start - c.t_feedback, self.config.watchdog, tau_max)
 
     def _gravity(self, q: np.ndarray) -> np.ndarray:
-        """The feed-forward torque of this cycle: gravity compensation clipped to tau_max, or zeros."""
+        """The feed-forward torque of this cycle: the torques holding the arm still against gravity at q (URDF
+        inertias, Pinocchio RNEA) clipped to tau_max, or zeros without gravity compensation."""
         if not self.config.gravity_compensation:
             return np.zeros(len(self.joints))
-        return np.clip(self.gravity_torques(q), -self._tau_max, self._tau_max)
+        tau = pin.computeGeneralizedGravity(self.kin.model, self._gravity_data, np.asarray(q, float))
+        return np.clip(tau, -self._tau_max, self._tau_max)
 
     def _measured_q(self) -> np.ndarray:
         return np.array([c.to_joint(c.feedback.q if c.feedback else 0.0, "q") for c in self.joints])
@@ -301,8 +297,7 @@ class CanArm(Arm):
             raise ArmError(f"arm {self.config.name!r} is not enabled (stopped or never connected): connect() first")
 
     def _disable_all(self) -> None:
-        """Disable every motor; those that do not confirm but hold a communication timeout are waited out (they
-        disable themselves once no command has reached them for that long)."""
+        """Disable every motor; the unconfirmed ones' communication timeouts are waited out (drivers/arm/disable.py)."""
         unconfirmed = disable_and_confirm(self.bus, self.channels, self.config.watchdog.reply_timeout_s, self._lock,
                                           self.loop.now)
         self._unconfirmed = {c.name for c in unconfirmed}

@@ -28,7 +28,8 @@ FIX_BUS_OFF = ("check the CAN wiring, both 120 ohm terminations and the motor po
                "(`sudo ip link set can0 down && sudo ip link set can0 up type can bitrate 1000000 restart-ms 100`)")
 FIX_PASSIVE = "too many bus errors: check the bitrate matches the motors, the wiring and the terminations"
 # the pip package an interface of python-can needs (its extra); the others need their vendor's driver
-INTERFACE_PACKAGES = {"damiao": "python-can-damiao", "slcan": "pyserial", "serial": "pyserial", "robotell": "pyserial", "seeedstudio": "pyserial",
+INTERFACE_PACKAGES = {"damiao": "python-can-damiao", "slcan": "pyserial", "serial": "pyserial", "robotell": "pyserial",
+                      "seeedstudio": "pyserial",
                       "gs_usb": "gs-usb", "cantact": "cantact", "canalystii": "canalystii", "neovi": "python-ics",
                       "nixnet": "nixnet", "udp_multicast": "msgpack"}
 FIX_NOBUFS = ("the transmit queue is full (frames are not acknowledged): check that the motors are powered and "
