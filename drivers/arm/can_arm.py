@@ -85,8 +85,7 @@ class CanArm(Arm):
         self._lock = self.loop.lock
         self._signals = StopSignals(self._stopped_by)
         self._enabled, self._closed = False, False
-        # motors whose last disable went unanswered; those of them their communication timeout has disabled since
-        self._unconfirmed, self._timed_out, self._last_command_s = set(), set(), -np.inf
+        self._unconfirmed, self._timed_out, self._last_command_s = set(), set(), -np.inf  # see _disable_all
         self._gravity_data = self.kin.model.createData()  # the loop thread's own Pinocchio workspace
         self._tau_max = np.array([j.tau_max for j in config.joints])
         n = len(self.joints)
@@ -225,12 +224,12 @@ class CanArm(Arm):
             self.bus.send(c.config.can_id, special(Special.CLEAR_ERROR))
 
     def motor_report(self) -> list[dict]:
-        """Per motor: name, ids, status, position/velocity/torque (joint side), temperatures, limits."""
+        """Per motor: name, ids, status, joint-side q / dq / tau, temperatures, limits, communication timeout."""
         with self._lock:
             return [c.report() for c in self.channels]
 
     def motor_states(self) -> list[dict]:
-        """Every motor's state (name, CAN id, enabled, status); `enabled` where a disable went unanswered."""
+        """Every motor's state (drivers/arm/disable.py `motor_states`)."""
         with self._lock:
             return motor_states(self.channels, self._unconfirmed, self._timed_out)
 
@@ -246,9 +245,7 @@ class CanArm(Arm):
     def __exit__(self, exc_type, exc, tb) -> None:
         disconnect_reporting(self, exc)
 
-    @property
-    def fault(self) -> ArmError | None:
-        return self.loop.fault
+    fault = property(lambda self: self.loop.fault, doc="The fault that tripped the loop (None while running).")
 
     # --- the control cycle (called by the loop) --------------------------------------------------------------
 
