@@ -82,12 +82,14 @@ class BoardScene:
 @dataclass(frozen=True)
 class RigSpec:
     """What to open. camera / arm: registry specs (None: no such device); robot: config TOML (default: the
-    simulated Panda's for simulated arms; required for hardware arms); segmenter: registry name (None: none).
-    camera_options go to the camera's factory (width, height, fps, ...)."""
+    simulated Panda's for simulated arms; required for hardware arms); can: [can] settings of the command line
+    over the robot config's ((name, value) pairs); segmenter: registry name (None: none). camera_options go to the
+    camera's factory (width, height, fps, ...)."""
 
     camera: str | None = "sim"
     arm: str | None = "sim"
     robot: Path | None = None
+    can: tuple[tuple[str, Any], ...] = ()
     calibration: Path | None = None
     segmenter: str | None = None
     perception: PerceptionConfig = PerceptionConfig()
@@ -149,14 +151,19 @@ def check_spec(spec: RigSpec) -> None:
         raise _needs_robot(spec.arm)
 
 
-def load_robot(arm: str | None, robot: Path | None) -> RobotConfig:
+def load_robot(arm: str | None, robot: Path | None, can: tuple[tuple[str, Any], ...] = ()) -> RobotConfig:
     """The robot config of arm kind `arm` (a registry spec): `robot`, or for other than a physical arm the simulated
-    Panda's. A physical arm never falls back to a simulation config: without `robot`, or with a config whose CAN bus
-    is virtual, ConfigError naming the fix."""
+    Panda's, with the command line's [can] settings `can` over its own. A physical arm never falls back to a
+    simulation config: without `robot`, or with a CAN bus (after `can`) that is virtual, ConfigError naming the
+    fix."""
     hardware = arm is not None and ARMS.entry(arm)[0].hardware
     if hardware and robot is None:
         raise _needs_robot(arm)
-    config = load_robot_config(robot or PANDA_SIM_CONFIG)
+    config = load_robot_config(robot or PANDA_SIM_CONFIG).with_can(**dict(can))
+    if hardware and can and config.can.virtual:
+        raise ConfigError(f"--interface {config.can.interface} --channel {config.can.channel} is a virtual bus, where "
+                          "no real motor is: --arm can drives a real arm; give your adapter's (`deploy arm find-port` "
+                          "lists them), or use --arm sim-can for the simulated motors")
     if hardware:
         try:
             config.can.require_hardware(config.label)
@@ -205,7 +212,7 @@ def open_rig(spec: RigSpec) -> Iterator[Rig]:
     """Open what `spec` names (camera connected; arm built but not enabled: `with rig.arm:` or `connect()`);
     on leaving, stop the arm and release everything."""
     check_spec(spec)
-    robot = load_robot(spec.arm, spec.robot)
+    robot = load_robot(spec.arm, spec.robot, spec.can)
     with ExitStack() as stack:
         rig = Rig(spec, robot, robot.kinematics())
         camera_entry = CAMERAS.entry(spec.camera)[0] if spec.camera is not None else None

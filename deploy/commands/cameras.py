@@ -11,7 +11,20 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from deploy.commands.options import JsonOpt, RobotOpt, SimFaultOpt, above, kind_option, overwrite_option, view_option
+from deploy.commands.options import (
+    BitrateOpt,
+    ChannelOpt,
+    DataBitrateOpt,
+    InterfaceOpt,
+    JsonOpt,
+    RobotOpt,
+    SimFaultOpt,
+    above,
+    can_settings,
+    kind_option,
+    overwrite_option,
+    view_option,
+)
 from deploy.commands.output import console, print_json, print_table, progress_bar
 from drivers.arm.registry import ARMS
 from drivers.camera.registry import CAMERAS
@@ -140,6 +153,10 @@ def record_cmd(
     fps: FpsOpt = 30,
     view: ViewOpt = False,
     overwrite: OverwriteOpt = False,
+    interface: InterfaceOpt = None,
+    channel: ChannelOpt = None,
+    bitrate: BitrateOpt = None,
+    data_bitrate: DataBitrateOpt = None,
     sim_fault: SimFaultOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
@@ -164,7 +181,8 @@ def record_cmd(
           progress_bar("record", frames, *columns) as bar):
         summary = record_rig(camera, out, frames, seconds, arm, robot, {"width": width, "height": height,
                                                                         "fps": fps}, bar.advance, view,
-                              calibration, sim_faults=faults)
+                              calibration, sim_faults=faults,
+                              can=can_settings(interface, channel, bitrate, data_bitrate))
     if json_out:
         print_json(summary)
     else:

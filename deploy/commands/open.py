@@ -10,12 +10,16 @@ import typer
 
 from deploy.commands.options import (
     ArmOpt,
+    BitrateOpt,
     BoxOpt,
     CalibrationErrorOpt,
     CameraOpt,
+    ChannelOpt,
     ConfigFileOpt,
+    DataBitrateOpt,
     FilterChoice,
     FilterOpt,
+    InterfaceOpt,
     JointChoice,
     JsonOpt,
     PolicyChoice,
@@ -24,6 +28,7 @@ from deploy.commands.options import (
     SimFaultOpt,
     Split,
     Task,
+    can_settings,
     dry_run_option,
     overwrite_option,
     robot_option,
@@ -151,6 +156,10 @@ def open_drawer(
     view: ViewOpt = False,
     calibration_error: CalibrationErrorOpt = CALIBRATION_ERROR,
     condition: ConditionOpt = Condition.normal,
+    interface: InterfaceOpt = None,
+    channel: ChannelOpt = None,
+    bitrate: BitrateOpt = None,
+    data_bitrate: DataBitrateOpt = None,
     sim_fault: SimFaultOpt = None,
     overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
@@ -162,6 +171,7 @@ def open_drawer(
     Example: deploy open-drawer --camera d415 --arm can --robot my_arm.toml --config run.toml --prompt drawer
     """
     _open(dict(task="drawer", scene="drawer", distance_m=distance, camera=camera, arm=arm, robot=robot,
+               can=can_settings(interface, channel, bitrate, data_bitrate),
                calibration=calibration, segmenter=segmenter, seed=seed, split=split.value, policy=_value(policy),
                run_dir=run_dir, dry_run=dry_run, yes=yes, view=view, calibration_error=calibration_error,
                condition=condition.value, config_file=config, overrides=_overrides(filter_profile, prompt, box)),
@@ -189,6 +199,10 @@ def open_door(
     view: ViewOpt = False,
     calibration_error: CalibrationErrorOpt = CALIBRATION_ERROR,
     condition: ConditionOpt = Condition.normal,
+    interface: InterfaceOpt = None,
+    channel: ChannelOpt = None,
+    bitrate: BitrateOpt = None,
+    data_bitrate: DataBitrateOpt = None,
     sim_fault: SimFaultOpt = None,
     overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
@@ -198,6 +212,7 @@ def open_door(
     Example: deploy open-door --angle 45 --seed 2 --json
     """
     _open(dict(task="door", scene="door", angle_deg=angle, camera=camera, arm=arm, robot=robot,
+               can=can_settings(interface, channel, bitrate, data_bitrate),
                calibration=calibration, segmenter=segmenter, seed=seed, split=split.value, policy=_value(policy),
                run_dir=run_dir, dry_run=dry_run, yes=yes, view=view, calibration_error=calibration_error,
                condition=condition.value, config_file=config, overrides=_overrides(filter_profile, prompt, box)),
@@ -230,6 +245,10 @@ def open_any(
     view: ViewOpt = False,
     calibration_error: CalibrationErrorOpt = CALIBRATION_ERROR,
     condition: ConditionOpt = Condition.normal,
+    interface: InterfaceOpt = None,
+    channel: ChannelOpt = None,
+    bitrate: BitrateOpt = None,
+    data_bitrate: DataBitrateOpt = None,
     sim_fault: SimFaultOpt = None,
     overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
@@ -240,7 +259,8 @@ def open_any(
     """
     told = {"auto": "auto", "prismatic": "drawer", "revolute": "door"}[joint.value]
     _open(dict(task=told, scene=(scene or task).value, distance_m=distance, angle_deg=angle, camera=camera,
-               arm=arm, robot=robot, calibration=calibration, segmenter=segmenter, seed=seed, split=split.value,
+               arm=arm, robot=robot, can=can_settings(interface, channel, bitrate, data_bitrate),
+               calibration=calibration, segmenter=segmenter, seed=seed, split=split.value,
                policy=_value(policy), run_dir=run_dir, dry_run=dry_run, yes=yes, view=view,
                calibration_error=calibration_error, condition=condition.value, config_file=config,
                overrides=_overrides(filter_profile, prompt, box)), json_out, sim_fault, overwrite)

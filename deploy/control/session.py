@@ -49,6 +49,7 @@ class OpenRequest:
     camera: str = "sim"
     arm: str = "sim"
     robot: Path | None = None
+    can: tuple[tuple[str, Any], ...] = ()  # [can] settings of the command line over the robot config's
     calibration: Path | None = None
     segmenter: str | None = None
     seed: int = 0
@@ -72,7 +73,7 @@ class OpenRequest:
     def rig_spec(self, config: Config) -> RigSpec:
         simulated = CAMERAS.entry(self.camera)[0].simulated
         width, height = self.resolution
-        return RigSpec(camera=self.camera, arm=self.arm, robot=self.robot, calibration=self.calibration,
+        return RigSpec(camera=self.camera, arm=self.arm, robot=self.robot, can=self.can, calibration=self.calibration,
                        segmenter=self.segmenter or default_segmenter(config.perception),
                        perception=config.perception,
                        scene=SimScene(self.scene, self.seed, self.split, self.condition),

@@ -86,6 +86,7 @@ class RobotConfig(StrictModel):
     base_frame: str
     tool_frame: str
     locked_joints: list[str] = []
+    finger_joint_per_m: list[float] | None = None  # each locked (finger) joint per metre of opening; None: 0.5 each
     q_ready: list[float]
     workspace_min: WorkspaceCorner
     workspace_max: WorkspaceCorner
@@ -103,6 +104,9 @@ class RobotConfig(StrictModel):
     def _consistent(self) -> RobotConfig:
         if len(self.q_ready) != len(self.joints):
             raise ValueError(f"q_ready has {len(self.q_ready)} values for {len(self.joints)} joints")
+        if self.finger_joint_per_m is not None and len(self.finger_joint_per_m) != len(self.locked_joints):
+            raise ValueError(f"finger_joint_per_m has {len(self.finger_joint_per_m)} values for "
+                             f"{len(self.locked_joints)} locked_joints: give one per finger joint")
         if any(lo >= hi for lo, hi in zip(self.workspace_min, self.workspace_max, strict=True)):
             raise ValueError("workspace_min must be below workspace_max on every axis")
         for key in ("can_id", "master_id"):
@@ -134,6 +138,17 @@ class RobotConfig(StrictModel):
                                  f"can_id: its feedback would reach {by_can_id[m.master_id]} as commands; give "
                                  "every motor a master_id no motor uses as can_id (e.g. can_id + 0x10)")
 
+    def with_can(self, **settings) -> RobotConfig:
+        """This config with [can] settings replaced (interface, channel, bitrate, fd, data_bitrate: the command
+        line's); ArmError naming a bad one."""
+        if not settings:
+            return self
+        try:
+            can = CanConfig.model_validate({**self.can.model_dump(), **settings})
+        except ValidationError as exc:
+            raise ArmError(f"CAN settings {settings}: {_problems(exc)}: fix the option") from exc
+        return self.model_copy(update={"can": can})
+
     @property
     def label(self) -> str:
         """`robot config FILE` (or the config's name when it was not read from a file), for error messages."""
@@ -164,6 +179,7 @@ class RobotConfig(StrictModel):
         return RobotSpec(
             name=self.name, urdf=self.urdf_path(), arm_joints=tuple(self.joint_names),
             finger_joints=tuple(self.locked_joints), tool_frame=self.tool_frame, q_ready=np.array(self.q_ready),
+            finger_joint_per_m=tuple(self.finger_joint_per_m or [0.5] * len(self.locked_joints)),
             gripper_max_width_m=width, a_max=np.array([j.a_max for j in self.joints]),
             j_max=np.array([j.j_max for j in self.joints]), workspace_min=np.array(self.workspace_min),
             workspace_max=np.array(self.workspace_max),

@@ -16,7 +16,8 @@ class RobotSpec:
     `tool_frame` is the URDF frame the grasp is planned for; `q_ready` (rad) holds the hand
     forward-horizontal in front of the robot; `a_max` (rad/s^2) and `j_max` (rad/s^3) are the
     per-joint hardware limits (velocity limits come from the URDF); the workspace box bounds the
-    tool position in the base frame (m).
+    tool position in the base frame (m). `finger_joint_per_m`: each finger joint's value (m or rad) per metre of
+    gripper opening (two prismatic fingers: 0.5 each; hinged fingers: their angle, linearised).
     """
 
     name: str
@@ -30,6 +31,16 @@ class RobotSpec:
     j_max: np.ndarray
     workspace_min: np.ndarray
     workspace_max: np.ndarray
+    finger_joint_per_m: tuple[float, ...] = (0.5, 0.5)
+
+    def finger_positions(self, width_m: float) -> list[float]:
+        """The finger joints' values at gripper opening `width_m`."""
+        return [k * width_m for k in self.finger_joint_per_m]
+
+    def gripper_width(self, finger_positions) -> float:
+        """The gripper opening (m) the finger joints' values read (their mean)."""
+        return float(sum(q / k for q, k in zip(finger_positions, self.finger_joint_per_m, strict=True))
+                     / len(self.finger_joint_per_m))
 
 
 def panda_urdf() -> Path:
