@@ -85,7 +85,7 @@ def _meshes(link: ET.Element, body: ET.Element, files: dict[str, str], used: set
         source = files[geom.get("mesh")]
         used.add(source)
         for kind in ("collision", "visual"):
-            node = ET.SubElement(link, kind, name=geom.get("name"))
+            node = ET.SubElement(link, kind, name=geom.get("name") or geom.get("mesh"))
             _origin(node, _floats(geom.get("pos"), "0 0 0"), _floats(geom.get("quat"), "1 0 0 0"))
             geometry = ET.SubElement(node, "geometry")
             ET.SubElement(geometry, "mesh", filename=f"meshes/{Path(source).name}")
