@@ -48,7 +48,7 @@ from drivers.arm.motor_channels import (
     scan_bus,
     set_timeout,
 )
-from drivers.arm.robot_config import RobotConfig
+from drivers.arm.robot_config import RobotConfig, WatchdogConfig
 from drivers.arm.safety import SafetyGuard, SafetyLimits
 from drivers.arm.signals import StopSignals
 from drivers.errors import ArmError
@@ -85,7 +85,7 @@ class CanArm(Arm):
         self._lock = self.loop.lock
         self._signals = StopSignals(self._stopped_by)
         self._enabled, self._closed = False, False
-        self._unconfirmed, self._timed_out, self._last_command_s = set(), set(), -np.inf  # see _disable_all
+        self._unconfirmed, self._timed_out, self._last_sent_s = set(), set(), -np.inf  # see _disable_all
         self._gravity_data = self.kin.model.createData()  # the loop thread's own Pinocchio workspace
         self._tau_max = np.array([j.tau_max for j in config.joints])
         n = len(self.joints)
@@ -114,9 +114,7 @@ class CanArm(Arm):
             raise ArmError(f"arm {self.config.name!r} was disconnected: open a new one")
         self.loop.clear_fault()
         try:
-            w = self.config.watchdog
-            enable_motors(self.bus, self.channels, self.limits, w.reply_timeout_s, self.loop.now, w.motor_timeout_s)
-            self._last_command_s = time.perf_counter()
+            self._last_sent_s = enable_motors(self.bus, self.channels, self.limits, self.config.watchdog, self.loop.now)
             check_start_position(self.joints, self._measured_q(), self.limits)
         except ArmError:
             self._disable_all()
@@ -264,7 +262,7 @@ class CanArm(Arm):
                     self.gripper, self.config.gripper, self._grip_width, self._grip_force)))
         for can_id, data in frames:
             self.bus.send(can_id, data)
-        self._last_command_s = time.perf_counter()
+        self._last_sent_s = time.perf_counter()
 
     def _read_feedback(self) -> None:
         """Read feedback until every motor answered this cycle or half a period passed; check it."""
@@ -276,13 +274,15 @@ class CanArm(Arm):
             tau_max = None if c is self.gripper else self.config.joints[i].tau_max
             check_feedback(c, start - c.t_feedback, self.config.watchdog, tau_max)
 
+    def gravity_torques(self, q: np.ndarray) -> np.ndarray:
+        """Joint torques (N m) holding the arm still against gravity at q (URDF inertias, Pinocchio RNEA)."""
+        return pin.computeGeneralizedGravity(self.kin.model, self._gravity_data, np.asarray(q, float)).copy()
+
     def _gravity(self, q: np.ndarray) -> np.ndarray:
-        """The feed-forward torque of this cycle: the torques holding the arm still against gravity at q (URDF
-        inertias, Pinocchio RNEA) clipped to tau_max, or zeros without gravity compensation."""
+        """The feed-forward torque of this cycle: gravity compensation clipped to tau_max, or zeros."""
         if not self.config.gravity_compensation:
             return np.zeros(len(self.joints))
-        tau = pin.computeGeneralizedGravity(self.kin.model, self._gravity_data, np.asarray(q, float))
-        return np.clip(tau, -self._tau_max, self._tau_max)
+        return np.clip(self.gravity_torques(q), -self._tau_max, self._tau_max)
 
     def _measured_q(self) -> np.ndarray:
         return np.array([c.to_joint(c.feedback.q if c.feedback else 0.0, "q") for c in self.joints])
@@ -298,7 +298,7 @@ class CanArm(Arm):
         unconfirmed = disable_and_confirm(self.bus, self.channels, self.config.watchdog.reply_timeout_s, self._lock,
                                           self.loop.now)
         self._unconfirmed = {c.name for c in unconfirmed}
-        self._timed_out = {c.name for c in wait_for_timeouts(unconfirmed, self._last_command_s)}
+        self._timed_out = {c.name for c in wait_for_timeouts(unconfirmed, self._last_sent_s)}
 
     def _on_trip(self, fault: ArmError) -> ArmError:
         """The loop tripped: disable every motor; the fault's message then names any that did not confirm."""
@@ -326,21 +326,24 @@ def disconnect_reporting(arm: CanArm, exc: BaseException | None) -> None:
         raise
 
 
-def enable_motors(bus: CanBus, channels: list[MotorChannel], limits: SafetyLimits, timeout_s: float,
-                  now: Callable[[], float], motor_timeout_s: float) -> None:
+def enable_motors(bus: CanBus, channels: list[MotorChannel], limits: SafetyLimits, watchdog: WatchdogConfig,
+                  now: Callable[[], float]) -> float:
     """Read each motor's PMAX/VMAX/TMAX, check the joints' ranges against them (`channels`: the joints in order,
-    then the gripper), set and read back each motor's communication timeout (`motor_timeout_s`), enable each motor;
-    ArmError naming the motor and the fix otherwise."""
+    then the gripper), set and read back each motor's communication timeout (`watchdog.motor_timeout_s`), enable
+    each motor; ArmError naming the motor and the fix otherwise. Returns the time (perf_counter) of the last enable.
+    """
+    timeout_s = watchdog.reply_timeout_s
     for i, c in enumerate(channels):
         c.limits = read_limits(bus, c, timeout_s)
         if i < len(limits.q_min):
             check_motor_range(c, limits, i)
-        set_timeout(bus, c, motor_timeout_s, timeout_s)
+        set_timeout(bus, c, watchdog.motor_timeout_s, timeout_s)
     for c in channels:
         request_feedback(bus, c, special(Special.ENABLE), c.config.can_id, timeout_s, now)
         if c.feedback.status != Status.ENABLED:
             raise ArmError(f"motor {c.describe()} did not enable (status {c.feedback.status.name}): "
                            "clear its error (`deploy arm enable --clear-errors`) and check its supply")
+    return time.perf_counter()
 
 
 def check_motor_range(c: MotorChannel, limits: SafetyLimits, i: int) -> None:
