@@ -146,7 +146,7 @@ def check_spec(spec: RigSpec) -> None:
                           f"--camera {spec.camera}{replay}")
     if camera is not None and arm is not None and camera.simulated and not arm.simulated:
         raise ConfigError(f"--camera {spec.camera} needs a simulated arm (--arm {kinds(ARMS, simulated=True)}), not "
-                          f"{spec.arm!r}: it cannot see --arm {spec.arm}, only the simulated Panda")
+                          f"{spec.arm!r}: it cannot see --arm {spec.arm}, only the simulated world's arm")
     if arm is not None and not arm.simulated and spec.robot is None:
         raise _needs_robot(spec.arm)
 
@@ -238,7 +238,8 @@ def _open_simulated(rig: Rig, stack: ExitStack) -> None:
 
         scene = spec.scene
         rig.world = stack.enter_context(SimWorld(Scenario.make(scene.task, scene.seed, scene.split,
-                                                               condition=scene.condition)))
+                                                               condition=scene.condition),
+                                                 robot=rig.robot.robot_spec()))  # the robot config's arm
         sim_camera = CAMERAS.open(spec.camera, world=rig.world, seed=scene.seed, labels=_needs_labels(spec),
                                   **spec.camera_options)
         T_calibrated = simulated_calibration(sim_camera.T_base_camera, *spec.calibration_error,

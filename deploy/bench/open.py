@@ -29,17 +29,19 @@ def simulate_episode(task: str, seed: int, split: str = "train", target: float |
                      policy: str | None = None, auto_joint: bool = False, arm: str = "sim",
                      segmenter: str | None = None, calibration_error: tuple[float, float] = CALIBRATION_ERROR,
                      overrides: dict[str, Any] | None = None, run_dir: Path | None = None,
-                     setup: Setup | None = None, condition: str = "normal", **options: Any) -> dict:
+                     setup: Setup | None = None, condition: str = "normal", robot: Path | None = None,
+                     **options: Any) -> dict:
     """One simulated episode of `task` ("drawer" | "door") on scenario `seed`, `target` in m (drawer) or deg
     (door), with what a real robot senses: `segmenter` (default: the machine's default, `rgbd` without
     weights) and a camera pose calibrated with `calibration_error` (mm, deg); `policy` None: the config's.
     `options` override `[opening]`
     settings, `overrides` any setting by dotted name; `setup(world, arm)` changes the world first (tests);
-    `condition` is the object's joint ("normal", "locked", "stiff"). The episode's JSON with the truth-based
-    fields."""
+    `condition` is the object's joint ("normal", "locked", "stiff"); `robot` the robot config whose arm stands in
+    the world (None: the simulated Panda). The episode's JSON with the truth-based fields."""
     target_field = {"drawer": "distance_m", "door": "angle_deg"}[task]
     request = OpenRequest(task="auto" if auto_joint else task, scene=task, seed=seed, split=split,  # type: ignore
-                          policy=policy, arm=arm, run_dir=run_dir, segmenter=segmenter,  # type: ignore[arg-type]
+                          policy=policy, arm=arm, robot=robot, run_dir=run_dir,  # type: ignore[arg-type]
+                          segmenter=segmenter,
                           calibration_error=tuple(calibration_error),  # type: ignore[arg-type]
                           condition=condition,  # type: ignore[arg-type]
                           overrides={**{f"opening.{k}": v for k, v in options.items()}, **(overrides or {})},
@@ -84,12 +86,14 @@ def bench_open(
     segmenter: str | None = None,
     calibration_error: tuple[float, float] = CALIBRATION_ERROR,
     condition: str = "normal",
+    robot: Path | None = None,
     **options: Any,
 ) -> dict:
     """`episodes` consecutive scenario seeds from `seed`; success rate (truth), mean true opening,
     median axis angle error (and, for doors, position error), per-frame perception + geometry time, seconds
     per episode and failure causes {stop_reason: count}. Realistic by default: the machine's default
     segmenter and a calibrated camera pose off by `calibration_error` (mm, deg); the JSON states both.
+    `robot`: the robot config whose arm stands in the world (None: the simulated Panda's, panda_sim).
     `condition`: every object's joint "normal", "locked" or "stiff" (3x the friction); the largest force any
     pull applied is `peak_pull_force_n_max` (N), over the `peak_pull_force_episodes` that pulled (`_pull_forces`).
     Episodes run in `workers` local processes (a warning when more than this machine's cores: the timings then
@@ -107,7 +111,7 @@ def bench_open(
     policy = policy or OpeningConfig().policy
     unit = "m" if task == "drawer" else "deg"
     jobs = [dict(task=task, seed=s, split=split, target=target, policy=policy, segmenter=segmenter,
-                 calibration_error=tuple(calibration_error), condition=condition, **options)
+                 calibration_error=tuple(calibration_error), condition=condition, robot=robot, **options)
             for s in range(seed, seed + episodes)]
     results = []
     with make_executor(workers, ray_address) as executor:
@@ -125,7 +129,7 @@ def bench_open(
         "task": task, f"target_{unit}": target, "split": split, "policy": policy, "episodes": episodes,
         "first_seed": seed, "workers": workers if ray_address is None else None,
         "joint": "auto" if options.get("auto_joint") else "told",
-        "segmenter": segmenter, "condition": condition,
+        "segmenter": segmenter, "condition": condition, "robot": str(robot or "panda_sim"),
         "calibration_error": {"translation_mm": calibration_error[0], "rotation_deg": calibration_error[1]},
         "success_rate": float(np.mean([r["success"] for r in results])) if results else 0.0,
         **_reachable(results),

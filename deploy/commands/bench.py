@@ -153,6 +153,7 @@ def bench_open_cmd(
     segmenter: BenchSegmenterOpt = None,
     calibration_error: CalibrationErrorOpt = CALIBRATION_ERROR,
     condition: BenchConditionOpt = Condition.normal,
+    robot: RobotOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Success rate of simulated openings (success = the true joint value exceeds the target, like the paper),
@@ -169,7 +170,8 @@ def bench_open_cmd(
     with progress_bar(f"bench open {task.value}", episodes) as bar:
         data = bench_open(task.value, goal, episodes, split.value, policy.value, seed, workers,
                           progress=bar.advance, ray_address=ray, auto_joint=auto_joint or joint is JointTold.auto,
-                          segmenter=segmenter, calibration_error=calibration_error, condition=condition.value)
+                          segmenter=segmenter, calibration_error=calibration_error, condition=condition.value,
+                          robot=robot)
     if json_out:
         print_json(data)
         return

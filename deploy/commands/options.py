@@ -172,7 +172,7 @@ BoxOpt = Annotated[tuple[float, float, float, float] | None, typer.Option(
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object instead of a table (on an error: "
                                        "{error, kind, exit_code, motors}).")]
 PolicyOpt = Annotated[PolicyChoice, typer.Option(help=f"{POLICIES.help()}.")]
-RobotOpt = robot_option("Robot config: a shipped one's name (panda_sim, damiao_6dof) or a TOML file "
+RobotOpt = robot_option("Robot config: a shipped one's name (panda_sim, openarm, damiao_6dof) or a TOML file "
                         "\\[default: panda_sim].")
 StationSeedOpt = seed_option("Seed of the station generator (and sim noise).")
 SimFaultOpt = sim_fault_option()

@@ -88,6 +88,7 @@ class RobotConfig(StrictModel):
     locked_joints: list[str] = []
     finger_joint_per_m: list[float] | None = None  # each locked (finger) joint per metre of opening; None: 0.5 each
     q_ready: list[float]
+    q_start: list[float] | None = None  # where simulated scenes start the arm (None: q_ready)
     workspace_min: WorkspaceCorner
     workspace_max: WorkspaceCorner
     control_rate_hz: float = Field(500.0, ge=MIN_CONTROL_RATE_HZ, le=2000)
@@ -102,8 +103,10 @@ class RobotConfig(StrictModel):
 
     @model_validator(mode="after")
     def _consistent(self) -> RobotConfig:
-        if len(self.q_ready) != len(self.joints):
-            raise ValueError(f"q_ready has {len(self.q_ready)} values for {len(self.joints)} joints")
+        for key in ("q_ready", "q_start"):
+            values = getattr(self, key)
+            if values is not None and len(values) != len(self.joints):
+                raise ValueError(f"{key} has {len(values)} values for {len(self.joints)} joints")
         if self.finger_joint_per_m is not None and len(self.finger_joint_per_m) != len(self.locked_joints):
             raise ValueError(f"finger_joint_per_m has {len(self.finger_joint_per_m)} values for "
                              f"{len(self.locked_joints)} locked_joints: give one per finger joint")
@@ -180,6 +183,7 @@ class RobotConfig(StrictModel):
             name=self.name, urdf=self.urdf_path(), arm_joints=tuple(self.joint_names),
             finger_joints=tuple(self.locked_joints), tool_frame=self.tool_frame, q_ready=np.array(self.q_ready),
             finger_joint_per_m=tuple(self.finger_joint_per_m or [0.5] * len(self.locked_joints)),
+            q_start=None if self.q_start is None else np.array(self.q_start),
             gripper_max_width_m=width, a_max=np.array([j.a_max for j in self.joints]),
             j_max=np.array([j.j_max for j in self.joints]), workspace_min=np.array(self.workspace_min),
             workspace_max=np.array(self.workspace_max),

@@ -17,7 +17,8 @@ class RobotSpec:
     forward-horizontal in front of the robot; `a_max` (rad/s^2) and `j_max` (rad/s^3) are the
     per-joint hardware limits (velocity limits come from the URDF); the workspace box bounds the
     tool position in the base frame (m). `finger_joint_per_m`: each finger joint's value (m or rad) per metre of
-    gripper opening (two prismatic fingers: 0.5 each; hinged fingers: their angle, linearised).
+    gripper opening (two prismatic fingers: 0.5 each; hinged fingers: their angle, linearised). `q_start` (rad):
+    where the arm starts in simulated scenes, around which they jitter it (None: q_ready).
     """
 
     name: str
@@ -32,6 +33,12 @@ class RobotSpec:
     workspace_min: np.ndarray
     workspace_max: np.ndarray
     finger_joint_per_m: tuple[float, ...] = (0.5, 0.5)
+    q_start: np.ndarray | None = None
+
+    @property
+    def start(self) -> np.ndarray:
+        """The simulated scenes' start configuration (q_start, else q_ready)."""
+        return self.q_ready if self.q_start is None else self.q_start
 
     def finger_positions(self, width_m: float) -> list[float]:
         """The finger joints' values at gripper opening `width_m`."""
@@ -70,6 +77,7 @@ def panda() -> RobotSpec:
         j_max=np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0]),
         workspace_min=np.array([-0.9, -0.9, 0.02]),
         workspace_max=np.array([0.9, 0.9, 1.25]),
+        q_start=np.array([0.0, -1.2523, 0.0, -2.6382, 0.0, 2.9565, 0.7854]),
     )
 
 
