@@ -90,3 +90,48 @@ def test_an_episode_with_robot_openarm_ends_with_a_named_reason(capsys, tmp_path
                                                      "slipped", "arm error")
     if data["stop_reason"] == "ik infeasible":
         assert "out of reach" in data["message"] or "joint limits" in data["message"]
+
+
+def test_the_openarm_plans_a_drawer_pull_within_its_reach():
+    """The grasp planner on OpenArm's layout (its shoulder is no Panda's column): a handle 0.5 m in front at 0.5 m
+    height, pulled 0.3 m straight back, is planned clear of the joint limits; one at the box world's usual 0.8 m
+    height is out of its reach (the shoulder stands at 0.7 m)."""
+    from deploy.control.grasp import pregrasp_configuration
+    from drivers.arm.grasping import GRASP_DEPTH_M, GRASP_PITCH_RAD
+    from drivers.arm.grasping import grasp_pose as bar_grasp_pose
+    from drivers.errors import IKError
+
+    kin = OPENARM.kinematics()
+    limits = OPENARM.safety_limits(kin)
+
+    def plan(height_m: float) -> np.ndarray:
+        T = bar_grasp_pose(np.array([0.5, 0.0, height_m]), np.array([-1.0, 0, 0]), np.array([0, 0, 1.0]),
+                           GRASP_DEPTH_M, GRASP_PITCH_RAD)
+        pull = [T.copy() for _ in range(6)]
+        for k, P in enumerate(pull):
+            P[0, 3] -= 0.05 * (k + 1)
+        return pregrasp_configuration(kin, np.array(OPENARM.q_ready), T, [pull], 0.1)
+
+    q = plan(0.5)
+    assert np.all(q > limits.q_min) and np.all(q < limits.q_max)
+    with pytest.raises(IKError, match="out of reach"):
+        plan(0.85)
+
+
+def test_the_openarm_grasps_and_pulls_a_drawer_it_reaches(capsys):
+    """A box-world drawer lowered to the OpenArm's reach (its handle at about 0.45 m): the episode grasps it and pulls
+    it open through the vendor's kinematics, the hinged gripper and the controller (the world's truth scores it)."""
+    import pybullet as pb
+
+    from deploy.bench.open import simulate_episode
+
+    def within_reach(world, _arm):
+        for body in world.furniture_ids:
+            position, orientation = pb.getBasePositionAndOrientation(body, physicsClientId=world.client)
+            p = np.array(position)
+            p[:2] -= 0.03 * p[:2] / np.linalg.norm(p[:2])
+            p[2] -= 0.32
+            pb.resetBasePositionAndOrientation(body, p.tolist(), orientation, physicsClientId=world.client)
+
+    result = simulate_episode("drawer", 0, "test", robot=CONFIG_DIR / "openarm.toml", setup=within_reach)
+    assert result["true_opened_m"] > 0.1, result["message"]
