@@ -3,7 +3,6 @@ disable themselves when no command comes for that long, and after a bus-off, a k
 every motor ends disabled with the JSON and message saying so."""
 
 import json
-import threading
 import time
 
 import pytest
@@ -124,6 +123,3 @@ def test_a_motor_timeout_shorter_than_a_late_cycle_is_refused(timeout_s, ok):
         with pytest.raises(ValueError, match="motor_timeout_s 0.006 s would disable the motors between two"):
             RobotConfig.model_validate(data)
 
-
-def test_threads_left_behind_are_only_the_daemons():
-    assert all(t.daemon for t in threading.enumerate() if t is not threading.main_thread())
