@@ -24,12 +24,14 @@ def record(
     source: str | None = None,
     simulated: bool = False,
     arm: ArmReading | None = None,
+    robot: str | None = None,
 ) -> dict:
     """Read `camera` (connected here) into the frames directory `out` until `frames` frames or `seconds`
     of camera time (whichever comes first), or until a replay ends (the only stop if neither is set).
 
     source: the camera's spec and simulated: whether it renders a simulation (both go to meta.json); arm():
-    the arm's joint positions and tool pose, read right after each frame and stored with it. A frame's pose
+    the arm's joint positions and tool pose, read right after each frame and stored with it (`robot`: its config,
+    named in meta.json). A frame's pose
     (a camera on the arm moves) is stored where it differs from the first frame's (FramesWriter).
     A camera failure (e.g. unplugged) stops the recording and raises CameraError saying how many frames
     were kept; they stay readable. Returns {"out", "frames", "seconds", "arm", "depth_out_of_range_px"} (depth
@@ -40,7 +42,8 @@ def record(
     count, t0, t = 0, None, 0.0
     with camera:
         first = camera.read()
-        with FramesWriter(out, camera.intrinsics, depth_scale, first.T_base_camera, source, simulated) as writer:
+        with FramesWriter(out, camera.intrinsics, depth_scale, first.T_base_camera, source, simulated,
+                          robot=robot) as writer:
             frame = first
             while True:
                 t0 = frame.t if t0 is None else t0
