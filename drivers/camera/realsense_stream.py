@@ -1,10 +1,12 @@
-"""The librealsense pipeline of the live D415 (also of a recording played as a camera, as the tests do): start,
-depth scale, post-processing, alignment of depth to colour, and framesets as `Frame`s. `RealSenseReplayCamera`
-plays recordings without it (see realsense_playback.py) but shares the filters and colour conversion here.
+"""The librealsense pipeline of the live RealSense camera (also of a recording played as a camera, as the tests
+do): start, depth scale, post-processing, alignment of depth to colour, and framesets as `Frame`s.
+`RealSenseReplayCamera` plays recordings without it (see realsense_playback.py) but shares the filters and colour
+conversion here.
 
-Recordings (playback, not real time) align depth to colour with `DepthAligner`: no rounding holes, and
-co-registered streams pass through unchanged. The live camera, and a stream with lens distortion, use
-librealsense's `rs.align` (C++, keeps up with 30 fps; it leaves some one-pixel rounding holes)."""
+Recordings (playback, not real time) and a colour lens with distortion align depth to colour with `DepthAligner`: no
+rounding holes, co-registered streams pass through unchanged, and the colour lens's distortion is applied (which
+librealsense's x86 `rs.align` leaves out). The live camera with undistorted lenses uses `rs.align` (C++, keeps up
+with 30 fps; it leaves some one-pixel rounding holes)."""
 
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import cv2
 import numpy as np
 import pyrealsense2 as rs
 
-from drivers.camera.base import Frame, Intrinsics
+from drivers.camera.base import DISTORTIONS, Frame, Intrinsics
 from drivers.camera.depth_align import DepthAligner
 from drivers.camera.realsense_config import HOLE_FILLING, FilterConfig
 
@@ -48,9 +50,14 @@ def build_filters(config: FilterConfig) -> list[rs.filter]:
 
 
 def intrinsics_of(profile: rs.video_stream_profile) -> Intrinsics:
-    """Our pinhole intrinsics from a librealsense video stream profile."""
+    """Our intrinsics, lens model and coefficients included, from a librealsense video stream profile; RuntimeError
+    for a fisheye lens model (a T265's), which frames cannot carry."""
     i = profile.get_intrinsics()
-    return Intrinsics(i.width, i.height, float(i.fx), float(i.fy), float(i.ppx), float(i.ppy))
+    if i.model.name not in DISTORTIONS:
+        raise RuntimeError(f"the {profile.stream_name()} stream's lens model {i.model.name} is not supported (only "
+                           f"{', '.join(DISTORTIONS)})")
+    return Intrinsics(i.width, i.height, float(i.fx), float(i.fy), float(i.ppx), float(i.ppy), i.model.name,
+                      tuple(float(c) for c in i.coeffs))
 
 
 class RealSenseStream:
@@ -82,6 +89,7 @@ class RealSenseStream:
             raise
         self._color_profile = color
         self._distorted = is_distorted(color)
+        self.depth_size = _size(self.profile.get_stream(rs.stream.depth).as_video_stream_profile())
         self._align = rs.align(rs.stream.color)
         self._aligners: dict[Intrinsics, DepthAligner] = {}
         self._filters = build_filters(filters)
@@ -124,7 +132,7 @@ class RealSenseStream:
         """The frameset's depth on the colour image's pixel grid, in metres."""
         depth = frames.get_depth_frame()
         profile = depth.get_profile().as_video_stream_profile()
-        if self.playback is None or self._distorted or is_distorted(profile):
+        if self.playback is None and not (self._distorted or is_distorted(profile)):
             aligned = self._align.process(frames).get_depth_frame()
             return np.asanyarray(aligned.get_data()).astype(np.float32) * np.float32(self.depth_scale)
         intrinsics = intrinsics_of(profile)
@@ -146,6 +154,10 @@ class RealSenseStream:
             self.pipeline.stop()
         except RuntimeError:
             pass
+
+
+def _size(profile: rs.video_stream_profile) -> tuple[int, int]:
+    return profile.width(), profile.height()
 
 
 def to_rgb(color: rs.frame, color_format: rs.format) -> np.ndarray:
