@@ -82,9 +82,8 @@ class RealSenseCamera(Camera):
         if self._stream is not None:
             return
         c = self.config
-        pipeline = self.link.pipeline_config()
         try:
-            stream = RealSenseStream(pipeline, c.filters)
+            stream = RealSenseStream(self.link.pipeline_config(), c.filters)
         except RuntimeError as exc:
             raise CameraError(
                 f"{self.link.name}: could not start {self._asked()} ({exc}); check the profiles in `deploy cameras "

@@ -81,6 +81,8 @@ class RealSenseStream:
             color = self.profile.get_stream(rs.stream.color).as_video_stream_profile()
             self.fps = color.fps()
             self.intrinsics = intrinsics_of(color)
+            depth = self.profile.get_stream(rs.stream.depth).as_video_stream_profile()
+            self.depth_size = depth.width(), depth.height()
             self.color_format = color.format()
             if self.color_format not in _TO_RGB:
                 raise RuntimeError(f"colour format {self.color_format} is not RGB8/BGR8/RGBA8/BGRA8")
@@ -89,7 +91,6 @@ class RealSenseStream:
             raise
         self._color_profile = color
         self._distorted = is_distorted(color)
-        self.depth_size = _size(self.profile.get_stream(rs.stream.depth).as_video_stream_profile())
         self._align = rs.align(rs.stream.color)
         self._aligners: dict[Intrinsics, DepthAligner] = {}
         self._filters = build_filters(filters)
@@ -154,10 +155,6 @@ class RealSenseStream:
             self.pipeline.stop()
         except RuntimeError:
             pass
-
-
-def _size(profile: rs.video_stream_profile) -> tuple[int, int]:
-    return profile.width(), profile.height()
 
 
 def to_rgb(color: rs.frame, color_format: rs.format) -> np.ndarray:
