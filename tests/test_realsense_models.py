@@ -123,19 +123,31 @@ def test_the_live_camera_reads_each_model(recordings):
         assert square.sum() > 1000, name
 
 
-def test_perception_drops_depth_nearer_than_the_cameras_minimum_range():
-    config = Config().for_range(0.52)
-    assert config.geometry.min_depth_m == 0.52 and config.geometry.near_m == 0.52
-    assert Config().for_range(None).geometry.near_m == 0.1  # a camera that does not say
-    assert Config().replace(geometry={"min_depth_m": 0.2}).for_range(0.52).geometry.near_m == 0.2  # the user's
-    from deploy.axis_pipeline import frame_points
+def test_perception_drops_depth_nearer_than_the_cameras_minimum_range(tmp_path):
+    """The episode's observer takes its near limit from the camera (here a recording whose meta.json keeps a D455's
+    0.52 m), unless the config sets one; a camera that does not say keeps 0.1 m."""
+    from deploy.control.observer import Observer
     from drivers.camera.base import Frame, Intrinsics
+    from drivers.camera.frames_dir import FramesReplayCamera, FramesWriter
 
+    intrinsics = Intrinsics(64, 48, 50.0, 50.0, 31.5, 23.5)
     depth = np.full((48, 64), 0.45, np.float32)
-    depth[:, 32:] = 0.8
-    frame = Frame(0, 0.0, np.zeros((48, 64, 3), np.uint8), depth, Intrinsics(64, 48, 50.0, 50.0, 31.5, 23.5))
+    depth[:, 32:] = 0.8  # half the image nearer than a D455 measures
+    frame = Frame(0, 0.0, np.zeros((48, 64, 3), np.uint8), depth, intrinsics)
+    for name, min_range_m in (("d455", 0.52), ("unknown", None)):
+        with FramesWriter(tmp_path / name, intrinsics, min_range_m=min_range_m) as writer:
+            writer.write(frame)
+    d455, unknown = FramesReplayCamera(tmp_path / "d455"), FramesReplayCamera(tmp_path / "unknown")
+    assert d455.min_range_m == 0.52 and unknown.min_range_m is None
     mask = np.ones((48, 64), bool)
-    assert len(frame_points(frame, mask, Config().for_range(0.52))) == len(frame_points(frame, mask, Config())) // 2
+
+    def points(config, camera):
+        return len(Observer(camera, None, None, config, None).points(frame, mask))
+
+    everything = points(Config(), unknown)  # 0.1 m
+    assert everything == 48 * 64 // 4  # the pipeline's decimation 2
+    assert points(Config(), d455) == everything // 2
+    assert points(Config().replace(geometry={"min_depth_m": 0.2}), d455) == everything  # the user's own
 
 
 @pytest.mark.parametrize("name", list(DEVICES))
