@@ -2,6 +2,7 @@
 reconnect -> one clear error, recording kept when the camera vanishes) on real librealsense pipelines fed from
 a recorded .db3 instead of USB; config validation; device description; no-camera errors."""
 
+import threading
 import time
 
 import pyrealsense2 as rs
@@ -113,6 +114,22 @@ def test_recording_stops_safely_and_keeps_frames_when_the_camera_vanishes(db3, t
     assert len(rec) == len(kept) >= 3
     times = [rec.frame(i).t for i in range(len(rec))]
     assert times == sorted(set(times))
+
+
+def test_reader_finishes_only_the_frames_read():
+    items, finished, polled = iter(range(50)), [], threading.Event()
+
+    def poll(timeout_s):
+        item = next(items, None)
+        if item is None:  # all 50 polled (and the last kept)
+            polled.set()
+            time.sleep(timeout_s)
+        return item
+
+    reader = LatestFrameReader(poll, lambda item: finished.append(item) or item, poll_timeout_s=0.01)
+    assert polled.wait(30)
+    assert reader.read(1.0) == 49 and finished == [49]  # the newest, and only it, made a frame
+    reader.stop()
 
 
 def test_reader_hands_over_errors_and_timeouts():

@@ -98,7 +98,7 @@ class RealSenseCamera(Camera):
             stream.stop()
             raise
         self._stream, self._fps = stream, stream.fps
-        self._reader = LatestFrameReader(stream.poll)
+        self._reader = LatestFrameReader(stream.poll, stream.to_frame)
 
     def _asked(self) -> str:
         s = self.config.stream(self.link.model)

@@ -99,10 +99,11 @@ class RealSenseStream:
         self._last_depth_number: int | None = None
         self.timed_out = False  # whether the last poll got no frameset at all
 
-    def poll(self, timeout_s: float) -> Frame | None:
-        """The next aligned frame, or None if none arrived within `timeout_s` (then `timed_out`). In playback, partial
-        framesets (colour and depth more than half a frame period apart, which the syncer emits when
-        not in real time) and repeated depth frames are skipped."""
+    def poll(self, timeout_s: float) -> rs.composite_frame | None:
+        """The next frameset, kept out of librealsense's frame pool for `to_frame`, or None if none arrived within
+        `timeout_s` (then `timed_out`). In playback, partial framesets (colour and depth more than half a frame period
+        apart, which the syncer emits when not in real time) and repeated depth frames are skipped. The first
+        frameset is the origin of the frames' index and time."""
         ok, frames = self.pipeline.try_wait_for_frames(max(1, int(timeout_s * 1000)))
         self.timed_out = not ok
         if not ok:
@@ -116,13 +117,15 @@ class RealSenseStream:
             if number == self._last_depth_number or apart_ms > 500.0 / self.fps:
                 return None
             self._last_depth_number = number
-        return self._to_frame(frames)
+        if self._t0_ms is None:
+            self._t0_ms, self._n0 = depth.get_timestamp(), depth.get_frame_number()
+        frames.keep()
+        return frames
 
-    def _to_frame(self, frames: rs.composite_frame) -> Frame:
+    def to_frame(self, frames: rs.composite_frame) -> Frame:
+        """A frameset of `poll` as a `Frame`: post-processed, depth aligned to colour, colour as RGB."""
         depth = frames.get_depth_frame()
         stamp_ms, number = depth.get_timestamp(), depth.get_frame_number()
-        if self._t0_ms is None:
-            self._t0_ms, self._n0 = stamp_ms, number
         for f in self._filters:
             frames = f.process(frames).as_frameset()
         rgb = to_rgb(frames.get_color_frame(), self.color_format)
