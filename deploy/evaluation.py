@@ -27,6 +27,9 @@ def true_board_corner(scene, board) -> np.ndarray:
     return scene.true_board[:3, :3] @ p + scene.true_board[:3, 3]
 
 
+USER_STREAM = 35  # the episode's random stream of its simulated user (arm signals, camera, calibration: others)
+
+
 class Evaluation:
     """The truth of `world` (sim_fallback.world.SimWorld) at the start of an episode, and the scoring after it."""
 
@@ -34,6 +37,15 @@ class Evaluation:
         self.world = world
         self.truth0 = world.truth()
         self.joint = JointType(self.truth0.joint_type)
+
+    def user_point(self, camera, seed: int) -> tuple[int, int] | None:
+        """The pixel (u, v) a user would point at on the target part's front in `camera`'s (the simulated camera
+        of the rig) view now, drawn from the episode's `seed` (sim_fallback.user); None when the part is not seen."""
+        from sim_fallback.user import user_pixel
+
+        t = self.truth0
+        return user_pixel(camera.link_image(), t.body_id, self.world.cabinet_joint, t.links,
+                          np.random.default_rng([seed, USER_STREAM]))
 
     def true_axis(self) -> Axis:
         """The true joint axis at the start (base frame), for the viewer."""

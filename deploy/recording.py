@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from deploy.errors import ConfigError
-from deploy.rig import Rig, RigSpec, open_rig
+from deploy.rig import Rig, RigSpec, SimScene, open_rig
 from drivers.camera.base import Frame
 from drivers.camera.record import ArmReading, record
 from drivers.camera.registry import CAMERAS, check_stream_size, simulated_source, stream_options
@@ -26,12 +26,13 @@ VIEW_FILE = "recording.rrd"  # in the recording's folder, with --view
 def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float | None = None,
                arm: str | None = None, robot: Path | None = None, camera_options: dict[str, Any] | None = None,
                progress: Callable[[Frame], None] | None = None, view: bool = False,
-               calibration: Path | None = None, sim_faults: list | None = None) -> dict:
+               calibration: Path | None = None, sim_faults: list | None = None, world: str = "kitchen") -> dict:
     """Record `camera` (a registry spec) to `out` for `frames` frames or `seconds` s, with `arm`'s joint states
     and tool pose per frame when given; `view` also shows the frames in rerun and saves OUT/recording.rrd.
     `calibration`: the hand-eye file giving a real camera's pose (default: the one saved for it and the robot);
     a camera on the arm (eye-in-hand) gets its pose per frame from the arm's tool pose (`deploy.rig`).
-    `sim_faults` (`--sim-fault`, arm sim-can): each breaks the simulated motors SECONDS into the recording.
+    `sim_faults` (`--sim-fault`, arm sim-can): each breaks the simulated motors SECONDS into the recording. `world`:
+    the simulated camera's (the drawer scene of seed 0 in it).
     Returns {"out", "frames", "seconds", "arm", "camera", "simulated"} (and "rrd" with `view`)."""
     _check_calibration(camera, arm, calibration)
     options = stream_options(camera, camera_options or {})
@@ -40,18 +41,25 @@ def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float
         from deploy.report.viewer import RerunViewer
 
         viewer = RerunViewer(out / VIEW_FILE)
-    with open_rig(RigSpec(camera=camera, arm=arm, robot=robot, calibration=calibration,
-                          camera_options=options)) as rig:
+    with open_rig(RigSpec(camera=camera, arm=arm, robot=robot, calibration=calibration, camera_options=options,
+                          scene=SimScene(world=world))) as rig:
         check_stream_size(camera, camera_options or {}, rig.camera)
 
         latest: dict[str, np.ndarray] = {}  # the arm's last reading: the tool pose shown with its frame
         faults = _sim_faults_by_frame(rig, sim_faults or [])
 
+        robot_shown: list[bool] = []
+
         def each(frame: Frame) -> None:
             if faults is not None:
                 faults(frame)
-            if viewer is not None:
+            if viewer is not None:  # its file goes into the recording's folder: opened once the recording is there
+                if "q" in latest and not robot_shown:
+                    viewer.robot(rig.robot.urdf_path(), rig.robot.joint_names, rig.robot.locked_joints)
+                    robot_shown.append(True)
                 viewer.frame(frame.t, frame, frame.mask, latest.get("tool"))
+                if "q" in latest:
+                    viewer.arm(frame.t, latest["q"])
             if progress is not None:
                 progress(frame)
 
@@ -59,7 +67,7 @@ def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float
         simulated = simulated_source(camera)
         try:
             summary = record(rig.camera, out, frames, seconds, progress=each, source=camera, simulated=simulated,
-                             arm=reading)
+                             arm=reading, robot=rig.robot.reference if arm is not None else None)
         finally:
             if viewer is not None:
                 viewer.close()
@@ -109,7 +117,7 @@ def _arm_reading(rig: Rig, latest: dict[str, np.ndarray]) -> ArmReading:
     def read() -> tuple[np.ndarray, np.ndarray]:
         arm.probe()  # a CAN arm asks every motor for one feedback frame
         q = np.asarray(arm.state().q, float)
-        latest["tool"] = kin.fk(q)
+        latest["tool"], latest["q"] = kin.fk(q), q
         return q, latest["tool"]
 
     return read

@@ -57,13 +57,28 @@ SIM_SERIAL = "sim-d415"  # the simulated camera's serial, naming its calibration
 
 @dataclass(frozen=True)
 class SimScene:
-    """The simulated opening scenario: a cabinet with a drawer or a door (`Scenario.make(task, seed, split)`) whose
-    joint is in `condition` ("normal", "locked" or "stiff": 3x the friction); the controller is never told."""
+    """The simulated opening scenario (sim_fallback.scenes.scene_scenario): a drawer or a door in `world` ("kitchen",
+    or "box": one cabinet in empty space), the `part` a user names (None: the seed picks a reachable one), in a
+    kitchen a PartNet-Mobility object `object_id` of the folder `assets` (None: the seed's) loaded at `scale`
+    ("real" or "native"); its joint in `condition` ("normal", "locked" or "stiff": 3x the friction). The controller
+    is never told any of it."""
 
     task: Literal["drawer", "door"] = "drawer"
     seed: int = 0
     split: Literal["train", "test"] = "train"
     condition: Literal["normal", "locked", "stiff"] = "normal"
+    world: str = "kitchen"
+    part: str | None = None
+    assets: Path | None = None
+    object_id: str | None = None
+    scale: str = "real"
+
+    def scenario(self):
+        """The scenario it names (SceneError or PartNetError, one line, when it cannot be built)."""
+        from sim_fallback.scenes import scene_scenario
+
+        return scene_scenario(self.world, self.task, self.seed, self.split, self.part, self.assets, self.object_id,
+                              self.scale, self.condition)
 
 
 @dataclass(frozen=True)
@@ -98,8 +113,8 @@ class RigSpec:
 
 @dataclass
 class Rig:
-    """Open devices. `world` (simulation only) and `board` (a calibration scene's) are for evaluation and test
-    set-up, never for the controller."""
+    """Open devices. `world`, `sim_camera` (simulation only) and `board` (a calibration scene's) are for evaluation
+    and test set-up, never for the controller."""
 
     spec: RigSpec
     robot: RobotConfig
@@ -110,6 +125,7 @@ class Rig:
     serial: str | None = None
     world: SimWorld | None = None
     board: Any = None  # sim_fallback.board.CalibrationRig of a BoardScene
+    sim_camera: Any = None  # the simulated camera behind `camera` (its truth images: evaluation only)
 
     @property
     def simulated(self) -> bool:
@@ -226,14 +242,12 @@ def _open_simulated(rig: Rig, stack: ExitStack) -> None:
         board_rig = stack.enter_context(board_scene(spec.scene))
         rig.world, rig.board, camera = board_rig.world, board_rig, board_rig.camera
     else:
-        from sim_fallback.scenario import Scenario
         from sim_fallback.world import SimWorld
 
         scene = spec.scene
-        rig.world = stack.enter_context(SimWorld(Scenario.make(scene.task, scene.seed, scene.split,
-                                                               condition=scene.condition)))
-        sim_camera = CAMERAS.open(spec.camera, world=rig.world, seed=scene.seed, labels=_needs_labels(spec),
-                                  **spec.camera_options)
+        rig.world = stack.enter_context(SimWorld(scene.scenario()))
+        sim_camera = rig.sim_camera = CAMERAS.open(spec.camera, world=rig.world, seed=scene.seed,
+                                                   labels=_needs_labels(spec), **spec.camera_options)
         T_calibrated = simulated_calibration(sim_camera.T_base_camera, *spec.calibration_error,
                                              np.random.default_rng([scene.seed, 7]))
         camera = PosedCamera(sim_camera, lambda: T_calibrated.copy())

@@ -108,6 +108,9 @@ class SimArm(Arm):
             self._sensed = (self._clock.steps, self.torque_sensing.measure(tau, self._clock.time))
         return self._sensed[1].copy()
 
+    def commanded_q(self) -> np.ndarray:
+        return self._q_prev_cmd.copy()
+
     def command(self, q: np.ndarray, dq: np.ndarray | None = None) -> None:
         q = np.asarray(q, float)
         dq = np.zeros_like(q) if dq is None else np.asarray(dq, float)

@@ -1,7 +1,7 @@
 """Simulation speed (`bench sim`): physics steps per second, what a camera frame costs and the real-time factor
-of an opening, in the scenario's world (`box`) or with its cabinet in a kitchen of static boxes (`kitchen`:
-sim_fallback.camera_scenes.add_kitchen: floor, wall, a run of units with fronts and handles, a countertop).
-The simulated D415's depth on walls (`bench depth`): fill rate and error of both depth models.
+of an opening, on the drawer scenarios of a world (`kitchen`: the seeded kitchens of docs/kitchens.md; `box`: one
+cabinet in empty space). The simulated D415's depth on walls (`bench depth`): fill rate and error of both depth
+models.
 """
 
 from __future__ import annotations
@@ -17,15 +17,16 @@ from drivers.arm.trajectory import MotionLimits
 from drivers.camera.depth_noise import DepthNoise
 from sim_fallback.arm import SimArm
 from sim_fallback.camera import SimCamera, d415_intrinsics
-from sim_fallback.camera_scenes import add_kitchen, look_along_x, wall
+from sim_fallback.camera_scenes import look_along_x, wall
+from sim_fallback.errors import SceneError
 from sim_fallback.furniture import Finish
 from sim_fallback.render.renderer import RayRenderer
 from sim_fallback.render.stereo import ActiveStereo
-from sim_fallback.scenario import Scenario
+from sim_fallback.scenario import make_scenario
 from sim_fallback.scripted import grasp_handle, open_along_truth
 from sim_fallback.world import SimWorld
+from sim_fallback.worlds import WORLDS
 
-WORLDS = ("kitchen", "box")
 OPENING_S = 10.0  # simulated duration of the timed opening
 OPENING_M = 0.2  # drawer travel during it (a slow, steady pull)
 PHYSICS_TICKS = 2400
@@ -46,7 +47,7 @@ def bench_sim(episodes: int = 1, world: str = "kitchen", progress: Callable[[str
     exact depth; _cpu: simulated / the process's CPU time (what a core of its own would give on a busy machine).
     """
     if world not in WORLDS:
-        raise ValueError(f"unknown world {world!r}: use one of {', '.join(WORLDS)}")
+        raise SceneError(f"--world {world!r} is not a world: use one of {', '.join(WORLDS)}")
     steps, hd, first = [], [], []
     rtf, rtf_cpu = {name: [] for name in DEPTH_MODELS}, {name: [] for name in DEPTH_MODELS}
     frames: dict[str, list[dict]] = {"model": [], "stereo": []}
@@ -90,10 +91,7 @@ def bench_sim(episodes: int = 1, world: str = "kitchen", progress: Callable[[str
 
 
 def _world(seed: int, world: str) -> SimWorld:
-    w = SimWorld(Scenario.make("drawer", seed))
-    if world == "kitchen":
-        add_kitchen(w, seed)
-    return w
+    return SimWorld(make_scenario(world, "drawer", seed))
 
 
 def _median_ms(fn, n: int) -> float:

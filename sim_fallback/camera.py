@@ -86,6 +86,14 @@ class SimCamera(Camera):
     def intrinsics(self) -> Intrinsics:
         return self._intrinsics
 
+    @property
+    def depth_model(self) -> str:
+        """Which depth model the camera measures with, as reports name it."""
+        if self._stereo is not None:
+            return "active stereo (SGBM on the projector's dots)"
+        known = {DepthNoise.d415(): "D415 artefact model", DepthNoise.none(): "exact"}
+        return known.get(self.noise, "artefact model (custom)")
+
     def connect(self) -> None:
         """(Re)start the stream: the next frame is the next slot; the noise stream restarts from the seed."""
         self._rng = np.random.default_rng(self._seed)
@@ -127,8 +135,9 @@ class SimCamera(Camera):
 
     def link_image(self) -> np.ndarray:
         """(H, W, 2) int32 (body id, link index; -1 for a base) seen at each pixel now, (-1, -1) where nothing:
-        ground truth for evaluation (e.g. a simulated user's pixel on a part), never for the controller."""
-        return self._capture().links
+        ground truth for evaluation (e.g. a simulated user's pixel on a part), never for the controller. It draws
+        nothing from the camera's noise stream: its frames are the same whether it is called or not."""
+        return self._renderer.links(self.T_base_camera)
 
     def _labels(self, seg: np.ndarray) -> np.ndarray:
         """SegLabels from PyBullet-style object/link ids (object id = seg & 0xFFFFFF, link = (seg >> 24) - 1, -1

@@ -53,6 +53,16 @@ def episode_signals(robot: RobotConfig, seed: int) -> EpisodeSignals:
     return EpisodeSignals(TorqueSensing.for_robot(robot, rng.integers(2**63)), pad_friction)
 
 
+def sensor_models(camera: SimCamera, robot: RobotConfig, seed: int) -> dict:
+    """The sensor models in force in episode `seed` (for run folders and benchmark JSON): the camera's depth model,
+    the arm's torque sensing, the pads' friction range and the friction drawn."""
+    signals = episode_signals(robot, seed)
+    torques = "exact (PyBullet's applied torques)" if signals.torque_sensing is None else \
+        "motor current as Damiao motors measure it: 12 bits over +-TMAX, offset, drifting bias, noise"
+    return {"depth": camera.depth_model, "torque_sensing": torques, "pad_friction_range": list(PAD_FRICTION_RANGE),
+            "pad_friction": round(signals.pad_friction, 4)}
+
+
 def open_sim_camera(_argument: str, world: SimWorld | None = None, width: int = 640, height: int = 480,
                     fps: float = 10.0, seed: int = 0, noise: DepthNoise | None = None,
                     intrinsics: Intrinsics | None = None, labels: bool = False) -> SimCamera:

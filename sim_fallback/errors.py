@@ -1,7 +1,9 @@
-"""Errors of the simulated world's set-up."""
+"""Errors of the simulated world's set-up: user errors (the CLI prints them as one line, exit 2)."""
+
+from drivers.errors import DriverError
 
 
-class SceneError(ValueError):
+class SceneError(DriverError):
     """A scene that cannot be built as asked (an unknown world, a part the furniture does not have, no part within
     the robot's reach); the message names the thing, the cause and the fix."""
 

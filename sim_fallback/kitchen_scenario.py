@@ -105,12 +105,27 @@ def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Ge
             raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} is out of the robot's "
                              f"reach: {_reach(placed, [chosen], task)}")
         return chosen
-    parts = ordered(geometry, task)
-    reachable = [g for g in parts if base_heights(_grip_height(placed, g), task) is not None]
+    reachable = reachable_parts(placed, geometry, task)
     if not reachable:
-        raise PartError(f"{placed.furniture.source} has no {task} within the robot's reach: "
-                         f"{_reach(placed, parts, task)}")
+        raise PartError(_no_reach(placed, geometry, task))
     return reachable[int(rng.integers(len(reachable)))]
+
+
+def reach_problem(furniture: Furniture, task: PartKind) -> str | None:
+    """Why `furniture`, standing on the floor as a given target does, has no part of the task's kind the robot can
+    reach (one line); None when it has one."""
+    placed, geometry = Placed(furniture, (0.0, 0.0, 0.0, 0.0)), measure_parts(furniture)
+    return None if reachable_parts(placed, geometry, task) else _no_reach(placed, geometry, task)
+
+
+def reachable_parts(placed: Placed, geometry: list[PartGeometry], task: PartKind) -> list[PartGeometry]:
+    """The parts of the task's kind (in a user's order) whose grip some robot base height brings into reach."""
+    return [g for g in ordered(geometry, task) if base_heights(_grip_height(placed, g), task) is not None]
+
+
+def _no_reach(placed: Placed, geometry: list[PartGeometry], task: PartKind) -> str:
+    return (f"{placed.furniture.source} has no {task} within the robot's reach: "
+            f"{_reach(placed, ordered(geometry, task), task)}")
 
 
 def _grip_height(placed: Placed, part: PartGeometry) -> float:

@@ -24,6 +24,7 @@ from sim_fallback.placement import (  # noqa: F401 - the box world's placement r
     look_at,
 )
 from sim_fallback.start import CONDITIONS, Q_START, START_JITTER_RAD, Condition  # noqa: F401
+from sim_fallback.worlds import WORLDS
 
 Task = Literal["drawer", "door"]
 MIN_PEDESTAL_M = (0.01, 0.05)  # RGBManip's base-height range, used when the cabinet is tall enough
@@ -144,6 +145,3 @@ def make_scenario(world: str, task: Task, seed: int, split: Split = "train", par
         return KitchenScenario.make(task, seed, split, part=part, target=target, condition=condition)
     raise SceneError(f"--world {world!r} is not a world: use one of {', '.join(WORLDS)}")
 
-
-WORLDS = {"kitchen": "a kitchen around the target (the default)",
-          "box": "one cabinet on a pedestal in empty space (the ablation)"}

@@ -38,7 +38,7 @@ from drivers.errors import ArmError
 from sim_fallback.arm import SimArm
 from sim_fallback.cabinet_urdf import Kind, Split
 from sim_fallback.camera import SimCamera, d415_intrinsics
-from sim_fallback.scenario import make_scenario
+from sim_fallback.scenes import scenario_object, scene_scenario
 from sim_fallback.start import Q_START
 from sim_fallback.world import JointTruth, SimWorld
 
@@ -166,7 +166,7 @@ class RecordingSummary:
 
 
 def record_scripted(
-    task: Kind,
+    task: Kind | None,
     seed: int,
     out_dir: str | Path,
     split: Split = "train",
@@ -174,11 +174,16 @@ def record_scripted(
     fps: float = 10.0,
     resolution: tuple[int, int] = (640, 480),
     progress: Callable[[str, int], None] | None = None,
-    world: str = "box",
+    world: str = "kitchen",
     part: str | None = None,
+    assets: Path | None = None,
+    object_id: str | None = None,
+    scale: str = "real",
 ) -> RecordingSummary:
-    """Record a scripted opening of scenario `seed` of `world` ("box", or "kitchen" with `part` its target part as a
-    user names it, default the seed's) driven by GROUND TRUTH (a data generator, not the policy).
+    """Record a scripted opening of scenario `seed` of `world` ("kitchen", or "box": one cabinet in empty space) with
+    `part` its target part as a user names it (default the seed's), in a kitchen the PartNet-Mobility object
+    `object_id` of `assets` at `scale` when given (sim_fallback.scenes; task None: the object's), driven by GROUND
+    TRUTH (a data generator, not the policy).
 
     Writes the frames-directory format at `out_dir` (colour, noisy depth, object mask including the
     handle, T_base_camera, joint positions, tool pose and `grasped` per frame: false over the approach until the
@@ -187,12 +192,13 @@ def record_scripted(
     default 0.2) or rad (door, default 30 deg). progress(phase, frames) follows every frame written (phase: "grasp",
     "open" or "hold").
     """
-    target = DEFAULT_TARGET[task] if target is None else float(target)
     out = Path(out_dir)
     wall0 = time.perf_counter()
-    log.info("scripted %s opening from GROUND TRUTH (data generator, not the policy): %s seed %d, split %s",
-             task, world, seed, split)
-    scenario = make_scenario(world, task, seed, split, part=part)  # type: ignore[arg-type]
+    scenario = scene_scenario(world, task, seed, split, part, assets, object_id, scale)
+    task = scenario.task
+    target = DEFAULT_TARGET[task] if target is None else float(target)
+    log.info("scripted %s opening from GROUND TRUTH (data generator, not the policy): %s seed %d, split %s, %s",
+             task, world, seed, split, scenario_object(scenario))
     with SimWorld(scenario) as sim:
         arm = SimArm(sim)
         camera = SimCamera(sim, intrinsics=d415_intrinsics(*resolution), seed=seed, fps=fps, labels=True, posed=True)
@@ -224,7 +230,9 @@ def record_scripted(
         truth = sim.truth()
         (out / "truth.json").write_text(json.dumps({
             "source": "simulator ground truth (scripted data generator)",
-            "task": task, "seed": seed, "split": split, "world": world, "part": truth.part, "target": target,
+            "task": task, "seed": seed, "split": split, "world": world, "part": truth.part,
+            "furniture": scenario_object(scenario), "assets": None if assets is None else str(assets),
+            "object": object_id, "scale": scale if assets is not None else None, "target": target,
             "joint_type": truth.joint_type,
             "origin": truth.origin.tolist(), "direction": truth.direction.tolist(),
             "joint_upper": truth.upper, "joint_values": joint_values,

@@ -11,7 +11,9 @@ from drivers.camera.base import SegLabel
 from drivers.errors import RecordingError
 from sim_fallback.cabinet_urdf import Kind, Split
 from sim_fallback.camera import SimCamera, d415_intrinsics
-from sim_fallback.scenario import make_scenario
+from sim_fallback.kitchen_scenario import KitchenScenario
+from sim_fallback.scenario import Scenario
+from sim_fallback.scenes import scene_scenario
 from sim_fallback.world import SimWorld
 
 SEG_COLOURS_RGB = {SegLabel.BACKGROUND: (40, 40, 40), SegLabel.OBJECT: (70, 130, 230),
@@ -19,20 +21,26 @@ SEG_COLOURS_RGB = {SegLabel.BACKGROUND: (40, 40, 40), SegLabel.OBJECT: (70, 130,
 
 
 def render_scene_png(
-    task: Kind,
+    task: Kind | None,
     seed: int,
     out_path: str | Path,
     split: Split = "train",
     resolution: tuple[int, int] = (640, 480),
-    world: str = "box",
+    world: str = "kitchen",
     part: str | None = None,
-) -> Path:
-    """Render the first camera frame (D415 noise on) of scenario `seed` of `world` ("box", or "kitchen" with `part`
-    its target part as a user names it) and write the three panels to `out_path`."""
+    assets: Path | None = None,
+    object_id: str | None = None,
+    scale: str = "real",
+) -> tuple[Path, Scenario | KitchenScenario]:
+    """Render the first camera frame (D415 noise on) of scenario `seed` of `world` ("kitchen", or "box": one cabinet
+    in empty space) with `part` its target part as a user names it, in a kitchen the PartNet-Mobility object
+    `object_id` of `assets` at `scale` when given (sim_fallback.scenes; task None: the object's), and write the
+    three panels to `out_path`; the path and the scenario."""
     out = Path(out_path)
     if out.suffix.lower() != ".png":
         raise ValueError(f"scene image {out}: the file name must end in .png")
-    with SimWorld(make_scenario(world, task, seed, split, part=part)) as sim:
+    scenario = scene_scenario(world, task, seed, split, part, assets, object_id, scale)
+    with SimWorld(scenario) as sim:
         frame = SimCamera(sim, intrinsics=d415_intrinsics(*resolution), seed=seed, labels=True).read()
     depth = frame.depth_m
     valid = depth > 0
@@ -47,4 +55,4 @@ def render_scene_png(
     out.parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(out), panel):
         raise RecordingError(f"could not write {out}: check that the directory is writable and ends in .png")
-    return out
+    return out, scenario

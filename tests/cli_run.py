@@ -17,7 +17,8 @@ def one_line(err: str) -> str:
 
 
 def small_recording(path):
-    """`deploy record` of the simulated camera at `path`: 6 frames of 160x120, no masks; returns `path`."""
-    assert main(["record", "--camera", "sim", "--out", str(path), "--frames", "6", "--width", "160",
+    """`deploy record` of the simulated camera at `path` in the box world (one cabinet): 6 frames of 160x120, no
+    masks; returns `path`."""
+    assert main(["record", "--camera", "sim", "--world", "box", "--out", str(path), "--frames", "6", "--width", "160",
                  "--height", "120"]) == 0
     return path

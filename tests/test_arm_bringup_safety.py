@@ -153,7 +153,7 @@ def test_two_quick_ctrl_c_on_the_cli_keep_the_motor_report_and_shut_the_bus_down
 def test_repeated_ctrl_c_during_an_opening_still_finishes_the_run_folder_with_the_motors(tmp_path):
     run_dir = tmp_path / "run"
     frames = run_dir / "frames" / "frames.jsonl"
-    process = _deploy("open-drawer", "--arm", "sim-can", "--seed", "1", "--run-dir", str(run_dir))
+    process = _deploy("open-drawer", "--world", "box", "--arm", "sim-can", "--seed", "1", "--run-dir", str(run_dir))
     end = time.monotonic() + 120
     while not (frames.exists() and frames.read_text().count("\n") >= 3):
         assert process.poll() is None, process.communicate()

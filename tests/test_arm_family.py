@@ -66,7 +66,7 @@ def servo_panda(monkeypatch, tmp_path):
 
 def test_an_arm_family_registered_elsewhere_runs_a_whole_simulated_opening(servo_panda):
     request = OpenRequest(task="drawer", scene="drawer", distance_m=0.15, arm=KIND, robot=servo_panda,
-                          segmenter="rgbd", seed=0, split="train")
+                          segmenter="rgbd", seed=0, split="train", world="box")
     result = open_object(request, keep_run_dir=False)
     assert result["arm"] == KIND and "motors" not in result  # no motors of its own to report
     assert result["stop_reason"] == StopReason.TARGET_REACHED, result["message"]

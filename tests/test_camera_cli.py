@@ -100,12 +100,14 @@ def test_record_with_the_arm_stores_joints_and_tool_pose_and_views(capsys, tmp_p
     summary = json.loads(printed)
     assert summary["arm"] and summary["simulated"] and summary["rrd"] == str(out / "recording.rrd")
     rec = FramesRecording(out)
-    assert rec.simulated and rec.camera == "sim"
+    assert rec.simulated and rec.camera == "sim" and rec.robot == "panda_sim"  # the joints' robot, named
     for record in rec.records:
         assert len(record["joint_positions"]) == 7 and np.shape(record["ee_pose"]) == (4, 4)
     assert 0.2 < record["ee_pose"][2][3] < 1.2  # the Panda's tool, above the floor
     found = entities(out / "recording.rrd")
     assert found["/world/camera/image/color"]["rows"] == 2 and found["/world/gripper"]["rows"] == 2
+    assert found["/joints/panda_joint1/measured"]["rows"] == 2  # the joints read with each frame, and the robot:
+    assert "/world/panda/visual_geometries/panda_hand/visual_0" in found
 
 
 def test_snapshot(capsys, db3, tmp_path):

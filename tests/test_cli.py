@@ -145,7 +145,7 @@ def test_axis_demo_prints_every_estimator(capsys):
 
 
 def test_open_drawer_in_simulation_json(capsys, tmp_path):
-    code, out, err = run(capsys, "open-drawer", "--seed", "1", "--distance", "0.15", "--run-dir",
+    code, out, err = run(capsys, "open-drawer", "--world", "box", "--seed", "1", "--distance", "0.15", "--run-dir",
                          str(tmp_path / "run"), "--view", "--json")
     data = json.loads(out)
     lines = [line for line in err.splitlines() if line.startswith("step ")]
@@ -160,6 +160,36 @@ def test_open_drawer_in_simulation_json(capsys, tmp_path):
     assert data["filter"] == {"profile": "sim", "radius_m": 0.05, "eps": 100}  # simulation: the paper's sim setting
     assert data["axis"]["joint_type"] == "prismatic"
     assert (tmp_path / "run" / "report.png").is_file()
+    frames = len((tmp_path / "run" / "frames" / "frames.jsonl").read_text().splitlines())
+    assert data["rrd"] == {"path": str(tmp_path / "run" / "episode.rrd"), "live": False}  # no display here
+    _assert_episode_view(found, frames, steps=len(lines))
+    code, out, err = run(capsys, "export", str(tmp_path / "run"), "--format", "rrd", "--out", str(tmp_path / "run.rrd"))
+    exported = entities(tmp_path / "run.rrd")  # the run folder's recording and steps.json, exported
+    assert code == 0 and exported["/world/object/cloud"]["rows"] == len(lines), err
+    assert exported["/world/axis/estimated"]["rows"] == len(lines) and "/world/paths/00/executed" in exported
+    assert "/world/panda/visual_geometries/panda_link3/visual_0" in exported
+    assert exported["/joints/panda_joint4/commanded"]["rows"] == frames
+
+
+def _assert_episode_view(found: dict, frames: int, steps: int) -> None:
+    """An episode's .rrd: the robot from its URDF posed by the joints, the joints and their commands, compressed
+    colour and depth images, and per step the clouds and the axis with its confidence."""
+    meshes = [e for e in found if e.startswith("/world/panda/visual_geometries/")]
+    assert len(meshes) >= 8 and all("Asset3D:blob" in found[e]["components"] for e in meshes)
+    for joint in (f"panda_joint{i}" for i in range(1, 8)):
+        assert "Transform3D:child_frame" in found[f"/world/robot_joints/{joint}"]["components"]
+        assert found[f"/world/robot_joints/{joint}"]["rows"] > frames  # every frame, and during the motions
+        for kind in ("measured", "commanded"):
+            assert found[f"/joints/{joint}/{kind}"]["rows"] > frames and "Scalars:scalars" in found[
+                f"/joints/{joint}/{kind}"]["components"]
+    assert found["/world/camera/image/color"]["rows"] == frames
+    assert "EncodedImage:blob" in found["/world/camera/image/color"]["components"]  # JPEG
+    assert "EncodedDepthImage:blob" in found["/world/camera/depth/image"]["components"]  # depth as depth
+    assert found["/world/camera/depth/image"]["rows"] == frames
+    for name in ("cloud", "moving_part", "handle"):
+        assert found[f"/world/object/{name}"]["rows"] == steps, name
+    assert found["/axis/confidence"]["rows"] == steps and found["/world/grasp"]["rows"] == 1
+    assert "LineStrips3D:strips" in found["/world/paths/00/planned"]["components"]
 
 
 def test_open_door_that_falls_short_exits_non_zero(capsys, tmp_path):
@@ -169,8 +199,8 @@ def test_open_door_that_falls_short_exits_non_zero(capsys, tmp_path):
     text = PANDA_SIM_CONFIG.read_text()
     robot.write_text(text.replace('name = "panda_joint1"\n', 'name = "panda_joint1"\nq_min = -0.25\n')
                      .replace("q_ready = [-0.4458,", "q_ready = [-0.2,"))  # the start within the narrowed range
-    code, out, _ = run(capsys, "open-door", "--seed", "0", "--angle", "45", "--arm", "sim-can", "--robot", str(robot),
-                       "--run-dir", str(tmp_path / "run"), "--json")
+    code, out, _ = run(capsys, "open-door", "--world", "box", "--seed", "0", "--angle", "45", "--arm", "sim-can",
+                       "--robot", str(robot), "--run-dir", str(tmp_path / "run"), "--json")
     data = json.loads(out)
     assert code == 1 and not data["success"] and data["stop_reason"] == StopReason.ARM_ERROR
     assert data["message"].startswith("safety stop: joint panda_joint1 position -0.25")
@@ -214,14 +244,14 @@ def test_bench_open_warns_when_workers_exceed_the_cores(monkeypatch, caplog, wor
 
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
     monkeypatch.setattr(bench, "make_executor", lambda workers, ray_address: _NoEpisodes())
-    data = bench.bench_open("drawer", 0.3, episodes=episodes, workers=workers, segmenter="rgbd")
+    data = bench.bench_open("drawer", 0.3, episodes=episodes, workers=workers, segmenter="rgbd", world="box")
     assert data["workers"] == workers
     lines = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
     assert lines == ([f"--workers {workers} is above this machine's 2 cores: episodes wait for a core, so their "
                       "seconds and frame times include that waiting; give --workers 2 or fewer for timings"]
                      if warned else [])
     assert bench.bench_open("drawer", 0.3, episodes=episodes, workers=workers, segmenter="rgbd",
-                            ray_address="local")["workers"] is None
+                            ray_address="local", world="box")["workers"] is None
 
 
 def test_bench_help_offers_only_what_the_command_takes(capsys):

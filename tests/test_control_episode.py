@@ -23,7 +23,7 @@ STOP_REASONS = set(StopReason) - {StopReason.DRY_RUN, StopReason.INTERRUPTED}  #
 
 
 def test_drawer_closed_loop_opens_and_its_run_folder_replays(tmp_path):
-    result = simulate_episode("drawer", 0, "train", target=0.15, run_dir=tmp_path / "run")
+    result = simulate_episode("drawer", 0, "train", target=0.15, run_dir=tmp_path / "run", world="box")
     assert result["stop_reason"] == StopReason.TARGET_REACHED
     assert result["success"] and result["true_opened_m"] >= 0.15
     assert abs(result["opened_m"] - result["true_opened_m"]) < 0.01  # progress from kinematics is honest
@@ -48,7 +48,7 @@ def test_a_run_that_looked_again_replays_from_where_it_looked(tmp_path):
     """Test drawer 1: the arm hid the cabinet on the first frame, swung out of the view and looked again. The
     replay starts its pipeline over at that second first frame, as the run did, so it computes the axis the run
     acted on (the paper's estimator, acted on alone); from the first frame's body box it computed another."""
-    result = simulate_episode("drawer", 1, "test", target=0.10, policy="paper", run_dir=tmp_path / "run")
+    result = simulate_episode("drawer", 1, "test", target=0.10, policy="paper", run_dir=tmp_path / "run", world="box")
     frames = tmp_path / "run" / "frames"
     records = FramesRecording(frames).records
     assert [r["index"] for r in records if r.get("first")] == [0, 1]
@@ -61,7 +61,7 @@ def test_a_run_that_looked_again_replays_from_where_it_looked(tmp_path):
 
 @pytest.mark.parametrize(("seed", "split"), [(1, "train"), (0, "test")])
 def test_door_closed_loop_opens(seed, split):
-    result = simulate_episode("door", seed, split, target=30.0)
+    result = simulate_episode("door", seed, split, target=30.0, world="box")
     assert result["stop_reason"] == StopReason.TARGET_REACHED, result["message"]
     assert result["success"] and result["true_opened_deg"] >= 30.0
     assert result["axis"]["joint_type"] == "revolute"
@@ -72,7 +72,7 @@ def test_door_closed_loop_opens(seed, split):
                          [("drawer", "open", 0.15, 2), ("door", "paper", 20.0, 1)])
 def test_open_loop_and_paper_policies_run(task, policy, target, seed):
     """(Train door 2's friction grip loses the paper's straight steps: that policy's failure, not its plumbing.)"""
-    result = simulate_episode(task, seed, "train", target=target, policy=policy)
+    result = simulate_episode(task, seed, "train", target=target, policy=policy, world="box")
     assert result["policy"] == policy and result["stop_reason"] in STOP_REASONS
     unit = "m" if task == "drawer" else "deg"
     assert result[f"true_opened_{unit}"] > 0.3 * target, result["message"]
@@ -81,7 +81,7 @@ def test_open_loop_and_paper_policies_run(task, policy, target, seed):
 class _LosingSegmenter(OracleSegmenter):
     """Finds the object on the first frame, then loses it (as a tracker does when the view is blocked)."""
 
-    def start(self, frame, prompt="cabinet"):
+    def start(self, frame, prompt="cabinet", pointer=None):
         return super().track(frame)
 
     def track(self, frame):
@@ -180,7 +180,7 @@ def test_unreachable_handle_is_refused_before_moving():
 
 
 def test_bench_open_reports_the_issue_keys():
-    out = bench_open("drawer", 0.1, episodes=1, split="train", seed=0, first_pull_m=0.05, max_steps=2)
+    out = bench_open("drawer", 0.1, episodes=1, split="train", seed=0, first_pull_m=0.05, max_steps=2, world="box")
     assert set(out) >= {"task", "target_m", "split", "policy", "episodes", "success_rate", "mean_opened_m",
                         "axis_angle_error_deg_median", "seconds_per_episode", "failures"}
     assert out["success_rate"] == 1.0 and out["mean_opened_m"] >= 0.1 and out["failures"] == {}
@@ -192,7 +192,7 @@ def test_bench_open_reports_the_issue_keys():
 
 def test_a_target_nearer_than_the_first_pull_is_not_overshot_by_it():
     """The first pull stops at the steps' goal (target + 1.5 cm): a 1 cm target is not pulled the whole 5 cm."""
-    result = simulate_episode("drawer", 0, "test", target=0.01)
+    result = simulate_episode("drawer", 0, "test", target=0.01, world="box")
     assert result["success"] and result["stop_reason"] == StopReason.TARGET_REACHED, result["message"]
     assert 0.01 <= result["true_opened_m"] < 0.035
 
@@ -213,8 +213,8 @@ def test_a_dry_run_commands_no_motion_even_when_the_arm_hides_the_object(tmp_pat
         arm.command = watched
 
     with caplog.at_level("INFO", logger="deploy.control.stages"):
-        data = open_object(OpenRequest(task="drawer", scene="drawer", run_dir=tmp_path / "run", dry_run=True),
-                           setup=spy)
+        data = open_object(OpenRequest(task="drawer", scene="drawer", run_dir=tmp_path / "run", dry_run=True,
+                                       world="box"), setup=spy)
     assert data["stop_reason"] == StopReason.DRY_RUN
     assert "dry run: the arm hides part of the object; a run would first turn panda_joint1" in caplog.text
     assert max(moved, default=0.0) < 1e-9
@@ -224,7 +224,7 @@ def test_a_door_pulled_by_the_force_cue_is_hinged_where_the_grip_point_turned_no
     """Test door 3: the pull strains, so the loop acts on the gripper's path. The handle turns in the fingers, so
     the gripper's own turn is not the door's; fitted with it, the hinge was 17 mm off and the door 3 deg short of
     where the loop believed it was."""
-    result = simulate_episode("door", 3, "test", target=70.0)
+    result = simulate_episode("door", 3, "test", target=70.0, world="box")
     assert result["success"], result["message"]
     assert result["axis_position_error_m"] < 0.005
     assert abs(result["true_opened_deg"] - result["opened_deg"]) < 1.0

@@ -24,13 +24,13 @@ def pixel_noise(monkeypatch):
 
 
 def test_a_door_pregrasp_planned_for_the_arc_carries_the_wrist_through_it():
-    result = simulate_episode("door", FAR_DOOR_SEED, split="test", target=20.0)
+    result = simulate_episode("door", FAR_DOOR_SEED, split="test", target=20.0, world="box")
     assert result["success"], result["message"]
 
 
 def test_planned_for_a_straight_pull_the_wrist_runs_out_of_speed_on_the_arc(monkeypatch):
     monkeypatch.setattr(stages, "PLANNED_DOOR_ARCS_DEG", ())
-    result = simulate_episode("door", FAR_DOOR_SEED, split="test", target=20.0)
+    result = simulate_episode("door", FAR_DOOR_SEED, split="test", target=20.0, world="box")
     # the scenario does need the arc: the test above is not vacuous
     assert result["stop_reason"] == StopReason.IK_INFEASIBLE
     assert "panda_joint5" in result["message"]

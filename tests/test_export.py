@@ -38,7 +38,8 @@ def test_tum_layout(capsys, recording, tmp_path):
     out = tmp_path / "tum"
     code, printed, err = run(capsys, "export", recording, "--format", "tum", "--out", out, "--json")
     assert code == 0, err
-    assert json.loads(printed)["files"] == ["rgb.txt", "depth.txt", "associations.txt", "groundtruth.txt", "tool.txt"]
+    assert json.loads(printed)["files"] == ["rgb.txt", "depth.txt", "associations.txt", "groundtruth.txt", "tool.txt",
+                                            "camera_intrinsic.json"]
     rec = FramesRecording(recording)
     rgb = [line.split() for line in (out / "rgb.txt").read_text().splitlines() if not line.startswith("#")]
     depth = [line.split() for line in (out / "depth.txt").read_text().splitlines() if not line.startswith("#")]

@@ -55,7 +55,8 @@ class Watch:
 def _episode(tmp_path, change=None, arm="sim", target=TARGET_M, **opening):
     watch = Watch(change)
     run = tmp_path / "run"
-    result = simulate_episode("drawer", 0, "train", target=target, arm=arm, run_dir=run, setup=watch, **opening)
+    result = simulate_episode("drawer", 0, "train", target=target, arm=arm, run_dir=run, setup=watch, world="box",
+                              **opening)
     return result, watch, run
 
 

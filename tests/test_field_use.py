@@ -82,12 +82,12 @@ def test_one_config_file_for_a_run_with_options_on_top(tmp_path):
 def test_open_options_reach_the_run(capsys, tmp_path):
     file = tmp_path / "run.toml"
     file.write_text('[filter]\nprofile = "sparse"\n[opening]\nmax_steps = 1\n')
-    code, out, err = run(capsys, "open-door", "--dry-run", "--config", file, "--prompt", "cupboard door",
-                         "--run-dir", tmp_path / "run", "--json")
+    code, out, err = run(capsys, "open-door", "--world", "box", "--dry-run", "--config", file, "--prompt",
+                         "cupboard door", "--run-dir", tmp_path / "run", "--json")
     data = json.loads(out)
     assert code == 0 and data["filter"] == SPARSE and data["policy"] == "closed", err
-    code, out, _ = run(capsys, "open-door", "--dry-run", "--config", file, "--filter", "sim", "--run-dir",
-                       tmp_path / "run2", "--json")
+    code, out, _ = run(capsys, "open-door", "--world", "box", "--dry-run", "--config", file, "--filter", "sim",
+                       "--run-dir", tmp_path / "run2", "--json")
     assert code == 0 and json.loads(out)["filter"] == {"profile": "sim", "radius_m": 0.05, "eps": 100}
 
 
@@ -114,8 +114,10 @@ def test_rerun_viewer_saves_the_camera_in_3d_the_axes_and_the_truth(tmp_path):
     found = entities(tmp_path / "view.rrd")
     assert {"Pinhole:image_from_camera", "Pinhole:resolution"} <= found["/world/camera/image"]["components"]
     assert "Transform3D:translation" in found["/world/camera"]["components"]
-    for name in ("color", "depth", "mask"):
-        assert found[f"/world/camera/image/{name}"]["rows"] == 3
+    for entity, component in (("image/color", "EncodedImage:blob"), ("depth/image", "EncodedDepthImage:blob"),
+                              ("image/mask", "LineStrips2D:strips")):  # compressed colour, depth as depth, outline
+        assert found[f"/world/camera/{entity}"]["rows"] == 3 and component in found[f"/world/camera/{entity}"][
+            "components"]
     assert found["/world/axis/estimated"]["rows"] == 3 and found["/world/axis/true"]["rows"] == 1
     assert found["/opening"]["rows"] == 3 and found["/world/gripper"]["rows"] == 3
 
@@ -213,8 +215,8 @@ def test_progress_lines_when_stderr_is_not_a_terminal(capsys):
 
 
 def test_verbose_logs_what_a_field_user_needs(capsys, tmp_path):
-    code, out, err = run(capsys, "--verbose", "open-drawer", "--dry-run", "--seed", "1", "--run-dir", tmp_path / "r",
-                         "--json")
+    code, out, err = run(capsys, "--verbose", "open-drawer", "--world", "box", "--dry-run", "--seed", "1", "--run-dir",
+                         tmp_path / "r", "--json")
     assert code == 0, err
     for text in ("run config: filter sim (radius 0.05 m, eps 100); estimator screw-grip", "devices: camera sim",
                  "camera pose: simulated calibration", "segmenter", "found the object", "box (",
@@ -226,11 +228,14 @@ def test_verbose_logs_what_a_field_user_needs(capsys, tmp_path):
 def test_run_folder_keeps_the_resolved_config(capsys, tmp_path):
     file = tmp_path / "run.toml"
     file.write_text('[filter]\nradius_m = 0.04\n[opening]\nmax_steps = 2\ntimeout_s = 30\n')
-    code, out, _ = run(capsys, "open-door", "--dry-run", "--config", file, "--prompt", "cupboard", "--run-dir",
-                       tmp_path / "run", "--json")
+    code, out, _ = run(capsys, "open-door", "--world", "box", "--dry-run", "--config", file, "--prompt", "cupboard",
+                       "--run-dir", tmp_path / "run", "--json")
     assert code == 0
     kept = json.loads((tmp_path / "run" / "config.json").read_text())
-    assert set(kept) == {"filter", "geometry", "estimator", "opening", "perception", "filter_used", "acted_with"}
+    assert set(kept) == {"filter", "geometry", "estimator", "opening", "perception", "filter_used", "acted_with",
+                         "scene"}
+    assert kept["scene"]["world"] == "box" and kept["scene"]["pointer"]["source"] == "simulated user"
+    assert kept["perception"]["point"] == [kept["scene"]["pointer"]["u"], kept["scene"]["pointer"]["v"]]
     assert kept["acted_with"] == {"estimator": "screw-grip", "fusion": "force"}
     assert kept["filter"] == {"profile": "sim", "radius_m": 0.04, "eps": None}  # the camera chose the profile
     assert kept["filter_used"] == {"radius_m": 0.04, "eps": 100} == {k: json.loads(out)["filter"][k]
@@ -238,8 +243,9 @@ def test_run_folder_keeps_the_resolved_config(capsys, tmp_path):
     assert kept["opening"]["task"] == "door" and kept["opening"]["max_steps"] == 2
     assert kept["perception"]["object_prompt"] == "cupboard"
     assert Config.model_validate({k: v for k, v in kept.items()
-                                  if k not in ("filter_used", "acted_with")}).opening.timeout_s == 30
-    code, _, _ = run(capsys, "open-door", "--dry-run", "--policy", "paper", "--run-dir", tmp_path / "paper")
+                                  if k not in ("filter_used", "acted_with", "scene")}).opening.timeout_s == 30
+    code, _, _ = run(capsys, "open-door", "--world", "box", "--dry-run", "--policy", "paper", "--run-dir",
+                     tmp_path / "paper")
     kept = json.loads((tmp_path / "paper" / "config.json").read_text())
     assert code == 0 and kept["acted_with"] == {"estimator": "paper-obb", "fusion": "vision"}
     assert kept["estimator"]["name"] == "screw-grip"  # the config's, which the paper's policy does not act with
@@ -377,7 +383,8 @@ def test_a_moving_camera_keeps_its_pose_per_frame(tmp_path):
 
 
 def test_sim_record_shows_its_phases_when_piped(capsys, tmp_path):
-    code, _, err = run(capsys, "sim", "record", "--task", "drawer", "--fps", "2", "--out", tmp_path / "rec")
+    code, _, err = run(capsys, "sim", "record", "--world", "box", "--task", "drawer", "--fps", "2", "--out",
+                       tmp_path / "rec")
     assert code == 0
     shown = [line.split(": ", 1)[1] for line in err.splitlines() if line.startswith("sim record drawer (seed 0): ")]
     assert [s for s in shown if not s.isdigit()] == ["grasping the handle", "opening along the true axis",

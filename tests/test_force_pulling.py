@@ -103,7 +103,7 @@ def test_compliance_bends_the_path_under_an_axis_error():
 
 
 def test_a_locked_drawer_ends_blocked_under_the_force_limit():
-    result = simulate_episode("drawer", 0, "train", target=0.15, condition="locked")
+    result = simulate_episode("drawer", 0, "train", target=0.15, condition="locked", world="box")
     assert result["stop_reason"] == StopReason.BLOCKED and not result["success"]
     assert "no more motion during first pull (blocked: pull force " in result["message"]
     assert f"peak {result['peak_pull_force_n']:.1f} N" in result["message"]
@@ -127,19 +127,21 @@ def test_a_pull_that_makes_no_headway_ends_blocked_even_when_never_held_still_lo
 
 
 def test_the_episode_time_budget_stops_a_pull_midway():
-    result = simulate_episode("drawer", 0, "test", target=0.10, timeout_s=6.0)  # runs out as the first pull starts
+    # runs out as the first pull starts
+    result = simulate_episode("drawer", 0, "test", target=0.10, timeout_s=6.0, world="box")
     assert result["stop_reason"] == StopReason.TIMEOUT
     assert result["true_opened_m"] < 0.01  # the 5 cm first pull was cut short, not finished
     assert result["timings"]["sim_time_s"] < 6.0 + 2.0
 
 
 def test_a_lower_force_limit_stops_sooner():
-    result = simulate_episode("drawer", 0, "train", target=0.15, condition="locked", pull_force_limit_n=30.0)
+    result = simulate_episode("drawer", 0, "train", target=0.15, condition="locked", pull_force_limit_n=30.0,
+                              world="box")
     assert result["stop_reason"] == StopReason.BLOCKED and result["peak_pull_force_n"] <= 30.0
 
 
 def test_bench_open_reports_the_condition_the_peak_force_and_the_axis_cues():
-    data = bench_open("drawer", 0.15, episodes=1, split="train", condition="locked", segmenter="oracle")
+    data = bench_open("drawer", 0.15, episodes=1, split="train", condition="locked", segmenter="oracle", world="box")
     assert data["condition"] == "locked" and data["failures"] == {"blocked": 1}
     assert data["failed_seeds"] == {"blocked": [0]} and data["first_seed"] == 0 and data["joint"] == "told"
     assert 30.0 < data["peak_pull_force_n_median"] == data["peak_pull_force_n_max"] <= 60.0
@@ -156,7 +158,7 @@ def test_the_peak_force_median_leaves_out_episodes_that_never_pulled():
 
 
 def test_a_stiff_door_still_opens():
-    result = simulate_episode("door", 0, "train", target=20.0, condition="stiff")
+    result = simulate_episode("door", 0, "train", target=20.0, condition="stiff", world="box")
     assert result["success"] and result["stop_reason"] == StopReason.TARGET_REACHED, result["message"]
     assert 0.0 < result["peak_pull_force_n"] <= 60.0
 

@@ -223,17 +223,26 @@ def test_missing_directory(tmp_path):
         FramesRecording(tmp_path / "nope")
 
 
-def test_a_run_folder_given_for_its_recording_names_the_recording(capsys, tmp_path):
-    """`axis estimate RUN` or `--camera replay:RUN` where RUN is a run folder: say where its recording is (not
-    that meta.json is missing, with a fix to re-record)."""
+def test_every_command_that_reads_a_recording_takes_a_run_folder_for_it(capsys, tmp_path):
+    """`axis estimate RUN`, `track RUN`, `export RUN`, `--camera replay:RUN` (record, snapshot, open --dry-run):
+    RUN is a run folder, its recording RUN/frames."""
     run_dir = tmp_path / "run"
-    record(run_dir / "frames", n=2)
+    record(run_dir / "frames", n=3)
     (run_dir / "steps.json").write_text("[]")
-    expected = f"error: {run_dir} is a run folder: its recording is {run_dir / 'frames'}; give that"
-    code, _, err = run(capsys, "axis", "estimate", run_dir)
-    assert code == 2 and one_line(err) == expected
-    code, _, err = run(capsys, "record", "--camera", f"replay:{run_dir}", "--frames", 1, "--out", tmp_path / "x")
-    assert code == 2 and one_line(err) == expected and not (tmp_path / "x").exists()
+    assert FramesRecording(run_dir).path == run_dir / "frames" and len(FramesReplayCamera(run_dir).recording) == 3
+    code, out, err = run(capsys, "axis", "estimate", run_dir, "--json")
+    assert code in (0, 1) and len(json.loads(out)["steps"]) == 3, err  # 3 frames read (no axis from them)
+    code, out, err = run(capsys, "track", run_dir, "--segmenter", "classical", "--box", 0, 0, 16, 12, "--out",
+                         tmp_path / "tracked")
+    assert code == 2 and "on frame 0" in err, err  # the run's first frame reached the segmenter (random pixels)
+    code, out, err = run(capsys, "export", run_dir, "--format", "tum", "--out", tmp_path / "tum", "--json")
+    assert code == 0 and json.loads(out)["frames"] == 3, err
+    code, _, err = run(capsys, "record", "--camera", f"replay:{run_dir}", "--frames", 2, "--out", tmp_path / "x")
+    assert code == 0 and len(FramesRecording(tmp_path / "x")) == 2, err
+    code, _, err = run(capsys, "cameras", "snapshot", "--camera", f"replay:{run_dir}", "--out", tmp_path / "snap")
+    assert code == 0 and (tmp_path / "snap" / "depth.png").is_file(), err
+    code, _, err = run(capsys, "record", "--camera", f"replay:{run_dir}", "--frames", 1, "--out", run_dir / "x")
+    assert code == 2 and "lies inside the recording" in err  # writing into the run folder read is refused
 
 
 def test_writer_refuses_foreign_directory_and_replaces_a_recording(tmp_path):

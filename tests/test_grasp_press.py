@@ -25,7 +25,7 @@ def _episode(monkeypatch, ease: bool) -> tuple[dict, list[float]]:
         pushes.append(float(w[:3] @ episode.kin.fk(state.q)[:3, 2]))
 
     monkeypatch.setattr(stages, "_ease_off_press", recorded)
-    return simulate_episode("door", PRESSED_DOOR_SEED, split="test", target=20.0), pushes
+    return simulate_episode("door", PRESSED_DOOR_SEED, split="test", target=20.0, world="box"), pushes
 
 
 def test_a_pressed_handle_is_eased_off_before_closing_and_the_door_opens(near_doors, monkeypatch):

@@ -26,7 +26,7 @@ def sim_recording(tmp_path_factory):
     from sim_fallback.scripted import record_scripted
 
     path = tmp_path_factory.mktemp("perception-sim") / "drawer"
-    record_scripted("drawer", 0, path, fps=2.0)
+    record_scripted("drawer", 0, path, fps=2.0, world="box")
     return path
 
 
@@ -136,7 +136,7 @@ def test_track_out_the_recording_read_says_so_not_pass_out(sim_recording, capsys
 
 
 def test_bench_perception_reports_every_backend():
-    data = bench_perception(seeds=1, fps=2.0, backends=["classical", "gdino-sam2"])
+    data = bench_perception(seeds=1, fps=2.0, backends=["classical", "gdino-sam2"], world="box")
     assert data["device"] in ("cpu", "cuda", "mps") and data["recordings"] == 2
     classical = data["backends"]["classical"]
     assert classical["frames"] > 20 and classical["iou_median"] >= 0.9 and classical["latency_ms_median"] > 0

@@ -29,7 +29,7 @@ PANDA = load_robot_config(PANDA_SIM_CONFIG)
 
 @pytest.mark.parametrize(("task", "target"), [("drawer", 0.15), ("door", 25.0)])
 def test_short_episodes_succeed_with_the_default_segmenter_and_a_field_calibration(task, target):
-    result = simulate_episode(task, 1, "test", target=target)
+    result = simulate_episode(task, 1, "test", target=target, world="box")
     assert result["segmenter"] == "rgbd"  # no weights on this machine
     assert result["calibration_error"] == {"translation_mm": 5.0, "rotation_deg": 0.5}
     assert result["stop_reason"] == StopReason.TARGET_REACHED and result["success"], result["message"]
@@ -38,25 +38,26 @@ def test_short_episodes_succeed_with_the_default_segmenter_and_a_field_calibrati
 
 def test_no_label_reaches_the_controller(monkeypatch):
     """Garbage labels in the simulator change nothing: the episode never reads them."""
-    first = simulate_episode("drawer", 2, "test", target=0.1, max_steps=1)
+    first = simulate_episode("drawer", 2, "test", target=0.1, max_steps=1, world="box")
     rng = np.random.default_rng(0)
     monkeypatch.setattr(SimCamera, "_labels", lambda self, seg: rng.integers(0, 4, seg.shape, dtype=np.uint8))
     seen = []
     real_start = RGBDSegmenter.start
 
-    def start(self, frame, prompt=None):
+    def start(self, frame, prompt=None, pointer=None):
         seen.append((frame.segmentation, frame.mask))
-        return real_start(self, frame, prompt)
+        return real_start(self, frame, prompt, pointer)
 
     monkeypatch.setattr(RGBDSegmenter, "start", start)
-    again = simulate_episode("drawer", 2, "test", target=0.1, max_steps=1)
+    again = simulate_episode("drawer", 2, "test", target=0.1, max_steps=1, world="box")
     assert seen and all(labels is None and mask is None for labels, mask in seen)
     for key in ("stop_reason", "opened_m", "true_opened_m", "steps", "axis"):
         assert again[key] == first[key], key
 
 
 def test_the_controller_sees_the_calibrated_pose_not_the_true_one():
-    spec = RigSpec(camera="sim", arm="sim", scene=SimScene("drawer", 3, "test"), calibration_error=(10.0, 1.0))
+    spec = RigSpec(camera="sim", arm="sim", scene=SimScene("drawer", 3, "test", world="box"),
+                   calibration_error=(10.0, 1.0))
     with open_rig(spec) as rig:
         frame = rig.camera.read()
         true = rig.world.scenario.T_base_camera
@@ -195,7 +196,7 @@ def test_rgbd_tracking_follows_a_door_swinging_out_of_its_first_region():
     """A wide-open door leaves the region found on the first frame, with the arm in front of it: the segmenter
     detects the door again rather than keeping the part still inside, which shrank until the track counted as
     lost (door 70 deg, test seed 19: "tracking lost" at frame 62 with the other order)."""
-    result = simulate_episode("door", 19, "test", target=70.0)
+    result = simulate_episode("door", 19, "test", target=70.0, world="box")
     assert result["stop_reason"] == StopReason.TARGET_REACHED, result["message"]
 
 
@@ -211,7 +212,7 @@ def test_bench_perception_measures_rgbd_and_names_missing_weights(monkeypatch):
         raise ModelError(f"model {source} is not in the Hugging Face cache")
 
     monkeypatch.setattr(models, "resolve_checkpoint", not_cached)
-    data = bench_perception(seeds=1, fps=2.0, backends=["rgbd", "gdino-edgetam"])
+    data = bench_perception(seeds=1, fps=2.0, backends=["rgbd", "gdino-edgetam"], world="box")
     rgbd = data["backends"]["rgbd"]
     assert rgbd["frames"] > 20 and rgbd["latency_ms_median"] > 0 and rgbd["iou_median"] > 0.6, rgbd
     assert data["backends"]["gdino-edgetam"]["skipped"] == (

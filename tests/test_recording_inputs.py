@@ -176,7 +176,7 @@ def test_a_csv_with_a_byte_order_mark_is_read(capsys, tmp_path):
 
 
 def test_sim_record_says_it_is_simulated_and_names_the_camera(tmp_path):
-    record_scripted("drawer", 1, tmp_path / "rec", target=0.02, fps=2.0, resolution=(160, 120))
+    record_scripted("drawer", 1, tmp_path / "rec", target=0.02, fps=2.0, resolution=(160, 120), world="box")
     meta = json.loads((tmp_path / "rec" / "meta.json").read_text())
     assert meta["simulated"] is True and meta["camera"] == "sim"
     record = FramesRecording(tmp_path / "rec").records[0]

@@ -249,7 +249,7 @@ def _wait_for(condition, process: subprocess.Popen, timeout_s: float = 120.0) ->
 def test_a_signal_during_an_opening_keeps_the_run_folder_complete(tmp_path, sig, arm, motors):
     run_dir = tmp_path / "run"
     frames = run_dir / "frames" / "frames.jsonl"
-    process = _deploy("open-drawer", "--arm", arm, "--seed", "1", "--run-dir", str(run_dir))
+    process = _deploy("open-drawer", "--world", "box", "--arm", arm, "--seed", "1", "--run-dir", str(run_dir))
     _wait_for(lambda: frames.exists() and frames.read_text().count("\n") >= 3, process)
     process.send_signal(sig)
     out, err = process.communicate(timeout=120)

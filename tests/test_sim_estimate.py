@@ -38,7 +38,7 @@ def test_the_approach_gives_no_axis_once_the_recording_says_when_the_gripper_hel
     from the approach: without the marks it fitted the approach path, 87 deg off the truth before the grasp and
     76 deg in its final answer."""
     out = tmp_path / "drawer"
-    record_scripted("drawer", 0, out, target=0.06, fps=4.0)
+    record_scripted("drawer", 0, out, target=0.06, fps=4.0, world="box")
     records = FramesRecording(out).records
     grasped = [r["grasped"] for r in records]
     first = grasped.index(True)

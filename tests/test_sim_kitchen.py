@@ -288,40 +288,55 @@ def test_the_condition_changes_the_target_joint_only():
         assert world.joint_value() < 1e-3
 
 
-@pytest.fixture
-def kitchen_rig(monkeypatch):
-    """Rigs build kitchens: `Scenario.make`, the rig's scenario, made a kitchen's (until --world reaches the rig)."""
-    made = []
-
-    def kitchen(task, seed, split="train", camera=None, condition="normal"):
-        made.append(make_scenario("kitchen", task, seed, split, condition=condition))
-        return made[-1]
-
-    monkeypatch.setattr(Scenario, "make", staticmethod(kitchen))
-    return made
+TRUTH = ("truth", "part_truth", "target_handle", "handle_pose", "joint_value", "joint_friction",
+         "sweep_hits_robot_base")  # what SimWorld tells of the world's truth
 
 
-def test_no_label_reaches_the_controller_in_a_kitchen(kitchen_rig, monkeypatch):
-    """Garbage labels in a kitchen change nothing: the episode never reads them."""
+def test_no_world_truth_reaches_the_controller_in_a_kitchen(monkeypatch):
+    """In a kitchen (the default world) garbage labels change nothing, nothing reads the world's truth while the
+    episode runs, and the segmenter starts from colour, depth, a calibrated pose and one pixel on the part."""
     from deploy.bench.open import simulate_episode
+    from deploy.control import session
+    from deploy.perception.base import Pointer
     from deploy.perception.rgbd import RGBDSegmenter
     from sim_fallback.camera import SimCamera
 
     first = simulate_episode("drawer", 2, "test", target=0.1, max_steps=1)
     rng = np.random.default_rng(0)
     monkeypatch.setattr(SimCamera, "_labels", lambda self, seg: rng.integers(0, 4, seg.shape, dtype=np.uint8))
-    seen = []
-    real_start = RGBDSegmenter.start
+    seen, running, reads = [], [], []
+    real_start, real_run = RGBDSegmenter.start, session.run_episode
 
-    def start(self, frame, prompt=None):
-        seen.append((frame.segmentation, frame.mask, frame.T_base_camera))
-        return real_start(self, frame, prompt)
+    def start(self, frame, prompt=None, pointer=None):
+        seen.append((frame.segmentation, frame.mask, frame.T_base_camera, pointer))
+        return real_start(self, frame, prompt, pointer)
+
+    def run_episode(*args, **kwargs):
+        running.append(True)
+        try:
+            return real_run(*args, **kwargs)
+        finally:
+            running.pop()
+
+    def spy(name, real):
+        def read(*args, **kwargs):
+            if running:
+                reads.append(name)
+            return real(*args, **kwargs)
+        return read
 
     monkeypatch.setattr(RGBDSegmenter, "start", start)
+    monkeypatch.setattr(session, "run_episode", run_episode)
+    for name in TRUTH:
+        monkeypatch.setattr(SimWorld, name, spy(name, getattr(SimWorld, name)))
+    monkeypatch.setattr(SimCamera, "link_image", spy("link_image", SimCamera.link_image))
     again = simulate_episode("drawer", 2, "test", target=0.1, max_steps=1)
     sc = make_scenario("kitchen", "drawer", 2, "test")
-    assert kitchen_rig == [sc, sc]
-    assert seen and all(labels is None and mask is None for labels, mask, _ in seen)
+    assert again["world"] == "kitchen" and again["part"] == sc.part
+    assert reads == []
+    assert len(seen) == 1 and all(labels is None and mask is None for labels, mask, _, _ in seen)
     assert not np.allclose(seen[0][2], sc.T_base_camera)  # a calibrated pose, not the true one
-    for key in ("stop_reason", "opened_m", "true_opened_m", "steps", "axis"):
+    point = again["pointer"]
+    assert point["source"] == "simulated user" and seen[0][3] == Pointer(point["u"], point["v"])
+    for key in ("stop_reason", "opened_m", "true_opened_m", "steps", "axis", "pointer"):
         assert again[key] == first[key], key

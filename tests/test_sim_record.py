@@ -17,7 +17,7 @@ from sim_fallback.show import render_scene_png
 @pytest.mark.parametrize(("task", "target"), [("drawer", 0.04), ("door", np.radians(8))])
 def test_short_recording_round_trips_with_consistent_truth(task, target, tmp_path):
     out = tmp_path / task
-    summary = record_scripted(task, 1, out, target=target, fps=2.0, resolution=(160, 120))
+    summary = record_scripted(task, 1, out, target=target, fps=2.0, resolution=(160, 120), world="box")
     truth = json.loads((out / "truth.json").read_text())
     values = np.array(truth["joint_values"])
     assert summary.frames == len(values) >= 4
@@ -60,10 +60,11 @@ def test_short_recording_round_trips_with_consistent_truth(task, target, tmp_pat
 
 @pytest.mark.parametrize("world", ["box", "kitchen"])
 def test_scene_png_has_three_panels(world, tmp_path):
-    path = render_scene_png("door", 2, tmp_path / "scene.png", resolution=(160, 120), world=world)
+    path, scenario = render_scene_png("door", 2, tmp_path / "scene.png", resolution=(160, 120), world=world)
+    assert scenario.world == world and scenario.task == "door"
     image = cv2.imread(str(path))
     assert image.shape == (120, 480, 3)
     colour, depth, seg = image[:, :160], image[:, 160:320], image[:, 320:]
     assert colour.std() > 10 and depth.std() > 10 and len(np.unique(seg.reshape(-1, 3), axis=0)) >= 3
     with pytest.raises(ValueError, match=".png"):
-        render_scene_png("door", 2, tmp_path / "scene.jpg")
+        render_scene_png("door", 2, tmp_path / "scene.jpg", world="box")

@@ -9,14 +9,21 @@ import typer
 
 from deploy.commands.open import Condition
 from deploy.commands.options import (
+    AssetsOpt,
     CalibrationErrorOpt,
     JsonOpt,
+    ObjectOpt,
+    PartOpt,
     PolicyChoice,
     PolicyOpt,
     RobotOpt,
+    ScaleChoice,
+    ScaleOpt,
     Split,
     StationSeedOpt,
     Task,
+    WorldChoice,
+    WorldOpt,
     above,
 )
 from deploy.commands.output import console, err_console, fmt, print_json, print_rows, print_table, progress_bar
@@ -153,14 +160,21 @@ def bench_open_cmd(
     segmenter: BenchSegmenterOpt = None,
     calibration_error: CalibrationErrorOpt = CALIBRATION_ERROR,
     condition: BenchConditionOpt = Condition.normal,
+    world: WorldOpt = WorldChoice.kitchen,
+    part: PartOpt = None,
+    assets: AssetsOpt = None,
+    object_id: ObjectOpt = None,
+    scale: ScaleOpt = ScaleChoice.real,
     json_out: JsonOpt = False,
 ) -> None:
     """Success rate of simulated openings (success = the true joint value exceeds the target, like the paper),
-    with what a real robot senses: the default segmenter and a calibrated (imperfect) camera pose.
+    with what a real robot senses: the default segmenter, a calibrated (imperfect) camera pose, and of the part only
+    the pixel a user would point at on it; per part, and with --assets per object.
 
     Example: deploy bench open --task door --angle 45 --episodes 20 --workers 2 --json
+    Example: deploy bench open --task drawer --assets partnet-mobility-dataset/ --episodes 20 --workers 2
     Example: deploy bench open --task drawer --distance 0.30 --episodes 1000 --ray ray://head:10001 --json
-    Example: deploy bench open --task drawer --condition locked --episodes 20 --workers 2 --json
+    Example: deploy bench open --task drawer --world box --condition locked --episodes 20 --workers 2 --json
     """
     from deploy.bench.open import bench_open
 
@@ -169,27 +183,40 @@ def bench_open_cmd(
     with progress_bar(f"bench open {task.value}", episodes) as bar:
         data = bench_open(task.value, goal, episodes, split.value, policy.value, seed, workers,
                           progress=bar.advance, ray_address=ray, auto_joint=auto_joint or joint is JointTold.auto,
-                          segmenter=segmenter, calibration_error=calibration_error, condition=condition.value)
+                          segmenter=segmenter, calibration_error=calibration_error, condition=condition.value,
+                          world=world.value, part=part, assets=assets, object_id=object_id, scale=scale.value)
     if json_out:
         print_json(data)
         return
-    print_rows(f"{task.value} to {goal:g} {unit} ({split.value}, {policy.value} loop)", data)
+    tables = ("per_part", "objects", "unusable_objects")
+    print_rows(f"{task.value} to {goal:g} {unit} in the {world.value} world ({split.value}, {policy.value} loop)",
+               {k: v for k, v in data.items() if k not in tables})
+    _print_groups("per part", data["per_part"])
+    if "objects" in data:
+        _print_groups("per object", data["objects"])
+        for object_id, why in data["unusable_objects"].items():
+            console.print(f"object {object_id} not used: {why}", soft_wrap=True)
 
 
-class SimWorldKind(str, Enum):
-    kitchen = "kitchen"
-    box = "box"
+def _print_groups(title: str, groups: dict) -> None:
+    """`bench open`'s success by part or by object: episodes, successes, failures by cause (and an object's parts)."""
+    def parts(g: dict) -> str:
+        return ", ".join(f"{name} {p['successes']}/{p['episodes']}" for name, p in g.get("parts", {}).items())
+
+    print_table(title, ("", "success", "failures", *(("parts",) if title == "per object" else ())),
+                [(name, f"{g['successes']}/{g['episodes']}",
+                  ", ".join(f"{cause} {n}" for cause, n in g["failures"].items()) or "none",
+                  *((parts(g),) if title == "per object" else ())) for name, g in groups.items()])
 
 
 @app.command("sim")
 def bench_sim_cmd(
-    world: Annotated[SimWorldKind, typer.Option(
-        help="kitchen: the scenario's cabinet among static units, a floor, a wall and a countertop; box: the "
-             "cabinet alone.")] = SimWorldKind.kitchen,
+    world: WorldOpt = WorldChoice.kitchen,
     episodes: Annotated[int, typer.Option(min=1, max=20, help="Drawer scenarios (medians are reported).")] = 1,
     json_out: JsonOpt = False,
 ) -> None:
-    """Physics steps per second, a camera frame's cost by step and the real-time factor of an opening.
+    """Physics steps per second, a camera frame's cost by step and the real-time factor of an opening, on the drawer
+    scenarios of --world (seeds 0..).
 
     The real-time factor is a 10 s scripted opening with 640x480 frames at 10 Hz, with the default depth model (the
     D415 artefact model), active stereo and exact depth.
@@ -234,9 +261,11 @@ def bench_perception_cmd(
     seeds: Annotated[int, typer.Option(min=1, help="Scenario seeds (a drawer and a door recording each).")] = 1,
     fps: Annotated[float, typer.Option(callback=above(0.0), max=60.0,
                                        help="Frames per second of the simulated recordings.")] = 10.0,
+    world: WorldOpt = WorldChoice.kitchen,
     json_out: JsonOpt = False,
 ) -> None:
-    """Per-frame latency of each segmenter backend and its mask IoU against the simulator's oracle masks.
+    """Per-frame latency of each segmenter backend and its mask IoU against the simulator's oracle masks, on scripted
+    recordings in --world (a recording whose scripted grasp fails is left out and named).
 
     rgbd sees the frames with the arm's pixels removed (the self-filter, as in an episode). gdino-sam2 /
     gdino-edgetam are measured only where their weights are in the local cache (else skipped, naming each missing
@@ -246,7 +275,7 @@ def bench_perception_cmd(
     from deploy.perception.bench import bench_perception
 
     with progress_bar("bench perception") as bar:
-        data = bench_perception(seeds, fps, progress=bar.describe)
+        data = bench_perception(seeds, fps, progress=bar.describe, world=world.value)
     if json_out:
         print_json(data)
         return
@@ -258,8 +287,11 @@ def bench_perception_cmd(
             rows.append((name, f"{r['latency_ms_median']:.1f}", f"{r['latency_ms_p90']:.1f}",
                          f"{r['start_ms_median']:.0f}", f"{r['iou_median']:.3f}", f"{r['iou_min']:.3f}",
                          str(r["frames"])))
-    print_table(f"segmenters on {data['recordings']} simulated recordings ({data['device']})",
+    print_table(f"segmenters on {data['recordings']} simulated recordings in the {world.value} world "
+                f"({data['device']})",
                 ("backend", "track ms median", "track ms p90", "start ms", "IoU median", "IoU min", "frames"), rows)
+    for why in data["skipped_recordings"]:
+        console.print(f"recording left out: {why}", soft_wrap=True)
 
 
 @app.command("arm")

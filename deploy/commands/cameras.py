@@ -11,8 +11,18 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from deploy.commands.options import JsonOpt, RobotOpt, SimFaultOpt, above, kind_option, overwrite_option, view_option
-from deploy.commands.output import console, print_json, progress_bar
+from deploy.commands.options import (
+    JsonOpt,
+    RobotOpt,
+    SimFaultOpt,
+    WorldChoice,
+    WorldOpt,
+    above,
+    kind_option,
+    overwrite_option,
+    view_option,
+)
+from deploy.commands.output import console, print_json, print_table, progress_bar
 from drivers.arm.registry import ARMS
 from drivers.camera.registry import CAMERAS
 
@@ -22,7 +32,7 @@ if TYPE_CHECKING:
 app = typer.Typer(help="RealSense cameras: discovery and snapshots.", no_args_is_help=True)
 top_level = typer.Typer()  # its commands sit directly under `deploy`
 
-CameraSpecOpt = kind_option(CAMERAS, "--camera", " sim: a simulated drawer, seed 0.")
+CameraSpecOpt = kind_option(CAMERAS, "--camera", " sim: a simulated drawer, seed 0 (of --world, where given).")
 WidthOpt = Annotated[int | None, typer.Option(min=1, max=8192, show_default=False, help=(
     "Image width: a RealSense model's colour resolutions (docs/cameras.md); sim: any \\[default: the model's; sim: "
     "640; a replay: the recording's, which it keeps]."))]
@@ -179,6 +189,7 @@ def record_cmd(
     view: ViewOpt = False,
     overwrite: OverwriteOpt = False,
     sim_fault: SimFaultOpt = None,
+    world: WorldOpt = WorldChoice.kitchen,
     json_out: JsonOpt = False,
 ) -> None:
     """Record a camera to a frames directory, flushing every frame (Ctrl-C keeps what was recorded); with
@@ -202,7 +213,7 @@ def record_cmd(
           progress_bar("record", frames, *columns) as bar):
         summary = record_rig(camera, out, frames, seconds, arm, robot, {"width": width, "height": height,
                                                                         "fps": fps}, bar.advance, view,
-                              calibration, sim_faults=faults)
+                              calibration, sim_faults=faults, world=world.value)
     if json_out:
         print_json(summary)
     else:
@@ -212,8 +223,9 @@ def record_cmd(
 
 @top_level.command("convert")
 def convert(
-    recording: Annotated[Path, typer.Argument(help="RealSense SDK recording (.bag, .db3) or ROS 2 bag of "
-                                                   "realsense-ros topics (.db3, .mcap or the bag folder).")],
+    recording: Annotated[Path, typer.Argument(help="RealSense SDK recording (.bag, .db3), ROS 2 bag of "
+                                                   "realsense-ros topics (.db3, .mcap or the bag folder), or a TUM "
+                                                   "RGB-D or Open3D folder (docs/recording-format.md).")],
     out: Annotated[Path, typer.Option(help="Frames directory to write.")],
     depth_scale: Annotated[float | None, typer.Option(callback=above(0.0), show_default=False, help=(
         "Depth unit of the frames directory, in metres \\[default: the recording's, at most 0.001: a D405's 0.1 mm "
@@ -221,18 +233,21 @@ def convert(
     overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
 ) -> None:
-    """Convert a RealSense or ROS 2 recording into a frames directory, depth aligned to colour (streams that
-    already share one pixel grid keep every depth pixel).
+    """Convert a RealSense, ROS 2, TUM RGB-D or Open3D recording into a frames directory, depth aligned to colour
+    (streams that already share one pixel grid keep every depth pixel).
 
     Example: deploy convert session.db3 --out runs/session
     Example: deploy convert rosbag2_2026_01_01 --out runs/ros
+    Example: deploy convert rgbd_dataset_freiburg1_xyz --out runs/fr1-xyz
     """
     from deploy.output_folder import new_output
     from drivers.camera.realsense_convert import convert_recording
+    from drivers.camera.rgbd_folders import convert_folder, folder_kind
 
+    converter = convert_folder if folder_kind(recording) else convert_recording
     with (new_output(out, overwrite, "recording", inputs=[recording]),
           progress_bar(f"converting {recording.name}") as bar):
-        summary = convert_recording(recording, out, depth_scale, progress=bar.advance)
+        summary = converter(recording, out, depth_scale, progress=bar.advance)
     if json_out:
         print_json(summary)
     else:
@@ -254,16 +269,23 @@ class ExportFormat(str, Enum):
     tum = "tum"
     open3d = "open3d"
     rrd = "rrd"
+    lerobot = "lerobot"
 
 
 @top_level.command("export")
 def export_cmd(
-    recording: Annotated[Path, typer.Argument(help="Frames directory (docs/recording-format.md).")],
-    out: Annotated[Path, typer.Option(help="Folder to write (tum, open3d) or NAME.rrd (rrd).")],
+    recording: Annotated[Path, typer.Argument(help="Frames directory or run folder (docs/recording-format.md).")],
+    out: Annotated[Path, typer.Option(help="Folder to write (tum, open3d, lerobot) or NAME.rrd (rrd).")],
     fmt: Annotated[ExportFormat, typer.Option("--format", help="tum: TUM RGB-D layout (rgb/, depth/, rgb.txt, "
                                               "depth.txt, groundtruth.txt with poses); open3d: Open3D's "
                                               "reconstruction layout with camera_intrinsic.json; rrd: a rerun "
-                                              "recording.")] = ExportFormat.tum,
+                                              "recording (the robot from its URDF with the joints); lerobot: a "
+                                              "LeRobot dataset (v3.0: parquet, mp4).")] = ExportFormat.tum,
+    robot: Annotated[str | None, typer.Option("--robot", metavar="NAME|FILE", help="rrd: the robot config whose URDF "
+                                              "shows the recorded joints \\[default: the one the recording names]."
+                                              )] = None,
+    fps: Annotated[int | None, typer.Option(min=1, max=1000, help="lerobot: frames per second of the dataset "
+                                            "\\[default: the recording's median rate].")] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an earlier export at --out (once the new "
                                             "one is complete); without it an existing one is refused.")] = False,
     json_out: JsonOpt = False,
@@ -271,12 +293,14 @@ def export_cmd(
     """Export a frames recording to the layout other tools load (docs/recording-format.md#export).
 
     Example: deploy export runs/rec1 --format tum --out runs/rec1-tum
-    Example: deploy export runs/rec1 --format rrd --out runs/rec1.rrd && rerun runs/rec1.rrd
+    Example: deploy export runs/drawer-1 --format rrd --out runs/drawer-1.rrd && rerun runs/drawer-1.rrd
+    Example: deploy export runs/drawer-1 --format lerobot --out datasets/drawer-1
     """
     from deploy.export import export_recording
 
     with progress_bar(f"exporting {recording.name}", None) as bar:
-        summary = export_recording(recording, out, fmt.value, progress=bar.counts, overwrite=overwrite)
+        summary = export_recording(recording, out, fmt.value, progress=bar.counts, overwrite=overwrite, robot=robot,
+                                   fps=fps)
     if json_out:
         print_json(summary)
     else:

@@ -9,7 +9,9 @@ from typing import Annotated
 import typer
 
 from deploy.commands.options import (
+    WORLD_HELP,
     ArmOpt,
+    AssetsOpt,
     BoxOpt,
     CalibrationErrorOpt,
     CameraOpt,
@@ -18,12 +20,18 @@ from deploy.commands.options import (
     FilterOpt,
     JointChoice,
     JsonOpt,
+    ObjectOpt,
+    PartOpt,
+    PointOpt,
     PolicyChoice,
     PromptOpt,
+    ScaleChoice,
+    ScaleOpt,
     SegmenterOpt,
     SimFaultOpt,
     Split,
     Task,
+    WorldChoice,
     dry_run_option,
     overwrite_option,
     robot_option,
@@ -62,6 +70,8 @@ class Condition(str, Enum):
     stiff = "stiff"
 
 
+OpenWorldOpt = Annotated[WorldChoice | None, typer.Option(
+    "--world", help=f"The simulated world (--camera sim): {WORLD_HELP} \\[default: kitchen].")]
 ConditionOpt = Annotated[Condition, typer.Option(
     help="The simulated object's joint (--camera sim; the controller is not told): normal, locked (held fast) or "
     "stiff (three times the friction).")]
@@ -74,17 +84,28 @@ def _overrides(filter_profile: FilterChoice | None, prompt: str | None,
             "perception.object_prompt": prompt, "perception.box": box}
 
 
+def _scene(world: WorldChoice | None, part: str | None, assets: Path | None, object_id: str | None,
+           scale: ScaleChoice, point: tuple[float, float] | None) -> dict:
+    """The simulated scene's options and --point as OpenRequest fields (world None: not given)."""
+    return {"world": world.value if world is not None else None, "part": part, "assets": assets,
+            "object_id": object_id, "scale": scale.value, "point": point}
+
+
 def _print_episode(data: dict, json_out: bool) -> None:
     if json_out:
         print_json(data)
         return
     where = f"seed {data['seed']}" if "seed" in data else data.get("camera", "")
-    keys = ("success", "opened_m", "opened_deg", "target_m", "target_deg", "true_opened_m", "true_opened_deg",
+    keys = ("success", "world", "furniture", "object", "part", "pointer", "opened_m", "opened_deg", "target_m",
+            "target_deg", "true_opened_m", "true_opened_deg",
             "steps", "stop_reason", "message", "peak_pull_force_n", "axis_angle_error_deg", "axis_position_error_m",
             "run_dir")
     rows = {k: data[k] for k in keys if k in data}
     used = data["filter"]
     rows["filter"] = f"{used['profile']}: radius {used['radius_m']:g} m, eps {used['eps']}"
+    if "rrd" in data:  # --view
+        shown = "shown live" if data["rrd"]["live"] else "no viewer opened (no display): open it with rerun FILE"
+        rows["rrd"] = f"{data['rrd']['path']} ({shown})"
     print_rows(f"{data['task']} episode ({where}, {data['policy']} loop)", rows)
 
 
@@ -108,13 +129,16 @@ def _open(request_fields: dict, json_out: bool, sim_fault: list[str] | None, ove
     from drivers.camera.registry import CAMERAS
 
     faults = parse_sim_faults(request_fields["arm"], sim_fault)
-    request = OpenRequest(**request_fields)
-    simulated = CAMERAS.entry(request.camera)[0].simulated
+    simulated = CAMERAS.entry(request_fields["camera"])[0].simulated
+    _check_scene_options(request_fields, simulated)
+    request = OpenRequest(**{**request_fields, "world": request_fields["world"] or "kitchen"})
     if request.calibration is not None and simulated:
         raise ConfigError(f"--calibration {request.calibration} is for a real camera: the simulated camera's pose "
                           "comes from the simulation; drop --calibration, or use --camera d415")
-    if request.condition != "normal" and not simulated:
-        raise ConfigError(f"--condition {request.condition} is for a simulated object: drop it, or use --camera sim")
+    if simulated:
+        from sim_fallback.scenes import check_scene
+
+        check_scene(request.world, request.assets, request.object_id)
     request.config()  # a value the run config refuses (--distance, --angle, --config) fails here, before any folder
     check_request(request)
     ARMS.entry(request.arm)
@@ -128,6 +152,18 @@ def _open(request_fields: dict, json_out: bool, sim_fault: list[str] | None, ove
     _print_episode(data, json_out)
     if not (data["success"] or data["stop_reason"] == StopReason.DRY_RUN):
         raise typer.Exit(1)
+
+
+def _check_scene_options(fields: dict, simulated: bool) -> None:
+    """ConfigError for an option of the simulated scene given with a real camera or a recording."""
+    from deploy.errors import ConfigError
+
+    given = {"--world": fields["world"], "--part": fields["part"], "--assets": fields["assets"],
+             "--object": fields["object_id"], "--scale": None if fields["scale"] == "real" else fields["scale"],
+             "--condition": None if fields["condition"] == "normal" else fields["condition"]}
+    for option, value in given.items():
+        if value is not None and not simulated:
+            raise ConfigError(f"{option} {value} is for a simulated scene: drop it, or use --camera sim")
 
 
 @top_level.command("open-drawer")
@@ -151,6 +187,12 @@ def open_drawer(
     view: ViewOpt = False,
     calibration_error: CalibrationErrorOpt = CALIBRATION_ERROR,
     condition: ConditionOpt = Condition.normal,
+    world: OpenWorldOpt = None,
+    part: PartOpt = None,
+    assets: AssetsOpt = None,
+    object_id: ObjectOpt = None,
+    scale: ScaleOpt = ScaleChoice.real,
+    point: PointOpt = None,
     sim_fault: SimFaultOpt = None,
     overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
@@ -164,7 +206,8 @@ def open_drawer(
     _open(dict(task="drawer", scene="drawer", distance_m=distance, camera=camera, arm=arm, robot=robot,
                calibration=calibration, segmenter=segmenter, seed=seed, split=split.value, policy=_value(policy),
                run_dir=run_dir, dry_run=dry_run, yes=yes, view=view, calibration_error=calibration_error,
-               condition=condition.value, config_file=config, overrides=_overrides(filter_profile, prompt, box)),
+               condition=condition.value, config_file=config, overrides=_overrides(filter_profile, prompt, box),
+               **_scene(world, part, assets, object_id, scale, point)),
           json_out, sim_fault, overwrite)
 
 
@@ -189,6 +232,12 @@ def open_door(
     view: ViewOpt = False,
     calibration_error: CalibrationErrorOpt = CALIBRATION_ERROR,
     condition: ConditionOpt = Condition.normal,
+    world: OpenWorldOpt = None,
+    part: PartOpt = None,
+    assets: AssetsOpt = None,
+    object_id: ObjectOpt = None,
+    scale: ScaleOpt = ScaleChoice.real,
+    point: PointOpt = None,
     sim_fault: SimFaultOpt = None,
     overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
@@ -200,7 +249,8 @@ def open_door(
     _open(dict(task="door", scene="door", angle_deg=angle, camera=camera, arm=arm, robot=robot,
                calibration=calibration, segmenter=segmenter, seed=seed, split=split.value, policy=_value(policy),
                run_dir=run_dir, dry_run=dry_run, yes=yes, view=view, calibration_error=calibration_error,
-               condition=condition.value, config_file=config, overrides=_overrides(filter_profile, prompt, box)),
+               condition=condition.value, config_file=config, overrides=_overrides(filter_profile, prompt, box),
+               **_scene(world, part, assets, object_id, scale, point)),
           json_out, sim_fault, overwrite)
 
 
@@ -230,6 +280,12 @@ def open_any(
     view: ViewOpt = False,
     calibration_error: CalibrationErrorOpt = CALIBRATION_ERROR,
     condition: ConditionOpt = Condition.normal,
+    world: OpenWorldOpt = None,
+    part: PartOpt = None,
+    assets: AssetsOpt = None,
+    object_id: ObjectOpt = None,
+    scale: ScaleOpt = ScaleChoice.real,
+    point: PointOpt = None,
     sim_fault: SimFaultOpt = None,
     overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
@@ -243,4 +299,5 @@ def open_any(
                arm=arm, robot=robot, calibration=calibration, segmenter=segmenter, seed=seed, split=split.value,
                policy=_value(policy), run_dir=run_dir, dry_run=dry_run, yes=yes, view=view,
                calibration_error=calibration_error, condition=condition.value, config_file=config,
-               overrides=_overrides(filter_profile, prompt, box)), json_out, sim_fault, overwrite)
+               overrides=_overrides(filter_profile, prompt, box),
+               **_scene(world, part, assets, object_id, scale, point)), json_out, sim_fault, overwrite)

@@ -19,6 +19,7 @@ from deploy.policies import POLICIES
 from drivers.arm.registry import ARMS
 from drivers.camera.registry import CAMERAS
 from drivers.registry import Registry
+from sim_fallback.worlds import SCALES, WORLDS
 
 
 class JointChoice(str, Enum):
@@ -53,6 +54,10 @@ class FilterChoice(str, Enum):
 
 PolicyChoice = Enum("PolicyChoice", {name: name for name in POLICIES.names()}, type=str)  # type: ignore[misc]
 """The registered opening policies (deploy/policies.py), as command-line choices."""
+WorldChoice = Enum("WorldChoice", {name: name for name in WORLDS}, type=str)  # type: ignore[misc]
+"""The simulated worlds (sim_fallback/worlds.py), as command-line choices."""
+ScaleChoice = Enum("ScaleChoice", {name: name for name in SCALES}, type=str)  # type: ignore[misc]
+"""How furniture models are sized (sim_fallback/worlds.py), as command-line choices."""
 
 
 def yes_option(help: str) -> Any:
@@ -156,3 +161,21 @@ RobotOpt = robot_option("Robot config: a shipped one's name (panda_sim, damiao_6
                         "\\[default: panda_sim].")
 StationSeedOpt = seed_option("Seed of the station generator (and sim noise).")
 SimFaultOpt = sim_fault_option()
+WORLD_HELP = "; ".join(f"{name}: {text}" for name, text in WORLDS.items())
+WorldOpt = Annotated[WorldChoice, typer.Option("--world", help=f"The simulated world: {WORLD_HELP}.")]
+PartOpt = Annotated[str | None, typer.Option(
+    "--part", metavar="NAME|N|LINK", help="The part to open: its name ('top drawer', 'left door'), an index N (0 = "
+    "the first of the task's kind, top to bottom then left to right as the camera sees them) or the model's link "
+    "name; an unknown one lists the parts \\[default: the seed picks one within the robot's reach].")]
+AssetsOpt = Annotated[Path | None, typer.Option(
+    "--assets", metavar="DIR", help="A folder of PartNet-Mobility objects (<id>/mobility.urdf, semantics.txt, "
+    "textured meshes): the target furniture is one of them, placed in a kitchen.")]
+ObjectOpt = Annotated[str | None, typer.Option(
+    "--object", metavar="ID", help="With --assets: the object to open \\[default: the usable objects cycled by "
+    "seed].")]
+ScaleOpt = Annotated[ScaleChoice, typer.Option(
+    "--scale", help="With --assets, how objects are sized: " + "; ".join(f"{k}: {v}" for k, v in SCALES.items())
+    + ".")]
+PointOpt = Annotated[tuple[float, float] | None, typer.Option(
+    "--point", metavar="U V", help="The pixel (column U, row V) on the part to open in the first frame, as a user "
+    "points at it \\[default: with --camera sim the simulated user's, said on the step log; on hardware none].")]

@@ -8,12 +8,26 @@ from typing import Annotated
 
 import typer
 
-from deploy.commands.options import JsonOpt, Split, Task, above, overwrite_option
+from deploy.commands.options import (
+    AssetsOpt,
+    JsonOpt,
+    ObjectOpt,
+    PartOpt,
+    ScaleChoice,
+    ScaleOpt,
+    Split,
+    Task,
+    WorldChoice,
+    WorldOpt,
+    above,
+    overwrite_option,
+)
 from deploy.commands.output import console, err_console, print_json, progress_bar
 
 app = typer.Typer(help="PyBullet simulation: render scenes and record scripted openings.", no_args_is_help=True)
 
-TaskOpt = Annotated[Task, typer.Option(help="Cabinet with a drawer or a door.")]
+TaskOpt = Annotated[Task | None, typer.Option(
+    help="A drawer or a door \\[default: the kind of the part --part names on --object, else drawer].")]
 SeedOpt = Annotated[int, typer.Option(min=0, help="Scenario seed.")]
 SplitOpt = Annotated[Split, typer.Option(help="Object family.")]
 OverwriteOpt = overwrite_option("recording at --out")
@@ -22,17 +36,24 @@ PHASES = {"grasp": "grasping the handle", "open": "opening along the true axis",
 
 @app.command("show")
 def sim_show(
-    task: TaskOpt = Task.drawer,
+    task: TaskOpt = None,
     seed: SeedOpt = 0,
     split: SplitOpt = Split.train,
+    world: WorldOpt = WorldChoice.kitchen,
+    part: PartOpt = None,
+    assets: AssetsOpt = None,
+    object_id: ObjectOpt = None,
+    scale: ScaleOpt = ScaleChoice.real,
     out: Annotated[Path, typer.Option(help="PNG to write.")] = Path("scene.png"),
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing file at --out; without it an "
                                             "existing one is refused.")] = False,
     json_out: JsonOpt = False,
 ) -> None:
-    """Render a simulated scene: colour, depth and segmentation side by side.
+    """Render a simulated scene: colour, depth and segmentation side by side. With --assets, list the objects' parts
+    (kind, link, range) and why any object cannot be used, and render the object in its kitchen.
 
     Example: deploy sim show --task door --seed 3 --out door.png
+    Example: deploy sim show --assets partnet-mobility-dataset/ --object 45213 --part "top drawer" --json
     """
     from deploy.errors import RecordingError
 
@@ -41,22 +62,60 @@ def sim_show(
     if out.exists() and not (overwrite and out.is_file()):
         raise RecordingError(f"--out {out} already exists: pass --overwrite to replace it, or choose another --out"
                              if out.is_file() else f"--out {out} is a folder: give a file name ending in .png")
-    from sim_fallback.show import render_scene_png  # after the checks: it prints pybullet's banner
+    from sim_fallback.scenes import scenario_object  # after the checks: the simulator prints pybullet's banner
+    from sim_fallback.show import render_scene_png
 
-    with err_console.status(f"rendering the {task.value} scene of seed {seed}"):
-        render_scene_png(task.value, seed, out, split=split.value)
+    listing = _listing(assets, object_id, task, scale) if assets is not None else {}
+    with err_console.status(f"rendering the scene of seed {seed}"):
+        _, scenario = render_scene_png(task.value if task else None, seed, out, split=split.value, world=world.value,
+                                       part=part, assets=assets, object_id=object_id, scale=scale.value)
+    data = {"out": str(out), "task": scenario.task, "seed": seed, "split": split.value, "world": world.value,
+            "furniture": scenario_object(scenario), "part": scenario.part, **listing}
     if json_out:
-        print_json({"out": str(out), "task": task.value, "seed": seed, "split": split.value})
-    else:
-        console.print(f"wrote {out}")
+        print_json(data)
+        return
+    for entry in listing.get("objects", []):
+        parts = ", ".join(f"{p['name']} ({p['kind']}, {p['link']}, 0-{p['range'][1]:g} {p['unit']})"
+                          for p in entry.get("parts", []))
+        console.print(f"object {entry['id']} ({entry['category'] or 'no category'}): "
+                      f"{entry['problem'] or parts}", soft_wrap=True)
+        for kind, why in entry["unusable_for"].items():
+            console.print(f"  not usable for a {kind}: {why}", soft_wrap=True)
+    console.print(f"wrote {out}: {data['furniture']}, {data['part']} ({data['world']}, seed {seed})", soft_wrap=True)
+
+
+def _listing(assets: Path, object_id: str | None, task: Task | None, scale: ScaleChoice) -> dict:
+    """`sim show --assets`: every object of the folder (or --object alone) with its parts, the one line that says
+    why it does not load (`problem`) and, per task (--task, else both), why it cannot serve it (`unusable_for`)."""
+    from sim_fallback.partnet import PartNetError, find_object, list_objects
+    from sim_fallback.scenes import task_objects
+
+    folder = find_object(assets, object_id) if object_id is not None else assets
+    objects = [entry.describe() for entry in list_objects(folder, scale.value)]
+    for entry in objects:
+        entry["unusable_for"] = {}
+    for kind in [task.value] if task is not None else ["drawer", "door"]:
+        try:
+            problems = task_objects(folder, kind, scale.value).problems
+        except PartNetError as exc:  # none can serve it: each object's reason is in the one line
+            problems = {entry["id"]: str(exc) for entry in objects}
+        for entry in objects:
+            if entry["id"] in problems and entry["problem"] is None:
+                entry["unusable_for"][kind] = problems[entry["id"]]
+    return {"assets": str(assets), "scale": scale.value, "objects": objects}
 
 
 @app.command("record")
 def sim_record(
     out: Annotated[Path, typer.Option(help="Frames directory to write.")],
-    task: TaskOpt = Task.drawer,
+    task: TaskOpt = None,
     seed: SeedOpt = 0,
     split: SplitOpt = Split.train,
+    world: WorldOpt = WorldChoice.kitchen,
+    part: PartOpt = None,
+    assets: AssetsOpt = None,
+    object_id: ObjectOpt = None,
+    scale: ScaleOpt = ScaleChoice.real,
     fps: Annotated[float, typer.Option(callback=above(0.0), max=60.0, help="Camera frames per second.")] = 10.0,
     overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
@@ -65,11 +124,15 @@ def sim_record(
 
     Writes the frames-directory format with masks, poses and truth.json.
     Example: deploy sim record --task drawer --seed 1 --out runs/drawer1 && deploy axis estimate runs/drawer1
+    Example: deploy sim record --assets partnet-mobility-dataset/ --object 45213 --part door --out runs/45213-door
     """
     from deploy.output_folder import new_output
+    from sim_fallback.scenes import check_scene
     from sim_fallback.scripted import record_scripted
 
-    with new_output(out, overwrite, "recording"), progress_bar(f"sim record {task.value} (seed {seed})") as bar:
+    check_scene(world.value, assets, object_id)
+    label = f"sim record {task.value} (seed {seed})" if task else f"sim record (seed {seed})"
+    with new_output(out, overwrite, "recording"), progress_bar(label) as bar:
         shown = {"phase": ""}
 
         def each(phase: str, frames: int) -> None:
@@ -78,12 +141,16 @@ def sim_record(
                 bar.describe(PHASES[phase])
             bar.counts(frames, None)
 
-        summary = record_scripted(task.value, seed, out, split=split.value, fps=fps, progress=each)
+        summary = record_scripted(task.value if task else None, seed, out, split=split.value, fps=fps,
+                                  progress=each, world=world.value, part=part, assets=assets, object_id=object_id,
+                                  scale=scale.value)
     if json_out:
-        unit, scale = ("m", 1.0) if task is Task.drawer else ("deg", math.degrees(1.0))
-        print_json({"out": str(out), "task": task.value, "seed": seed, "split": split.value,
-                    "frames": summary.frames, f"opened_{unit}": summary.joint_end * scale,
-                    f"target_{unit}": summary.target * scale, "sim_time_s": summary.sim_time_s,
+        unit, factor = ("m", 1.0) if summary.task == "drawer" else ("deg", math.degrees(1.0))
+        print_json({"out": str(out), "task": summary.task, "seed": seed, "split": split.value,
+                    "world": summary.world, "part": summary.part, "assets": None if assets is None else str(assets),
+                    "object": object_id, "scale": scale.value if assets is not None else None,
+                    "frames": summary.frames, f"opened_{unit}": summary.joint_end * factor,
+                    f"target_{unit}": summary.target * factor, "sim_time_s": summary.sim_time_s,
                     "wall_time_s": summary.wall_time_s})
     else:
         console.print(f"wrote {out}: {summary}", soft_wrap=True)

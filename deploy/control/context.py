@@ -26,6 +26,7 @@ SETTLE_S = 0.3  # after a motion the arm settles on its last command (a new moti
 # measured joints, and the safety layer refuses a jump from the last command to them)
 
 
+ARM_VIEW_S = 0.1  # the viewer shows the arm's joints this often (arm time), besides with every frame
 FREE_SPACE_SHARE = 0.3  # free-space joint moves at this share of the robot config's limits
 
 
@@ -70,6 +71,13 @@ class Episode:
         for _ in range(int(round(duration_s / self.arm.control_period_s))):
             self.arm.sync()
 
+    def show_arm(self, state: ArmState, _t: float = 0.0) -> None:
+        """The arm's state and command to the viewer, every ARM_VIEW_S of arm time: the `on_tick` of Cartesian
+        motions, which read the state every tick anyway (a reading more would change a simulated arm's sensor
+        noise, and so the run)."""
+        if self.view.showing:
+            self.view.arm(state.t - self.state.t0, state, self.arm.commanded_q(), ARM_VIEW_S)
+
     def line_limits(self) -> MotionLimits:
         v = self.config.opening.pull_speed_m_s
         return MotionLimits(v, 4 * v, 40 * v)
@@ -95,7 +103,8 @@ class Episode:
 
         def on_tick(state: ArmState, _t: float) -> bool:
             held = holds(state)  # a slip ends the pull; its frames are not held
-            self.observer.capture(state, held)
+            self.observer.capture(state, held, self.arm.commanded_q)
+            self.show_arm(state)
             return held and self.now() <= self.config.opening.timeout_s
 
         self.arm.set_compliance(True)
@@ -107,7 +116,7 @@ class Episode:
         finally:
             self.arm.set_compliance(False)
         settled = self.arm.state()
-        self.observer.settled(settled, holds(settled))
+        self.observer.settled(settled, holds(settled), self.arm.commanded_q)
         self.state.timings["motion_s"] += time.perf_counter() - clock
         self.state.steps += step
         self.state.peak_pull_force_n = max(self.state.peak_pull_force_n, result.peak_force_n)
@@ -116,6 +125,7 @@ class Episode:
         self.state.measured.extend(result.measured)
         if self.folder is not None:
             self.folder.add_motion(label, result, start_s)
+        self.view.motion(self.now(), label, result.planned, result.measured)
         self.observer.process()
         return result
 

@@ -23,7 +23,7 @@ from deploy.control.state import EpisodeStop, StopReason
 from deploy.control.view import EpisodeView
 from deploy.geometry.estimators.base import Observation
 from deploy.geometry.types import AxisResult, Box, JointType, NoAxis
-from deploy.perception.base import Segmenter
+from deploy.perception.base import Pointer, Segmenter
 from deploy.perception.self_filter import SelfFilter
 from deploy.report.run_folder import RunFolder
 from drivers.arm.base import ArmState
@@ -76,7 +76,8 @@ class Observer:
         self._last_seen: tuple[Frame, np.ndarray] | None = None
         self._mask_pixels = 0
         self._vision: AxisResult = NoAxis("no frames yet")
-        self._pending: list[tuple[Frame, ArmState, bool]] = []  # frame, arm state, whether the gripper held
+        self._pending: list[tuple[Frame, ArmState, bool, np.ndarray | None]] = []  # frame, arm state, whether the
+        # gripper held, the joints commanded
         self._next_frame_t = 0.0
         self._t0 = t0  # arm-clock start of the episode (viewer timeline)
         self._seconds = 0.0  # spent segmenting and estimating
@@ -134,20 +135,23 @@ class Observer:
         """The joint the probe pull classified: the pipeline cuts a door's moving part out of a deeper box."""
         self._pipeline.joint = joint
 
-    def first(self, arm_state: Callable[[], ArmState]) -> FirstLook:
-        """Read and segment the first frame (the arm's state read after it), fix the body box; what it showed.
-        Called again, it starts over (a new body box)."""
+    def first(self, arm_state: Callable[[], ArmState], commanded: Callable[[], np.ndarray | None] | None = None
+              ) -> FirstLook:
+        """Read and segment the first frame (the arm's state, and `commanded()` joints, read after it), fix the body
+        box; what it showed. Called again, it starts over (a new body box)."""
         raw = self._camera.read()
         state = arm_state()
+        q_commanded = None if commanded is None else commanded()
         frame, robot = self._without_robot(raw, state)
         self._pipeline = AxisPipeline(self._pipeline_config)
-        mask = self._segmenter.start(frame, self._config.perception.object_prompt) & ~robot
+        perception = self._config.perception
+        mask = self._segmenter.start(frame, perception.object_prompt, Pointer.of(perception.point)) & ~robot
         self._mask_pixels = int(np.count_nonzero(mask))
         if self._mask_pixels == 0:
             raise EpisodeStop(StopReason.NO_OBJECT,
                               "the segmenter found no object on the first frame: point the camera at it")
         self._pipeline.update_frame(frame, mask, None)  # before any grasp: the gripper's pose is not the part's
-        self._log(raw, mask, state, self._kin.fk(state.q), first=True, grasped=False)
+        self._log(raw, mask, state, self._kin.fk(state.q), first=True, grasped=False, commanded=q_commanded)
         points = self.points(frame, mask)
         self._first = FirstLook(frame, mask, robot, points, self._pipeline.body_box, self._pipeline.handle_points)
         kernel = np.ones((NEAR_OBJECT_PX, NEAR_OBJECT_PX), np.uint8)
@@ -159,28 +163,30 @@ class Observer:
         self._next_frame_t = state.t
         return self._first
 
-    def capture(self, state: ArmState, grasped: bool) -> None:
+    def capture(self, state: ArmState, grasped: bool, commanded: Callable[[], np.ndarray | None] | None = None) -> None:
         """During a motion: grab a frame when its slot has come (frames are processed after the motion);
-        `grasped`: the gripper holds the handle at `state`."""
+        `grasped`: the gripper holds the handle at `state`; `commanded()`: the joints commanded then."""
         if state.t + 1e-9 >= self._next_frame_t:
-            self._pending.append((self._camera.read(), state, grasped))
+            q_commanded = None if commanded is None else commanded()
+            self._pending.append((self._camera.read(), state, grasped, q_commanded))
             self._next_frame_t = state.t + 1.0 / self._config.opening.camera_hz
 
-    def settled(self, state: ArmState, grasped: bool) -> None:
+    def settled(self, state: ArmState, grasped: bool, commanded: Callable[[], np.ndarray | None] | None = None
+                ) -> None:
         """A motion's settled end: a frame now, whatever the slot (the next motion's frames count from it)."""
         self._next_frame_t = 0.0
-        self.capture(state, grasped)
+        self.capture(state, grasped, commanded)
 
     def process(self) -> None:
         """Segment the frames grabbed during the last motion and feed them to the pipeline, in order."""
         clock = time.perf_counter()
         pending, self._pending = self._pending, []
-        for raw, state, grasped in pending:
+        for raw, state, grasped, commanded in pending:
             start, cpu = time.perf_counter(), time.thread_time()
             frame, robot = self._without_robot(raw, state)
             mask = self._segmenter.track(frame) & ~robot
             pose = self._kin.fk(state.q)
-            self._log(raw, mask, state, pose, grasped=grasped)
+            self._log(raw, mask, state, pose, grasped=grasped, commanded=commanded)
             if np.count_nonzero(mask) < self._config.opening.min_mask_fraction * self._mask_pixels:
                 raise EpisodeStop(StopReason.TRACKING_LOST, f"the object's mask shrank to {np.count_nonzero(mask)} "
                                   f"pixels of {self._mask_pixels} at frame {frame.index}: the object left the view "
@@ -211,12 +217,13 @@ class Observer:
         return self._self_filter.apply(frame, state.q, state.gripper_width_m)
 
     def _log(self, frame: Frame, mask: np.ndarray, state: ArmState, pose: np.ndarray, first: bool = False,
-             grasped: bool = False) -> None:
-        """Record the frame with the gripper's `pose` (marked `first` where the pipeline starts over on it, and
-        whether the gripper held the handle) and show it."""
+             grasped: bool = False, commanded: np.ndarray | None = None) -> None:
+        """Record the frame with the arm's state, the joints `commanded` and the gripper's `pose` (marked `first`
+        where the pipeline starts over on it, and whether the gripper held the handle) and show it."""
         if self._folder is not None:
-            self._folder.write_frame(frame, mask, state.q, pose, first=first, grasped=grasped)
+            self._folder.write_frame(frame, mask, state, pose, first=first, grasped=grasped, commanded=commanded)
         self._view.frame(state.t - self._t0, frame, mask, pose)
+        self._view.arm(state.t - self._t0, state, commanded)
 
 
 def _box_text(mask: np.ndarray) -> str:

@@ -11,15 +11,16 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime
 from pathlib import Path
 from typing import Any, Literal
 
 from deploy.config import CALIBRATION_ERROR, Config, load_config
 from deploy.control.episode import run_episode
-from deploy.control.view import EpisodeView
+from deploy.control.view import EpisodeView, step_log
 from deploy.errors import ConfigError
+from deploy.perception.base import Pointer
 from deploy.perception.registry import default_segmenter
 from deploy.report.run_folder import RunFolder
 from deploy.rig import Rig, RigSpec, SimScene, open_rig
@@ -30,15 +31,18 @@ log = logging.getLogger(__name__)
 
 OPTIONS = {"opening.target_distance_m": "--distance", "opening.target_angle_deg": "--angle",
            "opening.policy": "--policy", "filter.profile": "--filter", "perception.object_prompt": "--prompt",
-           "perception.box": "--box"}  # the command-line options that set these fields (error messages)
+           "perception.box": "--box", "perception.point": "--point"}  # the options that set these fields (errors)
+VIEW_FILE = "episode.rrd"  # the run folder's rerun recording, with --view
 Setup = Callable[[Any, Any], None]  # (world, arm) -> None: changes a simulated world before the episode (tests)
 
 
 @dataclass(frozen=True)
 class OpenRequest:
     """What the user asked for. task: what the policy is told ("auto" = classify from the probe pull);
-    scene: the simulated object (`--camera sim` only); distance_m / angle_deg / policy: None keeps the
-    config's; config_file: a run's TOML (deploy/config.py); overrides: settings on top, by dotted name
+    scene: the simulated object's kind, in `world` (`--camera sim` only, as `part`, `assets`, `object_id`, `scale`
+    and `condition`: `SimScene`); distance_m / angle_deg / policy: None keeps the config's; point: the pixel (u, v)
+    the user points at on the part in the first frame (None: in simulation the simulated user's, on hardware
+    none); config_file: a run's TOML (deploy/config.py); overrides: settings on top, by dotted name
     ({"opening.max_steps": 3, "filter.profile": "sparse", "perception.object_prompt": "drawer"}). The filter
     profile, unless set, follows the camera (`Config.for_camera`)."""
 
@@ -61,13 +65,24 @@ class OpenRequest:
     resolution: tuple[int, int] = (640, 480)
     calibration_error: tuple[float, float] = CALIBRATION_ERROR
     condition: Literal["normal", "locked", "stiff"] = "normal"  # the simulated object's joint (never told)
+    world: str = "kitchen"
+    part: str | None = None
+    assets: Path | None = None
+    object_id: str | None = None
+    scale: str = "real"
+    point: tuple[float, float] | None = None
     config_file: Path | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
 
     def config(self) -> Config:
+        point = {"perception.point": self.point} if self.point is not None else {}
         return load_config(self.config_file, {
             "opening.task": self.task, "opening.policy": self.policy, "opening.target_distance_m": self.distance_m,
-            "opening.target_angle_deg": self.angle_deg, **self.overrides}, OPTIONS).for_camera(self.camera)
+            "opening.target_angle_deg": self.angle_deg, **point, **self.overrides}, OPTIONS).for_camera(self.camera)
+
+    def sim_scene(self) -> SimScene:
+        return SimScene(self.scene, self.seed, self.split, self.condition, self.world, self.part, self.assets,
+                        self.object_id, self.scale)
 
     def rig_spec(self, config: Config) -> RigSpec:
         simulated = CAMERAS.entry(self.camera)[0].simulated
@@ -75,7 +90,7 @@ class OpenRequest:
         return RigSpec(camera=self.camera, arm=self.arm, robot=self.robot, calibration=self.calibration,
                        segmenter=self.segmenter or default_segmenter(config.perception),
                        perception=config.perception,
-                       scene=SimScene(self.scene, self.seed, self.split, self.condition),
+                       scene=self.sim_scene(),
                        calibration_error=self.calibration_error,
                        camera_options={"width": width, "height": height, "fps": config.opening.camera_hz}
                        if simulated else {})
@@ -114,18 +129,21 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
     changes a simulated world before the episode; keep_run_dir False: no run folder (benchmarks)."""
     wall = time.perf_counter()
     check_request(request)
+    request = _with_object(request)
     config = request.config()
     run_dir = request.folder() if keep_run_dir else None
-    _log_config(config)
-    folder = None if run_dir is None else RunFolder(
-        run_dir, request.camera, CAMERAS.entry(request.camera)[0].simulated, config)
     with open_rig(request.rig_spec(config)) as rig:
         if setup is not None:
             setup(rig.world, rig.arm)
         evaluation = _evaluation(rig)
+        config, pointer = _pointed(config, rig, evaluation, request.seed)
+        _log_config(config)
+        scene = _scene(request, rig, pointer)
+        folder = None if run_dir is None else RunFolder(run_dir, request.camera, rig.simulated, config, scene,
+                                                        rig.robot.reference)
         if rig.real_arm and confirm is not None and not (request.dry_run or request.yes):
             confirm(f"The arm will grasp and pull the {request.task} in view. Area clear, arm supervised?")
-        view = _view(request, run_dir, evaluation)
+        view = _view(request, run_dir, evaluation, rig)
         with rig.arm:
             try:
                 result = run_episode(rig.camera, rig.arm, rig.segmenter, config, rig.robot, folder, view,
@@ -139,9 +157,11 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
                 raise
         data = {**result.to_dict(), "task": request.task, "camera": request.camera,
                 "arm": request.arm, "policy": config.opening.policy, "segmenter": rig.spec.segmenter,
-                "filter": config.filter.used()}
+                "filter": config.filter.used(), **scene}
         if motors := rig.arm.motor_states():
             data["motors"] = motors
+        if (rrd := view.saved_to()) is not None:
+            data["rrd"] = rrd
         if evaluation is not None:
             translation_mm, rotation_deg = request.calibration_error
             data.update({"seed": request.seed, "split": request.split, "task": request.scene,
@@ -152,16 +172,66 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
     return data
 
 
+def _with_object(request: OpenRequest) -> OpenRequest:
+    """`request` with the PartNet-Mobility object its seed opens, when it gives --assets without --object."""
+    if request.assets is None or request.object_id is not None or not CAMERAS.entry(request.camera)[0].simulated:
+        return request
+    from sim_fallback.scenes import task_objects
+
+    return replace(request, object_id=task_objects(request.assets, request.scene, request.scale).for_seed(request.seed))
+
+
+def _pointed(config: Config, rig: Rig, evaluation: Any, seed: int) -> tuple[Config, dict | None]:
+    """`config` with the pixel the user points at: --point (or the config's; refused off the camera's image), else in
+    simulation the simulated user's on the target part's front (said on the step log), else none; and the pointer
+    as the run records it (u, v, source)."""
+    point = config.perception.point
+    intrinsics = rig.camera.intrinsics if rig.camera is not None else None
+    if point is not None and intrinsics is not None and not Pointer.of(point).inside(intrinsics.width,
+                                                                                     intrinsics.height):
+        raise ConfigError(f"--point {point[0]:g} {point[1]:g} is off the camera's {intrinsics.width}x"
+                          f"{intrinsics.height} image: give the pixel (U from 0 to {intrinsics.width - 1}, V from 0 to "
+                          f"{intrinsics.height - 1}) of the part to open in the first frame")
+    if point is not None:
+        return config, {"u": point[0], "v": point[1], "source": "--point"}
+    user = evaluation.user_point(rig.sim_camera, seed) if evaluation is not None else None
+    if user is None:
+        if evaluation is not None:
+            step_log.info("the simulated user sees no pixel of the target part: the controller gets no pointer")
+        return config, None
+    step_log.info("the simulated user points at pixel (%d, %d) on the target part (give --point U V to choose)",
+                  *user)
+    return config.replace(perception={"point": user}), {"u": user[0], "v": user[1], "source": "simulated user"}
+
+
+def _scene(request: OpenRequest, rig: Rig, pointer: dict | None) -> dict:
+    """What the run folder and the JSON record of the scene: the pointer, and in simulation the world, the
+    furniture (with --assets: the folder, object and scale), the part and the sensor models in force."""
+    out: dict[str, Any] = {"pointer": pointer}
+    if rig.world is None:
+        return out
+    from sim_fallback.devices import sensor_models
+    from sim_fallback.scenes import scenario_object
+
+    scenario = rig.world.scenario
+    assets = request.assets is not None
+    return {**out, "world": scenario.world, "furniture": scenario_object(scenario),
+            "assets": str(request.assets) if assets else None,
+            "object": request.object_id,
+            "scale": request.scale if assets else None, "part": scenario.part,
+            "sensors": sensor_models(rig.sim_camera, rig.robot, request.seed)}
+
+
 def _log_config(config: Config) -> None:
     """The resolved run config, for --verbose."""
     o, e = config.opening, config.estimator
     target = (f"{o.target_distance_m:g} m" if o.task == "drawer" else f"{o.target_angle_deg:g} deg" if o.task == "door"
               else f"{o.target_distance_m:g} m or {o.target_angle_deg:g} deg")
     log.info("run config: filter %s (%s); estimator %s, joint %s, window %d; opening %s to %s, policy %s, fusion "
-             "%s, max %d steps, timeout %g s; prompt %r, box %s", config.filter.profile, config.filter.resolve(),
-             config.acting_estimator, e.joint, e.window, o.task, target, o.policy,
+             "%s, max %d steps, timeout %g s; prompt %r, box %s, point %s", config.filter.profile,
+             config.filter.resolve(), config.acting_estimator, e.joint, e.window, o.task, target, o.policy,
              o.acting_fusion, o.max_steps, o.timeout_s,
-             config.perception.object_prompt, config.perception.box)
+             config.perception.object_prompt, config.perception.box, config.perception.point)
 
 
 def _evaluation(rig: Rig):
@@ -172,13 +242,15 @@ def _evaluation(rig: Rig):
     return Evaluation(rig.world)
 
 
-def _view(request: OpenRequest, run_dir: Path | None, evaluation: Any) -> EpisodeView:
-    """The episode's step lines, and with --view the rerun viewer (RUN/episode.rrd) showing the true axis too."""
+def _view(request: OpenRequest, run_dir: Path | None, evaluation: Any, rig: Rig) -> EpisodeView:
+    """The episode's step lines, and with --view the rerun viewer (RUN/episode.rrd) showing the robot from its URDF
+    and, in simulation, the true axis too."""
     viewer = None
     if request.view and run_dir is not None:
         from deploy.report.viewer import RerunViewer
 
-        viewer = RerunViewer(run_dir / "episode.rrd")
+        viewer = RerunViewer(run_dir / VIEW_FILE)
+        viewer.robot(rig.robot.urdf_path(), rig.robot.joint_names, rig.robot.locked_joints)
     view = EpisodeView(viewer)
     if evaluation is not None:
         view.true_axis(evaluation.true_axis())

@@ -110,7 +110,7 @@ def _vec(v: np.ndarray) -> str:
 
 def _find_handle(episode: Episode) -> Handle | None:
     observer = episode.observer
-    look = observer.first(episode.arm.state)
+    look = observer.first(episode.arm.state, episode.arm.commanded_q)
     points = observer.handle_points()
     return None if look.body_box is None else find_handle(
         points, look.points, look.body_box, viewpoint(look.frame), episode.state.joint is JointType.REVOLUTE)
@@ -150,6 +150,7 @@ def plan(episode: Episode, handle: Handle) -> tuple[StopReason, str]:
     log.info("grasp plan (dry run): grasp at %s m, pre-grasp joints %s rad, prior axis %s along %s",
              _vec(T_grasp[:3, 3]), _vec(q_pre), state.axis.joint_type.value, _vec(state.axis.direction))
     state.commanded.extend([kin.fk(q_pre), T_grasp])
+    episode.view.grasp(episode.now(), T_grasp)
     state.estimates.append({"step": 0, "t": 0.0, "source": "plan (prior)", "axis": state.axis.to_dict(),
                             f"opened_{opening_unit(state.joint_type())}": 0.0, "vision": "dry run"})
     p = T_grasp[:3, 3]
@@ -166,12 +167,13 @@ def grasp(episode: Episode, handle: Handle) -> None:
     q_pre = pregrasp_configuration(kin, arm.state().q, T_grasp, _planned_pulls(episode, handle, T_grasp), approach)
     log.info("grasp plan: grasp at %s m, approach %.3f m straight in, pre-grasp joints %s rad", _vec(T_grasp[:3, 3]),
              approach, _vec(q_pre))
+    episode.view.grasp(episode.now(), T_grasp)
     arm.set_gripper(1.0)  # fully open (clipped to the gripper's width)
     move_to_joints(arm, q_pre, episode.joint_limits)
     _measure_torque_offset(episode)
     open_width = arm.state().gripper_width_m
     T = episode.tool()
-    follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), approach, episode.line_limits())
+    follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), approach, episode.line_limits(), episode.show_arm)
     _ease_off_press(episode)
     _close_and_check(episode, open_width, StopReason.GRASP_FAILED)
     state.open_width_m = open_width
@@ -299,7 +301,7 @@ def regrasp(episode: Episode) -> None:
     arm.set_gripper(state.open_width_m)
     episode.wait(CLOSE_TIME_S)
     T = episode.tool()
-    follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), RETREAT_M, episode.line_limits())
+    follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), RETREAT_M, episode.line_limits(), episode.show_arm)
     frame, points = episode.observer.look(arm.state())
     handle = _slipped_handle(episode, frame, points, held)
     if handle is None:
@@ -307,10 +309,11 @@ def regrasp(episode: Episode) -> None:
                           f"within {REGRASP_RADIUS_M * 100:.0f} cm of where it was held or of the estimated path "
                           "back to the start: check the view of the handle")
     T_grasp = grasp_pose(handle)
+    episode.view.grasp(episode.now(), T_grasp)
     move_to_pose(arm, kin, pregrasp_pose(T_grasp, RETREAT_M), episode.joint_limits)
     episode.wait(SETTLE_S)
     T = episode.tool()
-    follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), RETREAT_M, episode.line_limits())
+    follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), RETREAT_M, episode.line_limits(), episode.show_arm)
     _close_and_check(episode, state.open_width_m, StopReason.GRASP_LOST, "re-grasp after a slip failed: ")
     p_new = episode.tool()[:3, 3]
     if state.axis is not None:
@@ -376,7 +379,8 @@ def _ease_off_press(episode: Episode) -> None:
         T = kin.fk(state.q)
         if w is None or w[:3] @ T[:3, 2] < PRESS_N:
             return
-        follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), EASE_STEP_M, episode.line_limits())
+        follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), EASE_STEP_M, episode.line_limits(),
+                              episode.show_arm)
         episode.wait(SETTLE_S)
 
 
@@ -440,12 +444,26 @@ def _log_estimate(episode: Episode, axis: Axis, source: str) -> None:
     shown = _shown(episode, state.opened)
     state.opening_curve.append((episode.now(), state.opened))
     episode.view.axis(episode.now(), axis, shown, source)
+    _show_step(episode)
     state.estimates.append({
         "step": state.steps, "t": episode.now(), "source": source, "axis": axis.to_dict(),
         f"opened_{opening_unit(state.joint_type())}": shown,
         "across_force_n": state.across_force_n,
         "vision": vision.reason if isinstance(vision, NoAxis)
         else f"{vision.joint_type.value}, confidence {vision.confidence:.3f}"})
+
+
+def _show_step(episode: Episode) -> None:
+    """The step's clouds in the viewer, when one shows the episode: the latest frame's object cloud, its moving
+    part and the handle (the points protruding from the front near the gripper)."""
+    seen = episode.observer.latest_view() if episode.view.showing else None
+    if seen is None:
+        return
+    frame, mask = seen
+    cloud = episode.observer.points(frame, mask)
+    window = episode.observer.window()
+    handle = protruding_points(cloud, episode.tool()[:3, 3], viewpoint(frame))
+    episode.view.step_clouds(episode.now(), cloud, window[-1].moving if window else None, handle)
 
 
 def _step_path(episode: Episode, axis: Axis) -> tuple[PathFn, float, MotionLimits]:

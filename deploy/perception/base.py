@@ -1,12 +1,35 @@
-"""The segmenter protocol: the object's mask on the first frame from a text prompt, then tracked."""
+"""The segmenter protocol: the object's mask on the first frame from a text prompt and what the user pointed at,
+then tracked."""
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 
 import numpy as np
 
 from drivers.camera.base import Frame
+
+
+@dataclass(frozen=True)
+class Pointer:
+    """What the user showed of the part to open: the pixel (u: column, v: row) they pointed at on it in the first
+    frame (`deploy open* --point U V`; in simulation the simulated user's)."""
+
+    u: float
+    v: float
+
+    @classmethod
+    def of(cls, point: tuple[float, float] | None) -> Pointer | None:
+        return None if point is None else cls(float(point[0]), float(point[1]))
+
+    def inside(self, width: int, height: int) -> bool:
+        """Whether the pixel lies on a width x height image."""
+        return 0 <= self.u < width and 0 <= self.v < height
+
+    def pixel(self) -> tuple[int, int]:
+        """(row, column) of the pixel."""
+        return int(self.v), int(self.u)
 
 
 class Segmenter(ABC):
@@ -20,8 +43,9 @@ class Segmenter(ABC):
     redetections: int = 0
 
     @abstractmethod
-    def start(self, frame: Frame, prompt: str = "cabinet") -> np.ndarray:
-        """Find the object named by `prompt` on the first frame; its mask."""
+    def start(self, frame: Frame, prompt: str = "cabinet", pointer: Pointer | None = None) -> np.ndarray:
+        """Find the object named by `prompt` on the first frame, the one with the part `pointer` shows when given
+        (a backend that cannot use it says so in its docstring); its mask."""
 
     @abstractmethod
     def track(self, frame: Frame) -> np.ndarray:

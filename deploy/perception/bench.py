@@ -116,25 +116,35 @@ def _self_filter() -> tuple[SelfFilter, float]:
 
 
 def bench_perception(seeds: int = 1, fps: float = 10.0, backends: list[str] | None = None,
-                     progress: Callable[[str], None] | None = None) -> dict:
-    """{"device", "backends": {NAME: {"latency_ms_median", "iou_median", "frames", ...} or {"skipped": why}}}.
+                     progress: Callable[[str], None] | None = None, world: str = "kitchen") -> dict:
+    """{"device", "world", "backends": {NAME: {"latency_ms_median", "iou_median", "frames", ...} or {"skipped":
+    why}}, "skipped_recordings": [why, ...]}.
 
-    Recordings: a drawer and a door per seed (seeds 0 .. seeds-1), `fps` frames per second.
+    Recordings: a drawer and a door per seed (seeds 0 .. seeds-1) in `world`, `fps` frames per second; one whose
+    scripted grasp fails (a handle the hand cannot close on) is left out with its reason.
     """
     from deploy.perception.device import choose_device
+    from drivers.errors import ArmError
     from sim_fallback.scripted import record_scripted
 
     device, _ = choose_device("auto")
     results: dict[str, dict] = {}
     with tempfile.TemporaryDirectory(prefix="axisloop-bench-perception-") as tmp:
-        recordings = []
+        recordings, skipped = [], []
         for seed in range(seeds):
             for task in ("drawer", "door"):
                 if progress:
                     progress(f"recording {task} seed {seed}")
                 path = Path(tmp) / f"{task}{seed}"
-                record_scripted(task, seed, path, fps=fps)
+                try:
+                    record_scripted(task, seed, path, fps=fps, world=world)
+                except ArmError as exc:
+                    skipped.append(f"{task} seed {seed}: {exc}")
+                    continue
                 recordings.append(path)
+        if not recordings:
+            raise ArmError(f"bench perception: no scripted recording could be made in the {world} world: "
+                           f"{'; '.join(skipped)}; give more --seeds")
         for label in backends or list(BACKENDS):
             name, overrides = BACKENDS[label]
             if progress:
@@ -147,4 +157,5 @@ def bench_perception(seeds: int = 1, fps: float = 10.0, backends: list[str] | No
                 results[label] = _run(name, overrides, recordings)
             except ModelError as e:
                 results[label] = {"latency_ms_median": None, "iou_median": None, "frames": 0, "skipped": str(e)}
-    return {"device": device, "recordings": len(recordings), "fps": fps, "backends": results}
+    return {"device": device, "world": world, "recordings": len(recordings), "fps": fps, "backends": results,
+            "skipped_recordings": skipped}

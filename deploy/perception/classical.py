@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from deploy.errors import PerceptionError
-from deploy.perception.base import Segmenter
+from deploy.perception.base import Pointer, Segmenter
 from deploy.perception.config import PerceptionConfig
 from deploy.perception.track_health import box_of, track_lost
 from drivers.camera.base import Frame
@@ -136,7 +136,9 @@ class ClassicalSegmenter(Segmenter):
         self._good: np.ndarray | None = None
         self._reference_area = 0
 
-    def start(self, frame: Frame, prompt: str | None = None) -> np.ndarray:
+    def start(self, frame: Frame, prompt: str | None = None, pointer: Pointer | None = None) -> np.ndarray:
+        """The object in the configured box on the first frame (`prompt` and `pointer` are not used: the box says
+        where it is)."""
         h, w = frame.color.shape[:2]
         box = _clip_box(self.config.box, w, h)
         if box[2] - box[0] < 4 or box[3] - box[1] < 4:

@@ -16,7 +16,8 @@ class PerceptionConfig(BaseModel):
 
     detector / tracker: a local directory or a Hugging Face repo id looked up in the local cache
     (never downloaded here: fetch with `hf download REPO_ID`). box: first-frame box (x0, y0, x1, y1)
-    in pixels; with it the detector is skipped.
+    in pixels; with it the detector is skipped. point: the pixel (u, v) on the part to open in the first frame
+    (segmenters get it as a `Pointer`).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -29,6 +30,8 @@ class PerceptionConfig(BaseModel):
     box_threshold: float = Field(default=0.25, ge=0, le=1)
     text_threshold: float = Field(default=0.3, ge=0, le=1)
     box: tuple[float, float, float, float] | None = None
+    point: tuple[float, float] | None = Field(default=None, description="the pixel (u, v) the user pointed at on the "
+                                              "part to open in the first frame")
     min_area_ratio: float = Field(default=0.3, ge=0, le=1, description="lost below this x the first mask's area")
     min_iou: float = Field(default=0.3, ge=0, le=1, description="lost below this IoU with the previous mask")
     max_redetections: int = Field(default=3, ge=0, description="re-detection attempts on a lost frame before stopping")

@@ -12,7 +12,7 @@ import logging
 import numpy as np
 
 from deploy.errors import PerceptionError
-from deploy.perception.base import Segmenter
+from deploy.perception.base import Pointer, Segmenter
 from deploy.perception.config import PerceptionConfig
 from deploy.perception.gdino import GroundingDinoDetector
 from deploy.perception.sam2_video import Box, StreamingTracker
@@ -55,9 +55,11 @@ class GdinoSam2Segmenter(Segmenter):
                                              config.box_threshold, config.text_threshold)
         return cls(tracker, detector, config)
 
-    def start(self, frame: Frame, prompt: str | None = None) -> np.ndarray:
+    def start(self, frame: Frame, prompt: str | None = None, pointer: Pointer | None = None) -> np.ndarray:
+        """The object `prompt` names in the configured box, else the best detection (among those holding the
+        `pointer`'s pixel, when any does), tracked from here."""
         self.prompt = prompt or self.config.object_prompt
-        box = self.config.box or self._detect(frame, None)
+        box = self.config.box or self._detect(frame, None, pointer)
         if box is None:
             raise PerceptionError(
                 f"no {self.prompt!r} found on frame {frame.index} above box threshold {self.config.box_threshold}: "
@@ -118,11 +120,15 @@ class GdinoSam2Segmenter(Segmenter):
         self._handle = masks.get(HANDLE_ID)
         return masks
 
-    def _detect(self, frame: Frame, near: Box | None) -> Box | None:
-        """The best-scoring box of the object prompt (the best overlapping `near` when given and any does)."""
+    def _detect(self, frame: Frame, near: Box | None, pointer: Pointer | None = None) -> Box | None:
+        """The best-scoring box of the object prompt (the best overlapping `near`, or holding `pointer`'s pixel,
+        when given and any does)."""
         if self.detector is None:
             return None
         found = self.detector.detect(frame.color, self.prompt)
+        if pointer is not None:
+            found = [d for d in found if d.box[0] <= pointer.u <= d.box[2] and d.box[1] <= pointer.v <= d.box[3]] \
+                or found
         if near is not None:
             overlapping = [d for d in found if box_iou(d.box, near) > 0.1]
             found = overlapping or found

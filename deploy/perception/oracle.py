@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from deploy.errors import PerceptionError
-from deploy.perception.base import Segmenter
+from deploy.perception.base import Pointer, Segmenter
 from drivers.camera.base import Frame, SegLabel
 
 
@@ -15,7 +15,8 @@ class OracleSegmenter(Segmenter):
 
     name = "oracle"
 
-    def start(self, frame: Frame, prompt: str = "cabinet") -> np.ndarray:
+    def start(self, frame: Frame, prompt: str = "cabinet", pointer: Pointer | None = None) -> np.ndarray:
+        """The labelled object (the prompt and pointer are not used: the labels name it)."""
         return self.track(frame)
 
     def track(self, frame: Frame) -> np.ndarray:

@@ -3,7 +3,8 @@
 Detector (first frame, and again when the track collapses): the depth image as points in the robot's base frame
 (the self-filter has already removed the arm), kept within the arm's reach; a floor or table top (a large
 horizontal plane at the bottom of the view) is removed; what is left is clustered (DBSCAN) and the object is the
-largest cluster of a piece of furniture's size. With `box` set only pixels inside it count.
+cluster that holds the point the user pointed at (the `Pointer`'s pixel seen in depth on the first frame), or
+without a pointer the largest cluster of a piece of furniture's size. With `box` set only pixels inside it count.
 
 Tracker: the object is the furniture that does not move plus the part that opens. Its region is the detected
 object's box in the base frame, grown by `track_margin_m` and reaching `opening_reach_m` (or the front's width,
@@ -23,7 +24,7 @@ from deploy.errors import PerceptionError
 from deploy.geometry.boxes import front_box, front_direction
 from deploy.geometry.cloud import depth_to_points, project
 from deploy.geometry.types import Box
-from deploy.perception.base import Segmenter
+from deploy.perception.base import Pointer, Segmenter
 from deploy.perception.classical import keep_touching
 from deploy.perception.config import PerceptionConfig
 from deploy.perception.track_health import track_lost
@@ -40,6 +41,8 @@ PLANE_TOLERANCE_M = 0.015
 MIN_PLANE_SHARE = 0.1  # a floor holds at least this share of the points in reach
 FLOOR_BAND_M = 0.05  # ... and lies within this of the lowest points
 FLOOR_CLEARANCE_M = 0.02  # the tracking region starts this far above the object's bottom
+POINT_WINDOW_PX = 7  # the pointed pixel's depth: the median of the depths measured within this many pixels of it
+POINT_NEAR_M = 2 * CLUSTER_EPS_M  # the pointed object is the cluster with a point this near the pointed point
 
 
 def pixel_points(frame: Frame, step: int, valid: np.ndarray | None = None,
@@ -74,12 +77,17 @@ def remove_floor(points: np.ndarray) -> np.ndarray:
     return keep
 
 
+def clusters(points: np.ndarray) -> np.ndarray:
+    """DBSCAN cluster labels of `points` (-1: noise)."""
+    if len(points) < CLUSTER_MIN_POINTS:
+        return np.full(len(points), -1)
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    return np.asarray(cloud.cluster_dbscan(CLUSTER_EPS_M, CLUSTER_MIN_POINTS))
+
+
 def largest_object(points: np.ndarray) -> np.ndarray:
     """Indices of the largest cluster of a furniture-like size (empty when there is none)."""
-    if len(points) < CLUSTER_MIN_POINTS:
-        return np.zeros(0, int)
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
-    labels = np.asarray(cloud.cluster_dbscan(CLUSTER_EPS_M, CLUSTER_MIN_POINTS))
+    labels = clusters(points)
     best = np.zeros(0, int)
     for label in np.unique(labels[labels >= 0]):
         members = np.flatnonzero(labels == label)
@@ -87,6 +95,41 @@ def largest_object(points: np.ndarray) -> np.ndarray:
         if MIN_OBJECT_SIZE_M <= max(size.max(), 0.0) <= MAX_OBJECT_SIZE_M and len(members) > len(best):
             best = members
     return best
+
+
+def pointed_object(points: np.ndarray, pointed: np.ndarray) -> np.ndarray:
+    """Indices of the cluster holding the point nearest `pointed` (base frame, m), when that point is within
+    POINT_NEAR_M of it (empty otherwise)."""
+    if len(points) == 0:
+        return np.zeros(0, int)
+    labels = clusters(points)
+    distance = np.linalg.norm(points - pointed, axis=1)
+    distance[labels < 0] = np.inf
+    nearest = int(np.argmin(distance))
+    if distance[nearest] > POINT_NEAR_M:
+        return np.zeros(0, int)
+    return np.flatnonzero(labels == labels[nearest])
+
+
+def pointed_point(frame: Frame, pointer: Pointer) -> np.ndarray:
+    """The base-frame point (m) the pointer's pixel shows: its depth is the median of the depths measured within
+    POINT_WINDOW_PX of it. PerceptionError when the pixel is off the image or nothing near it has depth."""
+    h, w = frame.depth_m.shape
+    if not pointer.inside(w, h):
+        raise PerceptionError(f"the pointed pixel ({pointer.u:g}, {pointer.v:g}) is off the {w}x{h} image: point at "
+                              "the part to open in the first frame")
+    row, col = pointer.pixel()
+    r0, c0 = max(row - POINT_WINDOW_PX, 0), max(col - POINT_WINDOW_PX, 0)
+    window = frame.depth_m[r0:row + POINT_WINDOW_PX + 1, c0:col + POINT_WINDOW_PX + 1]
+    measured = window[np.isfinite(window) & (window > 0)]
+    if measured.size == 0:
+        raise PerceptionError(f"no depth at the pointed pixel ({pointer.u:g}, {pointer.v:g}) on frame {frame.index}: "
+                              "point at the part's front where the camera measures depth")
+    K = frame.intrinsics
+    z = float(np.median(measured))
+    ray = np.array([(pointer.u - K.cx) / K.fx * z, (pointer.v - K.cy) / K.fy * z, z])
+    T = np.asarray(frame.T_base_camera)
+    return T[:3, :3] @ ray + T[:3, 3]
 
 
 class RGBDSegmenter(Segmenter):
@@ -101,10 +144,14 @@ class RGBDSegmenter(Segmenter):
         self._seed = np.zeros((0, 0), bool)  # the last detection's pixels
         self._good: np.ndarray | None = None
         self._reference_area = 0
+        self._pointed: np.ndarray | None = None  # the point the user pointed at, base frame
         self.redetections = 0
 
-    def start(self, frame: Frame, prompt: str | None = None) -> np.ndarray:
-        """The object on the first frame (`prompt` is not used: the object is the furniture in reach)."""
+    def start(self, frame: Frame, prompt: str | None = None, pointer: Pointer | None = None) -> np.ndarray:
+        """The object on the first frame: the furniture holding what `pointer` shows, else the largest in reach
+        (`prompt` is not used)."""
+        self._require_pose(frame)
+        self._pointed = None if pointer is None else pointed_point(frame, pointer)
         self.region, self._front = self._detect(frame)
         mask = self._full(frame, self._in_region(frame, self.region, self._front)) & self._seed
         self._good, self._reference_area, self.redetections = mask, int(np.count_nonzero(mask)), 0
@@ -124,18 +171,27 @@ class RGBDSegmenter(Segmenter):
 
     # --- detection ----------------------------------------------------------------------------------------
 
-    def _detect(self, frame: Frame) -> tuple[Box, np.ndarray]:
-        """The detected object's box and front direction (base frame); its pixels are left in `_seed`."""
+    @staticmethod
+    def _require_pose(frame: Frame) -> None:
         if frame.T_base_camera is None:
             raise PerceptionError(f"frame {frame.index} has no camera pose: the rgbd segmenter works in the arm's "
                                   "base frame; calibrate (`deploy calibrate hand-eye`) or give --calibration")
+
+    def _detect(self, frame: Frame) -> tuple[Box, np.ndarray]:
+        """The detected object's box and front direction (base frame); its pixels are left in `_seed`."""
+        self._require_pose(frame)
         points, pixels = pixel_points(frame, DETECT_STEP, self._box_pixels(frame))
         reach = np.hypot(points[:, 0], points[:, 1])
         near = (reach >= self.config.detect_min_range_m) & (reach <= self.config.detect_max_range_m)
         points, pixels = points[near], pixels[near]
         keep = remove_floor(points)
         points, pixels = points[keep], pixels[keep]
-        chosen = largest_object(points)
+        chosen = largest_object(points) if self._pointed is None else pointed_object(points, self._pointed)
+        if len(chosen) == 0 and self._pointed is not None:
+            raise PerceptionError(f"no object found on frame {frame.index} at the pointed point "
+                                  f"{np.round(self._pointed, 2).tolist()} m (base frame): it is not within "
+                                  f"{self.config.detect_max_range_m:.1f} m of the arm, or is the floor; point at the "
+                                  "part to open")
         if len(chosen) == 0:
             raise PerceptionError(f"no object found on frame {frame.index}: nothing of a furniture's size stands "
                                   f"within {self.config.detect_max_range_m:.1f} m of the arm; point the camera at it, "

@@ -93,6 +93,10 @@ class Arm(ABC):
     def clear_errors(self) -> None:
         """Clear the motors' latched faults before enabling (motor drivers that latch them); others: nothing."""
 
+    def commanded_q(self) -> np.ndarray | None:
+        """The joint position last commanded (rad or m); None where the arm does not keep it."""
+        return None
+
     def motor_states(self) -> list[dict]:
         """Every motor's state (name, CAN id, enabled, status) as left after stopping; none without motors."""
         return []

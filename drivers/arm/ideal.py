@@ -60,6 +60,9 @@ class IdealArm(Arm):
     def state(self) -> ArmState:
         return ArmState(self._t, self._q.copy(), self._dq.copy(), None, self._width)
 
+    def commanded_q(self) -> np.ndarray:
+        return self._q_cmd.copy()
+
     def command(self, q: np.ndarray, dq: np.ndarray | None = None) -> None:
         try:
             self.guard.check(q, dq, self._q_cmd, self.control_period_s, self.kin.fk(q)[:3, 3], self._dq_cmd)

@@ -147,6 +147,14 @@ class RobotConfig(StrictModel):
         """Every motor on the bus: the joints', then the gripper's."""
         return [*self.joints, *([self.gripper] if self.gripper else [])]
 
+    @property
+    def reference(self) -> str:
+        """How to name this config again (`--robot`, recordings' meta.json): a shipped config's name, else its file
+        (its name when it was not read from one)."""
+        if self.source is None:
+            return self.name
+        return self.source.stem if self.source.parent == CONFIG_DIR else str(self.source)
+
     def urdf_path(self) -> Path:
         if self.urdf.startswith("pybullet_data:"):
             return Path(pybullet_data.getDataPath()) / self.urdf.removeprefix("pybullet_data:")

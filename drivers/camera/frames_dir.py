@@ -21,6 +21,7 @@ from drivers.camera.base import Camera, Frame, Intrinsics
 from drivers.errors import CameraError, RecordingError
 
 FORMAT = "axisloop-frames"
+RUN_FRAMES = "frames"  # a run folder's recording
 VERSION = 1
 DEPTH_SCALE = 0.001  # metres per depth unit unless the writer is told otherwise (millimetres)
 _INTRINSICS_FIELDS = ("width", "height", "fx", "fy", "cx", "cy")
@@ -49,6 +50,7 @@ class FramesWriter:
     of the old recording survives); any other non-empty directory is always refused. `camera` (the spec it came
     from) and `simulated` (frames rendered by a simulator) go to meta.json: they choose the filter profile on replay;
     so does `min_range_m`, the camera's minimum range (None: not known), which perception drops depth below.
+    `robot`: the robot config the joints belong to (a shipped config's name or a file), where given.
     """
 
     def __init__(
@@ -61,6 +63,7 @@ class FramesWriter:
         simulated: bool = False,
         replace: bool = False,
         min_range_m: float | None = None,
+        robot: str | None = None,
     ) -> None:
         if not (math.isfinite(depth_scale) and depth_scale > 0):
             raise ValueError(f"depth_scale must be a positive number of metres per unit, got {depth_scale}")
@@ -78,6 +81,8 @@ class FramesWriter:
             "simulated": bool(simulated),
             "min_range_m": min_range_m,
         }
+        if robot is not None:
+            meta["robot"] = robot
         self._prepare_directory(replace)
         for sub in ("color", "depth"):
             (self.path / sub).mkdir()
@@ -113,8 +118,11 @@ class FramesWriter:
         ee_pose: np.ndarray | None = None,
         first: bool = False,
         grasped: bool | None = None,
+        joint_commands: np.ndarray | list[float] | None = None,
+        gripper_width_m: float | None = None,
     ) -> None:
         """Append one frame (`mask` defaults to `frame.mask`); its PNGs first, then its frames.jsonl line.
+        `joint_commands`: the joint positions commanded at this frame; `gripper_width_m`: the gripper's opening.
         `first`: the object's body box was fixed on this frame (a run that looked again from the start).
         `grasped`: whether the gripper held the handle at this frame, written only when given (a writer that
         knows it: `deploy sim record`, run folders); `deploy axis estimate` then fits `ee_pose` only where true."""
@@ -152,6 +160,10 @@ class FramesWriter:
         record: dict = {"index": self._count, "t": float(frame.t)}
         if joint_positions is not None:
             record["joint_positions"] = [float(v) for v in np.ravel(joint_positions)]
+        if joint_commands is not None:
+            record["joint_commands"] = [float(v) for v in np.ravel(joint_commands)]
+        if gripper_width_m is not None:
+            record["gripper_width_m"] = float(gripper_width_m)
         if ee_pose is not None:
             record["ee_pose"] = _pose_list(ee_pose, "ee_pose")
         if first:
@@ -217,12 +229,24 @@ def _is_frames_recording(path: Path) -> bool:
     return isinstance(meta, dict) and meta.get("format") == FORMAT
 
 
+def recording_path(path: str | Path) -> Path:
+    """`path`, or the recording a run folder holds (RUN/frames, docs/recording-format.md) when `path` is one."""
+    path = Path(path)
+    if not (path / "meta.json").exists() and _is_frames_recording(path / RUN_FRAMES):
+        return path / RUN_FRAMES
+    return path
+
+
 class _FieldError(ValueError):
     """A frames.jsonl field of the wrong kind, with the fix to name (the generic one speaks of index and t)."""
 
     def __init__(self, cause: str, fix: str) -> None:
         super().__init__(cause)
         self.fix = fix
+
+
+def _finite(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _check_record(record: object) -> None:
@@ -235,10 +259,12 @@ def _check_record(record: object) -> None:
         raise ValueError(f"index {index!r} is not an integer >= 0")
     if not math.isfinite(t):
         raise ValueError(f"t {t} is not finite")
-    q = record.get("joint_positions")
-    if q is not None and not (isinstance(q, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                                                           and math.isfinite(v) for v in q)):
-        raise ValueError("joint_positions is not a list of finite numbers")
+    for name in ("joint_positions", "joint_commands"):
+        q = record.get(name)
+        if q is not None and not (isinstance(q, list) and all(_finite(v) for v in q)):
+            raise ValueError(f"{name} is not a list of finite numbers")
+    if "gripper_width_m" in record and not _finite(record["gripper_width_m"]):
+        raise ValueError("gripper_width_m is not a finite number")
     for name in ("ee_pose", "T_base_camera"):
         pose = record.get(name)
         if pose is not None and (np.shape(pose) != (4, 4) or not np.all(np.isfinite(np.asarray(pose, np.float64)))):
@@ -256,7 +282,7 @@ class FramesRecording:
     """
 
     def __init__(self, path: str | Path) -> None:
-        self.path = Path(path)
+        self.path = recording_path(path)
         if not self.path.is_dir():
             raise RecordingError(
                 f"recording {self.path} not found: no such directory; pass the directory holding meta.json"
@@ -268,6 +294,8 @@ class FramesRecording:
         self.camera: str | None = meta["camera"]
         self.min_range_m: float | None = meta["min_range_m"]
         """The recording camera's minimum range (m), when meta.json says it."""
+        self.robot: str | None = meta["robot"]
+        """The robot config the joints belong to (a shipped config's name or a file), where the writer knew it."""
         self.simulated: bool = meta["simulated"] or (self.path / "truth.json").is_file()
         """Rendered by a simulator: meta.json says so, or the recording holds the simulator's truth.json."""
         self._records: list[dict] | None = None
@@ -278,9 +306,6 @@ class FramesRecording:
         try:
             meta = json.loads(file.read_text(encoding="utf-8"))
         except FileNotFoundError:
-            if _is_frames_recording(self.path / "frames"):  # a run folder (docs/recording-format.md)
-                raise RecordingError(f"{self.path} is a run folder: its recording is {self.path / 'frames'}; "
-                                     "give that") from None
             raise RecordingError(f"{file} is missing: {self.path} is not a frames recording; {fix}") from None
         except (OSError, ValueError, RecursionError) as e:
             raise RecordingError(f"{file} is not valid JSON ({e}); {fix}") from None
@@ -322,11 +347,12 @@ class FramesRecording:
             raise RecordingError(f"{file}: intrinsics coeffs must be finite numbers, not {list(intr.coeffs)}; {fix}")
         if pose is not None and (pose.shape != (4, 4) or not np.all(np.isfinite(pose))):
             raise RecordingError(f"{file}: T_base_camera must be a 4x4 row-major nested list or null; {fix}")
-        camera, simulated = meta.get("camera"), meta.get("simulated", False)
-        if not (camera is None or isinstance(camera, str)) or not isinstance(simulated, bool):
-            raise RecordingError(f"{file}: camera must be a string or null and simulated true or false; {fix}")
+        camera, simulated, robot = meta.get("camera"), meta.get("simulated", False), meta.get("robot")
+        if not all(v is None or isinstance(v, str) for v in (camera, robot)) or not isinstance(simulated, bool):
+            raise RecordingError(f"{file}: camera and robot must be strings or null and simulated true or false; "
+                                 f"{fix}")
         return {"intrinsics": intr, "depth_scale": depth_scale, "T_base_camera": pose, "camera": camera,
-                "simulated": simulated, "min_range_m": min_range}
+                "simulated": simulated, "min_range_m": min_range, "robot": robot}
 
     @property
     def records(self) -> list[dict]:

@@ -24,6 +24,7 @@ def record(
     source: str | None = None,
     simulated: bool = False,
     arm: ArmReading | None = None,
+    robot: str | None = None,
 ) -> dict:
     """Read `camera` (connected here) into the frames directory `out` until `frames` frames or `seconds`
     of camera time (whichever comes first), or until a replay ends (the only stop if neither is set).
@@ -32,7 +33,8 @@ def record(
     steps are kept; a camera giving metres as floats is stored in mm).
     source: the camera's spec and simulated: whether it renders a simulation (both go to meta.json, with the
     camera's minimum range); arm():
-    the arm's joint positions and tool pose, read right after each frame and stored with it. A frame's pose
+    the arm's joint positions and tool pose, read right after each frame and stored with it (`robot`: its config,
+    named in meta.json). A frame's pose
     (a camera on the arm moves) is stored where it differs from the first frame's (FramesWriter).
     A camera failure (e.g. unplugged) stops the recording and raises CameraError saying how many frames
     were kept; they stay readable. Returns {"out", "frames", "seconds", "arm", "depth_scale",
@@ -45,7 +47,7 @@ def record(
         first = camera.read()
         depth_scale = min(camera.depth_scale, DEPTH_SCALE) if depth_scale is None else depth_scale
         with FramesWriter(out, camera.intrinsics, depth_scale, first.T_base_camera, source, simulated,
-                          min_range_m=camera.min_range_m) as writer:
+                          min_range_m=camera.min_range_m, robot=robot) as writer:
             frame = first
             while True:
                 t0 = frame.t if t0 is None else t0

@@ -18,9 +18,10 @@ from sim_fallback.partnet.meshes import geometry_mesh
 from sim_fallback.partnet.model import PartNetModel
 from sim_fallback.partnet.naming import grid_positions, part_names
 from sim_fallback.partnet.sizes import real_scale
+from sim_fallback.worlds import SCALES
 
 ScaleRule = Literal["real", "native"]
-SCALE_RULES: tuple[ScaleRule, ...] = ("real", "native")
+SCALE_RULES: tuple[ScaleRule, ...] = tuple(SCALES)  # type: ignore[assignment]
 MECHANISMS: dict[PartKind, Mechanism] = {  # the middle of the procedural cabinets' ranges (cabinet_urdf.py)
     "drawer": Mechanism(friction=8.0, damping=5.0),
     "door": Mechanism(friction=1.0, damping=1.0),

@@ -97,7 +97,7 @@ class RayRenderer:
     def links(self, T_base_camera: np.ndarray) -> np.ndarray:
         """(H, W, 2) int32 (body id, link index) seen at each pixel now, (-1, -1) where nothing (truth)."""
         self.update()
-        return self.link_image(self.view().see(T_base_camera, ()).row)
+        return self.link_image(self.see("colour", T_base_camera).row)
 
     def render(self, T_base_camera: np.ndarray, rng: np.random.Generator, extra_lights: tuple[Light, ...] = ()
                ) -> Render:
