@@ -22,7 +22,7 @@ from deploy.commands.options import (
     overwrite_option,
     view_option,
 )
-from deploy.commands.output import console, print_json, print_table, progress_bar
+from deploy.commands.output import console, print_json, progress_bar
 from drivers.arm.registry import ARMS
 from drivers.camera.registry import CAMERAS
 
