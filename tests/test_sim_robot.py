@@ -133,5 +133,6 @@ def test_the_openarm_grasps_and_pulls_a_drawer_it_reaches(capsys):
             p[2] -= 0.32
             pb.resetBasePositionAndOrientation(body, p.tolist(), orientation, physicsClientId=world.client)
 
-    result = simulate_episode("drawer", 0, "test", robot=CONFIG_DIR / "openarm.toml", setup=within_reach)
+    result = simulate_episode("drawer", 0, "test", robot=CONFIG_DIR / "openarm.toml", setup=within_reach,
+                              world="box")
     assert result["true_opened_m"] > 0.1, result["message"]
