@@ -38,6 +38,7 @@ from drivers.arm.base import Arm
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.registry import ARMS
 from drivers.arm.robot_config import PANDA_SIM_CONFIG, RobotConfig, load_robot_config
+from drivers.arm.robots import PANDA_REACH, Reach
 from drivers.camera.base import Camera
 from drivers.camera.posed import PosedCamera
 from drivers.camera.registry import CAMERAS
@@ -73,12 +74,13 @@ class SimScene:
     object_id: str | None = None
     scale: str = "real"
 
-    def scenario(self):
-        """The scenario it names (SceneError or PartNetError, one line, when it cannot be built)."""
+    def scenario(self, reach: Reach = PANDA_REACH):
+        """The scenario it names, the target's grip in the arm's `reach` (SceneError or PartNetError, one line, when
+        it cannot be built)."""
         from sim_fallback.scenes import scene_scenario
 
         return scene_scenario(self.world, self.task, self.seed, self.split, self.part, self.assets, self.object_id,
-                              self.scale, self.condition)
+                              self.scale, self.condition, reach)
 
 
 @dataclass(frozen=True)
@@ -252,8 +254,8 @@ def _open_simulated(rig: Rig, stack: ExitStack) -> None:
         from sim_fallback.world import SimWorld
 
         scene = spec.scene
-        rig.world = stack.enter_context(SimWorld(scene.scenario(),
-                                                 robot=rig.robot.robot_spec()))  # the robot config's arm
+        arm = rig.robot.robot_spec()  # the robot config's arm, parked by its reach
+        rig.world = stack.enter_context(SimWorld(scene.scenario(arm.reach), robot=arm))
         sim_camera = rig.sim_camera = CAMERAS.open(spec.camera, world=rig.world, seed=scene.seed,
                                                    labels=_needs_labels(spec), **spec.camera_options)
         T_calibrated = simulated_calibration(sim_camera.T_base_camera, *spec.calibration_error,

@@ -21,6 +21,8 @@ from deploy.geometry.metrics import axis_angle_error_deg, axis_position_error_m
 from deploy.geometry.types import Axis, JointType
 from deploy.perception.bench import missing_weights
 from deploy.perception.registry import default_segmenter
+from deploy.rig import load_robot
+from drivers.arm.robots import Reach
 from sim_fallback.errors import SceneError
 from sim_fallback.partnet import PartNetError
 from sim_fallback.scenes import check_scene, load_object, task_objects
@@ -125,7 +127,8 @@ def bench_open(
     if ray_address is None:
         _warn_above_cores(min(workers, episodes))
     policy = policy or OpeningConfig().policy
-    objects, unusable = _objects(task, range(seed, seed + episodes), world, assets, object_id, scale)
+    reach = load_robot("sim", robot).reach.reach()
+    objects, unusable = _objects(task, range(seed, seed + episodes), world, assets, object_id, scale, reach)
     scene = dict(world=world, part=part, assets=assets, scale=scale)
     jobs = [dict(task=task, seed=s, split=split, target=target, policy=policy, segmenter=segmenter,
                  calibration_error=tuple(calibration_error), condition=condition, robot=robot, object_id=objects[s],
@@ -165,13 +168,13 @@ def bench_episode(**job: Any) -> dict:
 
 
 def _objects(task: str, seeds: range, world: str, assets: Path | None, object_id: str | None,
-             scale: str) -> tuple[dict[int, str | None], dict[str, str]]:
+             scale: str, reach: Reach) -> tuple[dict[int, str | None], dict[str, str]]:
     """The PartNet-Mobility object of each seed (None without `assets`) and why each other object of the folder
-    cannot be used; one-line errors before any episode for a bad folder, object or world."""
+    cannot be used by an arm of `reach`; one-line errors before any episode for a bad folder, object or world."""
     check_scene(world, assets, object_id)
     if assets is None:
         return dict.fromkeys(seeds), {}
-    choice = task_objects(assets, task, scale)
+    choice = task_objects(assets, task, scale, reach)
     if object_id is not None:
         load_object(assets, object_id, scale)  # one line when it is not there or does not load
         if object_id in choice.problems:

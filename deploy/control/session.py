@@ -23,7 +23,7 @@ from deploy.errors import ConfigError
 from deploy.perception.base import Pointer
 from deploy.perception.registry import default_segmenter
 from deploy.report.run_folder import RunFolder
-from deploy.rig import Rig, RigSpec, SimScene, open_rig
+from deploy.rig import Rig, RigSpec, SimScene, load_robot, open_rig
 from drivers.camera.registry import CAMERAS
 from drivers.interrupts import Interrupted
 
@@ -179,7 +179,9 @@ def _with_object(request: OpenRequest) -> OpenRequest:
         return request
     from sim_fallback.scenes import task_objects
 
-    return replace(request, object_id=task_objects(request.assets, request.scene, request.scale).for_seed(request.seed))
+    reach = load_robot(request.arm, request.robot).reach.reach()
+    return replace(request, object_id=task_objects(request.assets, request.scene, request.scale,
+                                                   reach).for_seed(request.seed))
 
 
 def _pointed(config: Config, rig: Rig, evaluation: Any, seed: int) -> tuple[Config, dict | None]:

@@ -24,7 +24,7 @@ from drivers.arm.base import GRIP_FORCE_N
 from drivers.arm.damiao.config import GripperConfig, JointConfig, MotorConfig, StrictModel, WatchdogConfig
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.motion import Compliance
-from drivers.arm.robots import RobotSpec
+from drivers.arm.robots import Reach, RobotSpec
 from drivers.arm.safety import SafetyGuard, SafetyLimits
 from drivers.arm.trajectory import MotionLimits
 from drivers.errors import ArmError
@@ -78,6 +78,26 @@ class ComplianceConfig(StrictModel):
                           self.filter_time_constant_s)
 
 
+class ReachConfig(StrictModel):
+    """Where simulated scenes put the grip of the part to open, in the base frame (m): its horizontal distance from
+    the base and its height above it, per task (`drivers.arm.robots.Reach`; defaults: the Panda's)."""
+
+    drawer_distance_m: tuple[float, float] = Reach.drawer_distance_m
+    drawer_height_m: tuple[float, float] = Reach.drawer_height_m
+    door_distance_m: tuple[float, float] = Reach.door_distance_m
+    door_height_m: tuple[float, float] = Reach.door_height_m
+
+    @model_validator(mode="after")
+    def _bands(self) -> ReachConfig:
+        for key, (lo, hi) in self:
+            if lo > hi:
+                raise ValueError(f"reach.{key}: the band's low end {lo:g} is above its high end {hi:g}")
+        return self
+
+    def reach(self) -> Reach:
+        return Reach(**dict(self))
+
+
 class RobotConfig(StrictModel):
     """A whole arm. `urdf` is a path (relative to the config file) or `pybullet_data:<relative path>`."""
 
@@ -96,6 +116,7 @@ class RobotConfig(StrictModel):
     can: CanConfig = CanConfig()
     watchdog: WatchdogConfig = WatchdogConfig()
     compliance: ComplianceConfig = ComplianceConfig()
+    reach: ReachConfig = ReachConfig()
     grip_force_n: float = Field(GRIP_FORCE_N, gt=0, le=MAX_GRIP_FORCE_N)  # the squeeze a grasp closes with
     joints: list[JointConfig] = Field(min_length=1)
     gripper: GripperConfig | None = None
@@ -194,7 +215,7 @@ class RobotConfig(StrictModel):
             q_start=None if self.q_start is None else np.array(self.q_start),
             gripper_max_width_m=width, a_max=np.array([j.a_max for j in self.joints]),
             j_max=np.array([j.j_max for j in self.joints]), workspace_min=np.array(self.workspace_min),
-            workspace_max=np.array(self.workspace_max),
+            workspace_max=np.array(self.workspace_max), reach=self.reach.reach(),
         )
 
     def kinematics(self) -> Kinematics:

@@ -10,6 +10,28 @@ import pybullet_data
 
 
 @dataclass(frozen=True)
+class Reach:
+    """Where an arm grasps a handle and pulls it comfortably, in its base frame (m): per task, the grip's horizontal
+    distance from the base and its height above the base. Simulated scenes park the robot so that the target's grip
+    falls in these bands, as a user parks an arm in front of what it must open (`scripts/reach_scan.py` maps an
+    arm's). The defaults are the Panda's: a 45 cm drawer pull and a door's swing stay clear of its joint limits."""
+
+    drawer_distance_m: tuple[float, float] = (0.55, 0.68)
+    drawer_height_m: tuple[float, float] = (0.72, 0.86)
+    door_distance_m: tuple[float, float] = (0.5, 0.85)
+    door_height_m: tuple[float, float] = (0.62, 0.78)
+
+    def distance(self, task: str) -> tuple[float, float]:
+        return self.drawer_distance_m if task == "drawer" else self.door_distance_m
+
+    def height(self, task: str) -> tuple[float, float]:
+        return self.drawer_height_m if task == "drawer" else self.door_height_m
+
+
+PANDA_REACH = Reach()
+
+
+@dataclass(frozen=True)
 class RobotSpec:
     """What the kinematics, safety and motion code need to know about one arm model.
 
@@ -18,7 +40,8 @@ class RobotSpec:
     per-joint hardware limits (velocity limits come from the URDF); the workspace box bounds the
     tool position in the base frame (m). `finger_joint_per_m`: each finger joint's value (m or rad) per metre of
     gripper opening (two prismatic fingers: 0.5 each; hinged fingers: their angle, linearised). `q_start` (rad):
-    where the arm starts in simulated scenes, around which they jitter it (None: q_ready).
+    where the arm starts in simulated scenes, around which they jitter it (None: q_ready). `reach`: where simulated
+    scenes put the target's grip.
     """
 
     name: str
@@ -34,6 +57,7 @@ class RobotSpec:
     workspace_max: np.ndarray
     finger_joint_per_m: tuple[float, ...] = (0.5, 0.5)
     q_start: np.ndarray | None = None
+    reach: Reach = PANDA_REACH
 
     @property
     def start(self) -> np.ndarray:
