@@ -14,7 +14,7 @@ from drivers.arm.robots import PANDA_REACH, Reach
 from sim_fallback.errors import PartError, SceneError
 from sim_fallback.furniture import Finish, Furniture, PartKind
 from sim_fallback.furniture_body import PartGeometry, measure_parts
-from sim_fallback.kitchen import Room, random_room, random_target, role_of
+from sim_fallback.kitchen import Room, random_room, random_target, role_of, standing_height
 from sim_fallback.layout import Layout, Placed, StaticShape
 from sim_fallback.parts import ordered, resolve
 from sim_fallback.placement import (
@@ -116,9 +116,10 @@ def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Ge
 
 
 def reach_problem(furniture: Furniture, task: PartKind, reach: Reach = PANDA_REACH) -> str | None:
-    """Why `furniture`, standing on the floor as a given target does, has no part of the task's kind an arm of
-    `reach` can reach (one line); None when it has one."""
-    placed, geometry = Placed(furniture, (0.0, 0.0, 0.0, 0.0)), measure_parts(furniture)
+    """Why `furniture`, standing where a given target does at the lowest (the floor, or a countertop:
+    `standing_height`), has no part of the task's kind an arm of `reach` can reach (one line); None when it has
+    one."""
+    placed, geometry = Placed(furniture, (0.0, 0.0, standing_height(furniture), 0.0)), measure_parts(furniture)
     return None if reachable_parts(placed, geometry, task, reach) else _no_reach(placed, geometry, task, reach)
 
 
