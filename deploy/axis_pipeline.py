@@ -51,7 +51,7 @@ def frame_points(frame: Frame, mask: np.ndarray, config: Config) -> np.ndarray:
     K = np.diag([1.0 / n, 1.0 / n, 1.0]) @ frame.intrinsics.K
     return depth_to_points(
         frame.depth_m[::n, ::n], K, mask=np.asarray(mask)[::n, ::n], T_base_camera=frame.T_base_camera,
-        min_depth_m=g.min_depth_m, max_depth_m=g.max_depth_m,
+        min_depth_m=g.near_m, max_depth_m=g.max_depth_m, dist=frame.intrinsics.dist_coeffs,
     )
 
 
@@ -155,7 +155,7 @@ class AxisPipeline:
         if self.static and self.body_box is not None:
             self.scene.check_view(frame.depth_m, frame.T_base_camera)
             g = self.config.geometry
-            _, moving = moving_pixels(self.scene, frame.depth_m, self.region, mask, (g.min_depth_m, g.max_depth_m))
+            _, moving = moving_pixels(self.scene, frame.depth_m, self.region, mask, (g.near_m, g.max_depth_m))
             timings = {"moving_part": (time.perf_counter() - clock) * 1e3}
             object_pixels = int(np.count_nonzero(np.asarray(mask)[::g.decimation, ::g.decimation]))
             return self._estimate(moving, frame.index, frame.t, object_pixels, gripper_pose, timings)
