@@ -286,3 +286,22 @@ def test_fit_trajectory_without_orientations_hinges_a_gripper_whose_fingers_let_
     kept, without = hinge_error("--no-orientations")
     assert with_turns["orientations"] and not without["orientations"]
     assert kept < 1e-3 < turned, (kept, turned)
+
+
+def _command_paths(command, path=()):
+    """Every command's argument path below `command` (groups included)."""
+    yield path
+    for name, sub in getattr(command, "commands", {}).items():
+        yield from _command_paths(sub, (*path, name))
+
+
+def test_flags_show_no_value_in_any_help(capsys):
+    """`--json` is a flag: the help must not show it as `--json <bool>`, which reads as if `--json true` worked."""
+    from deploy.cli import build_command
+
+    paths = list(_command_paths(build_command()))
+    assert len(paths) > 30
+    for path in paths:
+        code, out, _ = run(capsys, *path, "--help")
+        assert code == 0 and "--help" in out, path
+        assert "<bool>" not in out, f"deploy {' '.join(path)} --help shows a flag's value type"
