@@ -305,3 +305,30 @@ def test_flags_show_no_value_in_any_help(capsys):
         code, out, _ = run(capsys, *path, "--help")
         assert code == 0 and "--help" in out, path
         assert "<bool>" not in out, f"deploy {' '.join(path)} --help shows a flag's value type"
+
+
+@pytest.mark.parametrize("command", [("arm", "status"), ("arm", "scan"), ("axis", "demo"), ("models", "check"),
+                                     ("calibrate", "hand-eye", "--dry-run")])
+def test_tables_fit_80_columns_without_cutting_a_name(capsys, monkeypatch, command):
+    """As in a terminal of COLUMNS=80: no line is wider and no cell is cut to "…" (`pand…` for panda_joint1)."""
+    from deploy.commands import output
+
+    monkeypatch.setattr(output.console, "width", 80)
+    code, out, _ = run(capsys, *command)
+    assert code in (0, 1) and ("┃" in out or "─" in out), out  # models check: 1 without the weights
+    assert "…" not in out, out
+    assert max(len(line) for line in out.splitlines()) <= 80, out
+    if command == ("arm", "status"):
+        assert "panda_joint1" in out
+
+
+def test_a_wide_table_keeps_every_name_whole(capsys, monkeypatch):
+    from deploy.commands import output
+
+    monkeypatch.setattr(output.console, "width", 80)
+    names = [f"a_rather_long_motor_name_{i}" for i in range(3)]
+    output.print_table("wide", [f"column_{i}" for i in range(9)], [[n, *[f"{i * 1.2345:.4f}"] * 8] for i, n in
+                                                                     enumerate(names)])
+    out = capsys.readouterr().out
+    assert all(n in out for n in names) and "…" not in out, out
+    assert max(len(line) for line in out.splitlines()) <= 80, out

@@ -342,12 +342,12 @@ def bench_calibration_cmd(
     print_table("hand-eye error vs truth (mm / deg), simulated D415 at 640x480",
                 ("setup", "noise", "method", "poses", "mm", "deg"),
                 [(r["setup"], r["noise"], r["method"], str(r["poses"]), f"{r['translation_mm']:.2f}",
-                  f"{r['rotation_deg']:.3f}") for r in data["results"]], no_wrap=True)
+                  f"{r['rotation_deg']:.3f}") for r in data["results"]])
     if data["solvers"]:
         print_table(f"solvers over {solver_seeds} station seeds, 15 poses, {NOMINAL.name} noise: median / p90 / max",
                     ("setup", "method", "source", "mm", "deg"),
                     [(r["setup"], r["method"], r["source"], _three(r, "translation_mm", 2),
-                      _three(r, "rotation_deg", 3)) for r in data["solvers"]], no_wrap=True)
+                      _three(r, "rotation_deg", 3)) for r in data["solvers"]])
     if (worst := data["worst_at_15_poses"]) is not None:
         mm, deg = TARGET_AT_15_POSES
         console.print(f"worst setup at 15 poses (auto, {NOMINAL.name} noise): {worst['setup']}, "
