@@ -2,6 +2,7 @@
 
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -112,6 +113,18 @@ def test_estimate_recording_json(capsys, drawer_recording):
     assert axis_angle_error_deg(seq.true_axis.direction, data["direction"]) < 3.0
 
 
+def test_verbose_estimate_logs_its_config_and_every_frame(capsys, drawer_recording):
+    """docs/quickstart.md: `deploy --verbose ...` logs the resolved config and every estimate; axis estimate too."""
+    path, seq = drawer_recording
+    code, _, err = run(capsys, "--verbose", "axis", "estimate", str(path), "--json")
+    assert code == 0
+    assert "estimate config: filter sim" in err and "estimator screw-grip" in err
+    frames = [line for line in err.splitlines() if "deploy.estimate_recording: frame " in line]
+    assert len(frames) == len(seq.frames) and "prismatic axis, direction" in frames[-1]
+    code, _, err = run(capsys, "axis", "estimate", str(path), "--json")
+    assert code == 0 and "estimate config" not in err
+
+
 def test_estimate_uses_the_gripper_path_and_views(capsys, drawer_recording, tmp_path):
     path, seq = drawer_recording
     code, out, _ = run(capsys, "axis", "estimate", str(path), "--view", "--rrd", str(tmp_path / "a.rrd"), "--json")
@@ -151,6 +164,10 @@ def test_open_drawer_in_simulation_json(capsys, tmp_path):
     lines = [line for line in err.splitlines() if line.startswith("step ")]
     assert len(lines) == data["steps"] + 1, err  # one line per estimate: after the first pull and every step
     assert re.fullmatch(r"step 0: opened 0\.0\d\d m, axis prismatic from .+, confidence \d\.\d\d", lines[0].strip())
+    quickstart = (Path(__file__).resolve().parents[1] / "docs" / "quickstart.md").read_text()
+    for line in lines:  # every source a step names is one the quickstart explains
+        source = re.search(r" from (.+), confidence", line).group(1)
+        assert f"`{source}`" in quickstart, line
     found = entities(tmp_path / "run" / "episode.rrd")
     assert found["/world/axis/estimated"]["rows"] == len(lines) and found["/world/axis/true"]["rows"] == 1
     assert "Pinhole:image_from_camera" in found["/world/camera/image"]["components"]
