@@ -99,15 +99,22 @@ def bench_axis_cmd(
     print_table(
         f"axis estimators on {data['sequences']} synthetic sequences ({scenes.value} scenes, seed {seed})",
         ("estimator", "drawer deg med/p90/max", "door deg med/p90/max", "door pos cm med/p90/max", "joint acc",
-         "failed", "ms med"),
+         "failed", "2 sigma cover", "ms med"),
         [(name, spread(s, "drawer_angle_deg"), spread(s, "door_angle_deg"), spread(s, "door_position_m", 100),
-          f"{s['joint_type_accuracy']:.2f}", str(s["failed_estimates"]), fmt(s["ms_median"], digits=1))
+          f"{s['joint_type_accuracy']:.2f}", str(s["failed_estimates"]), _coverage(s), fmt(s["ms_median"], digits=1))
          for name, s in data["estimators"].items()],
     )
+    console.print("2 sigma cover: the share of the estimates reporting a direction sigma whose angle error is within "
+                  "2 sigma (of how many); 90-99 % is a well-calibrated sigma")
     console.print(f"full geometry step ({data['step_estimator']}), median: {fmt(data['step_ms_median'], digits=1)} ms")
     for name, s in data["estimators"].items():
         for reason, count in s["failures"].items():
             console.print(f"{name} failed {count}x: {reason}")
+
+
+def _coverage(summary: dict) -> str:
+    share = summary["coverage_2_sigma"]
+    return "-" if share is None else f"{share * 100:.0f} % of {summary['coverage_estimates']}"
 
 
 def _bench_axis_paths(seed: int, json_out: bool) -> None:
