@@ -292,10 +292,11 @@ def fit_revolute(
     the rotations' angles about w (what registration measures best). a: the centre of the circles the
     tracks run through at those turns (`circle_centre`), level with the model points; a second
     (gripper) track missing its circle by more than `grip_gate_m` RMS (the grasp slipped) is left out.
-    sigma_deg: the larger of the misfit's standard error (`hinge_scatter_deg`) and the block jackknife of w
-    over the rotations.
+    sigma_deg: the larger of the misfit's standard error (`hinge_scatter_deg`; for a w projected into the
+    plate, with the plate normal's error in quadrature) and the block jackknife of w over the rotations.
     """
-    plate = plate_normal(sample)
+    plate_fit = plate_normal(sample)
+    plate = None if plate_fit is None else plate_fit[0]
     w = hinge_direction(rotations, plate)
     rotvecs = Rotation.from_matrix(rotations).as_rotvec()
     if rotvecs.sum(axis=0) @ w < 0:
@@ -307,25 +308,34 @@ def fit_revolute(
         a, _ = circle_centre(w, turns, tracks[:1], anchor)
     predicted = np.einsum("kij,mj->kmi", turns, sample - a) + a
     rms = float(np.sqrt(np.mean(np.sum((moved - predicted) ** 2, axis=2))))
-    scatter = hinge_scatter_deg(rotations, w)
+    in_plate = plate_fit is not None and abs(w @ plate) < 1e-9  # projected: w turns with the plate's normal
+    scatter = hinge_scatter_deg(rotations, w, plate if in_plate else None)
+    if scatter is not None and in_plate:
+        scatter = float(np.hypot(scatter, plate_fit[1]))
     jackknife = jackknife_sigma_deg(w, lambda keep: hinge_direction(rotations[keep], plate), len(rotations))
     sigma = None if scatter is None else max(scatter, 0.0 if np.isnan(jackknife) else jackknife)
     return JointFit(w, a, rms, bic(rms, 6 * len(moved), len(moved) + 4, noise_floor_m), sigma)
 
 
-def hinge_scatter_deg(rotations: np.ndarray, w: np.ndarray) -> float | None:
-    """RMS angle error (deg, both components) of the hinge direction `w` from the rotations' misfit: the
-    residual variance of R_k w = w (each rotation pins w by two equations: 2K - 2 degrees of freedom) over the
-    information across w (the two other eigenvalues of sum (R_k - I)^T (R_k - I)). None from one rotation,
-    whose own axis fits it exactly whatever its error."""
-    dof = 2 * len(rotations) - 2
-    if dof < 1:
+def hinge_scatter_deg(rotations: np.ndarray, w: np.ndarray, plate: np.ndarray | None = None) -> float | None:
+    """RMS angle error (deg) of the hinge direction `w` from the rotations' misfit: the residual variance of
+    R_k w = w (each rotation pins w by two equations: 2K - 2 degrees of freedom) over the information across
+    w (the two other eigenvalues of N = sum (R_k - I)^T (R_k - I)). For a w projected into a plate (normal
+    `plate`) only its turn within the plate counts: the misfit along the plate's normal (what a tilt of w
+    within the plate leaves; K - 1 degrees of freedom) over u^T N u, u = w x plate (registration's error
+    about the plate's normal, its worst, shows across w within the plate and is projected away). None from
+    one rotation, whose own axis fits it exactly whatever its error."""
+    if len(rotations) < 2:
         return None
     m = rotations - np.eye(3)
     normal = np.einsum("kji,kjl->il", m, m)
+    if plate is not None:
+        u = np.cross(w, plate)
+        misfit = float(np.sum((m @ w @ plate) ** 2)) / (len(rotations) - 1)
+        return float(np.degrees(np.sqrt(misfit / max(u @ normal @ u / (u @ u), 1e-18))))
     residual = max(float(w @ normal @ w), 0.0)
     across = np.linalg.eigvalsh(normal - residual * np.outer(w, w))[1:]
-    return float(np.degrees(np.sqrt(residual / dof * np.sum(1 / np.maximum(across, 1e-18)))))
+    return float(np.degrees(np.sqrt(residual / (2 * len(rotations) - 2) * np.sum(1 / np.maximum(across, 1e-18)))))
 
 
 def hinge_direction(rotations: np.ndarray, plate: np.ndarray | None) -> np.ndarray:
@@ -390,11 +400,12 @@ def distance_to_line(point: np.ndarray, fit: JointFit) -> float:
     return float(np.linalg.norm(offset - (offset @ fit.direction) * fit.direction))
 
 
-def plate_normal(points: np.ndarray) -> np.ndarray | None:
-    """Normal of the plate the points mostly lie on (`_trimmed_plane`), None when they are not a plate:
-    less than 60 % of them within 3 median distances (at least 2 mm) of the plane, or a thickness
-    spread over 10 % of the width spread."""
+def plate_normal(points: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Normal of the plate the points mostly lie on (`_trimmed_plane`) and its standard error (deg, as
+    `front_face`'s), None when they are not a plate: less than 60 % of them within 3 median distances (at
+    least 2 mm) of the plane, or a thickness spread over 10 % of the width spread."""
     normal, spread, kept = _trimmed_plane(points)
     if kept < 0.6 * len(points) or spread[2] > 0.1 * spread[1]:
         return None
-    return normal
+    samples = max(kept / _FRONT_POINTS_PER_SAMPLE, 1.0)
+    return normal, float(np.degrees(spread[2] / max(spread[1], 1e-12) / np.sqrt(samples)))
