@@ -84,6 +84,8 @@ class Stations:
         self.camera, self.arm, self.kin, self.limits = camera, arm, kin, limits
         self.detector = BoardDetector(board)
         self.intrinsics = intrinsics or camera.intrinsics
+        if intrinsics is None and distortion is None:  # the factory's intrinsics, with the factory's lens model
+            distortion = self.intrinsics.dist_coeffs
         self.distortion = np.zeros(5) if distortion is None else np.asarray(distortion, float)
         self.settle_ticks = max(1, round(settle_s / arm.control_period_s))
 

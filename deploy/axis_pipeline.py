@@ -46,7 +46,7 @@ def frame_points(frame: Frame, mask: np.ndarray, config: Config) -> np.ndarray:
     K = np.diag([1.0 / n, 1.0 / n, 1.0]) @ frame.intrinsics.K
     return depth_to_points(
         frame.depth_m[::n, ::n], K, mask=np.asarray(mask)[::n, ::n], T_base_camera=frame.T_base_camera,
-        min_depth_m=g.min_depth_m, max_depth_m=g.max_depth_m,
+        min_depth_m=g.near_m, max_depth_m=g.max_depth_m, dist=frame.intrinsics.dist_coeffs,
     )
 
 

@@ -55,6 +55,7 @@ class DeviceChoice:
     robot: RobotConfig
     pivot_mm: tuple[float, float, float] | None = None
     robot_path: Path | None = None
+    can: tuple = ()  # the command line's [can] settings over the robot config's
 
     @property
     def simulated(self) -> bool:
@@ -66,7 +67,7 @@ class DeviceChoice:
 
 
 def choose(camera: str, arm: str | None, robot: Path | None, pivot_mm: tuple[float, float, float] | None = None,
-           pivot_from_record: bool = False) -> DeviceChoice:
+           pivot_from_record: bool = False, can: tuple = ()) -> DeviceChoice:
     """Check the camera and arm specs (live kinds, paired by the rig's rules), the pivot (needed on a real arm
     unless a stored calibration gives it) and load the robot config (default arm: the first live arm as simulated
     as the camera, `sim` with the sim camera and `can` with a D415; default robot for simulated arms: the shipped
@@ -78,11 +79,11 @@ def choose(camera: str, arm: str | None, robot: Path | None, pivot_mm: tuple[flo
     check_spec(RigSpec(camera=camera, arm=arm, robot=robot))
     if arm_entry.hardware and pivot_mm is None and not pivot_from_record:
         raise ConfigError(NO_PIVOT)
-    config = load_robot(arm, robot)
+    config = load_robot(arm, robot, can)
     if arm_entry.simulated and config.joint_names != load_robot_config(PANDA_SIM_CONFIG).joint_names:
         raise ConfigError(f"{config.label} is not the simulated Panda: use --robot panda_sim (or none) "
                           "with the simulation")
-    return DeviceChoice(camera, arm, config, pivot_mm, robot)
+    return DeviceChoice(camera, arm, config, pivot_mm, robot, can)
 
 
 def live(registry: Registry) -> list[Entry]:
@@ -208,7 +209,8 @@ def open_devices(choice: DeviceChoice, setup: str = "eye-to-hand", board: BoardC
     """Connect the camera, then probe the arm (nothing enabled); on leaving, stop the arm and release both.
     In simulation `setup` and `board` build the calibration scene (board on the tool or on the table)."""
     scene = BoardScene(setup, board or BoardConfig(), seed)  # type: ignore[arg-type]
-    with open_rig(RigSpec(camera=choice.camera, arm=choice.arm, robot=choice.robot_path, scene=scene)) as rig, \
+    with open_rig(RigSpec(camera=choice.camera, arm=choice.arm, robot=choice.robot_path, can=choice.can,
+                          scene=scene)) as rig, \
             released(rig.arm):
         rig.arm.probe()
         motors = None

@@ -42,6 +42,7 @@ from drivers.toml_file import read_toml
 
 Task = Literal["drawer", "door", "auto"]
 CALIBRATION_ERROR = (5.0, 0.5)  # simulation: a field-grade hand-eye calibration's error, translation mm, rotation deg
+NEAR_M = 0.1  # the nearest depth used when neither the config nor the camera says (m)
 
 
 
@@ -103,15 +104,22 @@ class GeometryConfig(_Section):
         default=1.0, ge=0, le=5, description="doors (estimator.joint revolute): the moving part is cut out "
         "by the body box reaching this far behind the front, because the cabinet's inside that an opening "
         "door reveals does not move (a drawer's revealed inside is the drawer)")
-    min_depth_m: float = Field(default=0.1, ge=0)
+    min_depth_m: float | None = Field(
+        default=None, ge=0, description="nearest depth used (m); unset: the camera's minimum range (its model's), "
+        f"or {NEAR_M} m for a camera that does not say")
     max_depth_m: float = Field(default=3.0, gt=0)
     decimation: int = Field(default=2, ge=1, le=8, description="use every n-th pixel in each direction")
 
     @model_validator(mode="after")
     def _depth_range(self) -> GeometryConfig:
-        if self.max_depth_m <= self.min_depth_m:
+        if self.max_depth_m <= self.near_m:
             raise ValueError("max_depth_m must be larger than min_depth_m")
         return self
+
+    @property
+    def near_m(self) -> float:
+        """The nearest depth used (m): `min_depth_m`, or NEAR_M where no camera set it (`Config.for_range`)."""
+        return NEAR_M if self.min_depth_m is None else self.min_depth_m
 
 
 class EstimatorConfig(_Section):
@@ -231,6 +239,16 @@ class Config(_Section):
         if self.filter.profile is not None:
             return self
         return self.replace(filter={"profile": filter_profile_for(camera)})
+
+    def for_range(self, min_range_m: float | None) -> Config:
+        """This config with `geometry.min_depth_m`, where unset, the camera's minimum range `min_range_m` (a
+        `Camera.min_range_m`: depth nearer than it is not measured; None: the camera does not say)."""
+        if self.geometry.min_depth_m is not None or min_range_m is None:
+            return self
+        if min_range_m >= self.geometry.max_depth_m:
+            raise ConfigError(f"geometry.max_depth_m {self.geometry.max_depth_m:g} m lies within the camera's minimum "
+                              f"range {min_range_m:g} m: set a larger geometry.max_depth_m")
+        return self.replace(geometry={"min_depth_m": min_range_m})
 
     def replace(self, **sections: dict[str, Any]) -> Config:
         """A copy with fields of some sections changed and validated: `config.replace(opening={"task": "door"})`."""

@@ -36,12 +36,14 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
     reads as a turn). Their steps give the reason `APPROACH`; each step's `grasped` is its frame's mark (null
     without one).
 
-    Axes are in the base frame when the recording has `T_base_camera`, else in the camera frame. progress(done,
-    total) follows the frames; `viewer` (deploy.report.viewer.RerunViewer) is shown every frame, its mask and
+    Depth nearer than the recording camera's minimum range (meta.json `min_range_m`) is left out, unless
+    `geometry.min_depth_m` says otherwise. Axes are in the base frame when the recording has `T_base_camera`, else
+    in the camera frame. progress(done, total) follows the frames; `viewer` (deploy.report.viewer.RerunViewer) is shown every frame, its mask and
     the axis estimated at it, and is closed at the end. `deploy --verbose` logs the config used and every
     frame's estimate.
     """
     recording = _masked_recording(path)
+    config = config.for_range(recording.min_range_m)
     e = config.estimator
     log.info("estimate config: filter %s (%s); estimator %s, joint %s, window %d; %d frames in %s",
              config.filter.profile, config.filter.resolve(), e.name, e.joint, e.window, len(recording), path)

@@ -26,13 +26,15 @@ VIEW_FILE = "recording.rrd"  # in the recording's folder, with --view
 def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float | None = None,
                arm: str | None = None, robot: Path | None = None, camera_options: dict[str, Any] | None = None,
                progress: Callable[[Frame], None] | None = None, view: bool = False,
-               calibration: Path | None = None, sim_faults: list | None = None, world: str = "kitchen") -> dict:
+               calibration: Path | None = None, sim_faults: list | None = None, can: tuple = (),
+               world: str = "kitchen") -> dict:
     """Record `camera` (a registry spec) to `out` for `frames` frames or `seconds` s, with `arm`'s joint states
     and tool pose per frame when given; `view` also shows the frames in rerun and saves OUT/recording.rrd.
     `calibration`: the hand-eye file giving a real camera's pose (default: the one saved for it and the robot);
     a camera on the arm (eye-in-hand) gets its pose per frame from the arm's tool pose (`deploy.rig`).
-    `sim_faults` (`--sim-fault`, arm sim-can): each breaks the simulated motors SECONDS into the recording. `world`:
-    the simulated camera's (the drawer scene of seed 0 in it).
+    `sim_faults` (`--sim-fault`, arm sim-can): each breaks the simulated motors SECONDS into the recording; `can`:
+    the command line's [can] settings over the robot config's; `world`: the simulated camera's (the drawer scene of
+    seed 0 in it).
     Returns {"out", "frames", "seconds", "arm", "camera", "simulated"} (and "rrd" with `view`)."""
     _check_calibration(camera, arm, calibration)
     options = stream_options(camera, camera_options or {})
@@ -41,8 +43,8 @@ def record_rig(camera: str, out: Path, frames: int | None = None, seconds: float
         from deploy.report.viewer import RerunViewer
 
         viewer = RerunViewer(out / VIEW_FILE)
-    with open_rig(RigSpec(camera=camera, arm=arm, robot=robot, calibration=calibration, camera_options=options,
-                          scene=SimScene(world=world))) as rig:
+    with open_rig(RigSpec(camera=camera, arm=arm, robot=robot, can=can, calibration=calibration,
+                          camera_options=options, scene=SimScene(world=world))) as rig:
         check_stream_size(camera, camera_options or {}, rig.camera)
 
         latest: dict[str, np.ndarray] = {}  # the arm's last reading: the tool pose shown with its frame

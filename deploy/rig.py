@@ -38,6 +38,7 @@ from drivers.arm.base import Arm
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.registry import ARMS
 from drivers.arm.robot_config import PANDA_SIM_CONFIG, RobotConfig, load_robot_config
+from drivers.arm.robots import PANDA_REACH, Reach
 from drivers.camera.base import Camera
 from drivers.camera.posed import PosedCamera
 from drivers.camera.registry import CAMERAS
@@ -73,12 +74,13 @@ class SimScene:
     object_id: str | None = None
     scale: str = "real"
 
-    def scenario(self):
-        """The scenario it names (SceneError or PartNetError, one line, when it cannot be built)."""
+    def scenario(self, reach: Reach = PANDA_REACH):
+        """The scenario it names, the target's grip in the arm's `reach` (SceneError or PartNetError, one line, when
+        it cannot be built)."""
         from sim_fallback.scenes import scene_scenario
 
         return scene_scenario(self.world, self.task, self.seed, self.split, self.part, self.assets, self.object_id,
-                              self.scale, self.condition)
+                              self.scale, self.condition, reach)
 
 
 @dataclass(frozen=True)
@@ -97,12 +99,14 @@ class BoardScene:
 @dataclass(frozen=True)
 class RigSpec:
     """What to open. camera / arm: registry specs (None: no such device); robot: config TOML (default: the
-    simulated Panda's for simulated arms; required for hardware arms); segmenter: registry name (None: none).
-    camera_options go to the camera's factory (width, height, fps, ...)."""
+    simulated Panda's for simulated arms; required for hardware arms); can: [can] settings of the command line
+    over the robot config's ((name, value) pairs); segmenter: registry name (None: none). camera_options go to the
+    camera's factory (width, height, fps, ...)."""
 
     camera: str | None = "sim"
     arm: str | None = "sim"
     robot: Path | None = None
+    can: tuple[tuple[str, Any], ...] = ()
     calibration: Path | None = None
     segmenter: str | None = None
     perception: PerceptionConfig = PerceptionConfig()
@@ -160,19 +164,24 @@ def check_spec(spec: RigSpec) -> None:
                           f"--camera {spec.camera}{replay}")
     if camera is not None and arm is not None and camera.simulated and not arm.simulated:
         raise ConfigError(f"--camera {spec.camera} needs a simulated arm (--arm {kinds(ARMS, simulated=True)}), not "
-                          f"{spec.arm!r}: it cannot see --arm {spec.arm}, only the simulated Panda")
+                          f"{spec.arm!r}: it cannot see --arm {spec.arm}, only the simulated world's arm")
     if arm is not None and not arm.simulated and spec.robot is None:
         raise _needs_robot(spec.arm)
 
 
-def load_robot(arm: str | None, robot: Path | None) -> RobotConfig:
+def load_robot(arm: str | None, robot: Path | None, can: tuple[tuple[str, Any], ...] = ()) -> RobotConfig:
     """The robot config of arm kind `arm` (a registry spec): `robot`, or for other than a physical arm the simulated
-    Panda's. A physical arm never falls back to a simulation config: without `robot`, or with a config whose CAN bus
-    is virtual, ConfigError naming the fix."""
+    Panda's, with the command line's [can] settings `can` over its own. A physical arm never falls back to a
+    simulation config: without `robot`, or with a CAN bus (after `can`) that is virtual, ConfigError naming the
+    fix."""
     hardware = arm is not None and ARMS.entry(arm)[0].hardware
     if hardware and robot is None:
         raise _needs_robot(arm)
-    config = load_robot_config(robot or PANDA_SIM_CONFIG)
+    config = load_robot_config(robot or PANDA_SIM_CONFIG).with_can(**dict(can))
+    if hardware and can and config.can.virtual:
+        raise ConfigError(f"--interface {config.can.interface} --channel {config.can.channel} is a virtual bus, where "
+                          "no real motor is: --arm can drives a real arm; give your adapter's (`deploy arm find-port` "
+                          "lists them), or use --arm sim-can for the simulated motors")
     if hardware:
         try:
             config.can.require_hardware(config.label)
@@ -221,7 +230,7 @@ def open_rig(spec: RigSpec) -> Iterator[Rig]:
     """Open what `spec` names (camera connected; arm built but not enabled: `with rig.arm:` or `connect()`);
     on leaving, stop the arm and release everything."""
     check_spec(spec)
-    robot = load_robot(spec.arm, spec.robot)
+    robot = load_robot(spec.arm, spec.robot, spec.can)
     with ExitStack() as stack:
         rig = Rig(spec, robot, robot.kinematics())
         camera_entry = CAMERAS.entry(spec.camera)[0] if spec.camera is not None else None
@@ -245,7 +254,8 @@ def _open_simulated(rig: Rig, stack: ExitStack) -> None:
         from sim_fallback.world import SimWorld
 
         scene = spec.scene
-        rig.world = stack.enter_context(SimWorld(scene.scenario()))
+        arm = rig.robot.robot_spec()  # the robot config's arm, parked by its reach
+        rig.world = stack.enter_context(SimWorld(scene.scenario(arm.reach), robot=arm))
         sim_camera = rig.sim_camera = CAMERAS.open(spec.camera, world=rig.world, seed=scene.seed,
                                                    labels=_needs_labels(spec), **spec.camera_options)
         T_calibrated = simulated_calibration(sim_camera.T_base_camera, *spec.calibration_error,

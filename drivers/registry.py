@@ -32,7 +32,8 @@ class Entry:
     bus and the simulated motors behind it, or None on hardware); `stream_options` are the stream settings its
     factory takes from the command line (a camera's width, height, fps); `needs` names what the kind needs that
     others of its registry do not (a segmenter's "labels": the simulator's labels or a recording's stored masks;
-    "box": the object's box on the first frame; "weights": model weights on this machine)."""
+    "box": the object's box on the first frame; "weights": model weights on this machine). `factory_options` are
+    keyword arguments its factory is always called with (kinds sharing one factory: the RealSense models)."""
 
     name: str
     target: str
@@ -43,6 +44,7 @@ class Entry:
     bus: str | None = None
     stream_options: tuple[str, ...] = ()
     needs: tuple[str, ...] = ()
+    factory_options: tuple[tuple[str, object], ...] = ()
 
     @property
     def usage(self) -> str:
@@ -84,13 +86,14 @@ class Registry(Generic[T]):
 
     def register(self, name: str, target: str, description: str, argument: str | None = None,
                  simulated: bool = False, hardware: bool = False, bus: str | None = None,
-                 stream_options: tuple[str, ...] = (), needs: tuple[str, ...] = ()) -> None:
+                 stream_options: tuple[str, ...] = (), needs: tuple[str, ...] = (),
+                 factory_options: dict[str, object] | None = None) -> None:
         """Add (or replace) kind `name`, built by the factory at `target` ("module:attribute"); the other
         arguments are the `Entry` fields."""
         if ":" in name or not name:
             raise ValueError(f"{self.kind} name {name!r} must be non-empty and contain no ':'")
         self._entries[name] = Entry(name, target, description, argument, simulated, hardware, bus,
-                                    tuple(stream_options), tuple(needs))
+                                    tuple(stream_options), tuple(needs), tuple((factory_options or {}).items()))
 
     def entries(self) -> list[Entry]:
         _load_plugins()
@@ -118,9 +121,10 @@ class Registry(Generic[T]):
         return entry, argument
 
     def open(self, spec: str, *args: object, **kwargs: object) -> T:
-        """Build the kind named by `spec`: its factory called as factory(argument, *args, **kwargs)."""
+        """Build the kind named by `spec`: its factory called as factory(argument, *args, **factory_options,
+        **kwargs)."""
         entry, argument = self.entry(spec)
-        return entry.load()(argument, *args, **kwargs)  # type: ignore[return-value]
+        return entry.load()(argument, *args, **dict(entry.factory_options), **kwargs)  # type: ignore[return-value]
 
 
 def _load_plugins() -> None:

@@ -27,5 +27,5 @@ PINS=()
 .venv/bin/python -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' && PINS=(-c scripts/constraints.txt)
 # torch/torchvision first, pinned to the builds that match each other (see docs/quickstart.md).
 .venv/bin/python -m pip install -q "${PINS[@]}" "torch==2.14.1" "torchvision==0.29.1"
-.venv/bin/python -m pip install -q "${PINS[@]}" -e ".[dev,viewer,cluster]"  # the tests cover --view and --ray too
+.venv/bin/python -m pip install -q "${PINS[@]}" -e ".[dev,viewer,cluster,damiao]"  # the tests cover --view and --ray too
 echo "axisloop installed: .venv/bin/deploy"

@@ -1,10 +1,14 @@
-"""A simulated Franka Panda behind the `Arm` protocol: joint position control, a gripper, a grasp that slips.
+"""The simulated world's arm (the Franka Panda, or the robot config's arm the world stands) behind the `Arm`
+protocol: joint position control, a gripper, a grasp that slips.
 
 Control: PyBullet POSITION_CONTROL (a velocity constraint with position and velocity gains) limited to
 the URDF joint efforts; `control_period_s` = 1/240 s, one physics step per `sync()`.
 
 Torques: PyBullet's applied joint torques, exact, or as a Damiao motor measures them (`torque_sensing`,
 sim_fallback/torque_sensing.py), one reading per physics step.
+
+Gripper: the robot's finger joints (prismatic or hinged) set from the opening by its `finger_joint_per_m`, each
+pushing with its share of the gripping force; the measured opening is read back from them the same way.
 
 Grasp: when the closing fingers both touch one link of anything, the hand holds it as a parallel gripper does
 (sim_fallback/grip.py): a bar turns in the fingers about its length, a knob also about the other axes; the object
@@ -32,7 +36,7 @@ FINGER_SPEED_M_S = 0.1
 
 
 class SimArm(Arm):
-    """The Panda of a `SimWorld`. Keeps the world's physics clock and body ids, not the world itself.
+    """The arm of a `SimWorld`. Keeps the world's physics clock and body ids, not the world itself.
 
     kin: the arm's kinematics (default `Kinematics.panda()`, the model the real arm uses);
     guard: the safety check every `command()` goes through (default: the Panda's `SafetyLimits`);
@@ -64,7 +68,8 @@ class SimArm(Arm):
         self._sensed: tuple[int, np.ndarray] | None = None  # (physics step, measured torques)
         self._joints = [world.robot_joints[name] for name in spec.arm_joints]
         self._fingers = [world.robot_joints[name] for name in spec.finger_joints]
-        self._hand = world.robot_joints["panda_hand_joint"]  # the hand link's index = its joint's index
+        # the hand: the link the fingers hang from (a link's index is its joint's)
+        self._hand = pb.getJointInfo(self._robot, self._fingers[0], physicsClientId=self._client)[16]
         for finger in self._fingers:  # the grip's friction model holds what the pads hold, not the contacts
             pb.changeDynamics(self._robot, finger, lateralFriction=0.0, spinningFriction=0.0,
                               physicsClientId=self._client)
@@ -97,7 +102,7 @@ class SimArm(Arm):
             q=np.array([s[0] for s in arm]),
             dq=np.array([s[1] for s in arm]),
             tau=self._measured(np.array([s[3] for s in arm])),
-            gripper_width_m=float(sum(s[0] for s in states[len(self._joints):])),
+            gripper_width_m=self._spec.gripper_width([s[0] for s in states[len(self._joints):]]),
         )
 
     def _measured(self, tau: np.ndarray) -> np.ndarray:
@@ -126,15 +131,18 @@ class SimArm(Arm):
         self._clock.step(1)
 
     def set_gripper(self, width_m: float, force_n: float = GRIP_FORCE_N) -> None:
-        """Both fingers (PyBullet ignores <mimic>) move to width/2 each, pushing with at most `force_n`."""
+        """Every finger (PyBullet ignores <mimic>) moves to its position at the opening, pushing so that the fingers
+        squeeze with at most `force_n` (virtual work: a finger of k joint units per metre of opening pushes with
+        force / (2 |k|), the Panda's prismatic fingers with `force_n` each) at FINGER_SPEED_M_S of opening."""
         width = float(np.clip(width_m, 0.0, self._spec.gripper_max_width_m))
         if width > self._gripper_target:
             self._release()
         self._gripper_target, self._grip_force_n = width, float(force_n)
         self._may_grip = self._grip is None
-        for finger in self._fingers:
-            pb.setJointMotorControl2(self._robot, finger, pb.POSITION_CONTROL, targetPosition=width / 2,
-                                     force=force_n, maxVelocity=FINGER_SPEED_M_S,
+        targets = self._spec.finger_positions(width)
+        for finger, target, k in zip(self._fingers, targets, self._spec.finger_joint_per_m, strict=True):
+            pb.setJointMotorControl2(self._robot, finger, pb.POSITION_CONTROL, targetPosition=target,
+                                     force=force_n / (2 * abs(k)), maxVelocity=FINGER_SPEED_M_S * 2 * abs(k),
                                      physicsClientId=self._client)
 
     def stop(self) -> None:

@@ -11,7 +11,14 @@ Motor state comes from one of two backends:
   gains are not modelled, disabled motors hold still) and its gripper.
 
 Two ways to run: `start()` a thread that answers at once on the wall clock (realtime CanArm), or `step(dt)` from
-the arm's `on_cycle` (lockstep: answer, advance one period, reply to MIT frames with the new state).
+the arm's `on_cycle` (lockstep: answer, advance one period, reply to MIT frames with the new state). Once closed
+(the driver has gone) the motors' clock runs on without commands (`idle`).
+
+Each motor holds a communication timeout (REG_TIMEOUT, written and read back through the parameter frames; 0, the
+factory value, never fires): an enabled motor that receives no command (MIT or special frame) for that long
+disables itself and reports "communication lost" until enabled again. The motors speak the protocol of the
+config's bus: on a CAN FD bus they answer in FD frames (bitrate switch) and cannot read classic ones, and the
+other way round.
 
 Fault injection per motor (`MotorFaults`): dropped and delayed frames, silence, a status fault; and for the bus:
 `inject_bus_off()` / `inject_error_passive()` (SocketCAN error frames). `schedule(t, action)` runs an injection
@@ -38,8 +45,10 @@ from drivers.arm.damiao import (
     REFRESH,
     REG_MST_ID,
     REG_PMAX,
+    REG_TIMEOUT,
     REG_TMAX,
     REG_VMAX,
+    TIMEOUT_UNIT_S,
     FrameError,
     MotorLimits,
     Special,
@@ -48,6 +57,7 @@ from drivers.arm.damiao import (
     pack_feedback,
     pack_param_reply,
     unpack_mit,
+    unpack_param_reply,
     unpack_param_request,
 )
 from drivers.arm.robot_config import MotorConfig, RobotConfig
@@ -82,12 +92,27 @@ class SimMotor:
     faults: MotorFaults = field(default_factory=MotorFaults)
     replies: int = 0
     mit_frames: int = 0
+    timeout_steps: int = 0  # REG_TIMEOUT: 0 = never
+    timeout_locked: bool = False  # a firmware that answers a write of REG_TIMEOUT but keeps its value
+    last_command_s: float = 0.0  # the motors' clock at the last command it received
+    lost: bool = False  # disabled by its communication timeout
 
     @property
     def status(self) -> Status:
         if self.faults.status is not None:
             return self.faults.status
+        if self.lost:
+            return Status.COMMUNICATION_LOST
         return Status.ENABLED if self.enabled else Status.DISABLED
+
+    @property
+    def timeout_s(self) -> float:
+        return self.timeout_steps * TIMEOUT_UNIT_S
+
+    def check_timeout(self, t: float) -> None:
+        """Disable itself when enabled and no command came for its communication timeout (motors' clock `t`)."""
+        if self.enabled and self.timeout_steps and t - self.last_command_s >= self.timeout_s - 1e-12:
+            self.enabled, self.command, self.lost = False, None, True
 
 
 class GravityLoad:
@@ -203,7 +228,9 @@ class SimMotorBus:
         if isinstance(self.backend, PyBulletMotors):
             self.backend.read(self.motors)
         self._by_id = {m.config.can_id: m for m in self.motors}
-        self._bus = can.Bus(interface=config.can.interface, channel=config.can.channel)
+        self.fd = config.can.fd
+        protocol = can.CanProtocol.CAN_FD if self.fd else can.CanProtocol.CAN_20
+        self._bus = can.Bus(interface=config.can.interface, channel=config.can.channel, protocol=protocol)
         _ON_CHANNEL[config.can.channel] = self
         self._rng = np.random.default_rng(seed)
         self._delayed: list[tuple[float, can.Message]] = []
@@ -248,15 +275,23 @@ class SimMotorBus:
         with self._lock:
             self._t += dt
             self._run_scheduled()
+            self._check_timeouts()
             self.backend.advance(self.motors, dt)
             deferred, self._deferred = self._deferred, []
             for m in deferred:
                 self._reply_feedback(m)
             self._flush_delayed()
 
+    def idle(self, dt: float) -> None:
+        """Let `dt` seconds pass on the motors' clock with no frame handled: their communication timeouts run."""
+        with self._lock:
+            self._t += dt
+            self._check_timeouts()
+
     def close(self) -> None:
-        """Stop the thread, handle the frames still queued (the driver's last disables), release the endpoint
-        (idempotent)."""
+        """Stop the thread, handle the frames still queued (the driver's last disables), release the endpoint, and
+        let the motors' clock run on past their longest communication timeout: the driver has gone, nothing
+        commands them any more (idempotent)."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=1.0)
@@ -265,6 +300,11 @@ class SimMotorBus:
             self.poll()
             self._bus.shutdown()
             self._bus = None
+            self.idle(max(m.timeout_s for m in self.motors))
+
+    def _check_timeouts(self) -> None:
+        for m in self.motors:
+            m.check_timeout(self._t)
 
     def _run(self) -> None:
         while not self._stop.is_set():
@@ -276,6 +316,7 @@ class SimMotorBus:
                 dt, self._t_wall = now - self._t_wall, now
                 self._t += dt
                 self._run_scheduled()
+                self._check_timeouts()
                 self.backend.advance(self.motors, dt)
                 for msg in msgs[:-1]:
                     self._handle(msg)
@@ -304,18 +345,19 @@ class SimMotorBus:
         """The bus goes bus-off: one SocketCAN bus-off error frame, then no motor answers."""
         self.bus_dead = True
         self._bus.send(can.Message(arbitration_id=CAN_ERR_BUSOFF, is_error_frame=True, data=bytes(8),
-                                   is_extended_id=False))
+                                   is_extended_id=False, is_fd=self.fd))
 
     def inject_error_passive(self) -> None:
         """A controller error-passive error frame (motors keep answering)."""
         self._bus.send(can.Message(arbitration_id=CAN_ERR_CRTL, is_error_frame=True,
-                                   data=bytes([0, CAN_ERR_CRTL_TX_PASSIVE, 0, 0, 0, 0, 0, 0]), is_extended_id=False))
+                                   data=bytes([0, CAN_ERR_CRTL_TX_PASSIVE, 0, 0, 0, 0, 0, 0]), is_extended_id=False,
+                                   is_fd=self.fd))
 
     # --- protocol --------------------------------------------------------------------------------------------
 
     def _handle(self, msg: can.Message) -> None:
-        if self.bus_dead or msg.is_error_frame:
-            return
+        if self.bus_dead or msg.is_error_frame or bool(msg.is_fd) != self.fd:
+            return  # a frame of the other protocol is noise to this bus's motors
         data = bytes(msg.data)
         try:
             if msg.arbitration_id == PARAM_ID:
@@ -326,16 +368,18 @@ class SimMotorBus:
             pass  # a real motor ignores frames it cannot parse
 
     def _command(self, m: SimMotor, data: bytes) -> None:
+        m.last_command_s = self._t
         if is_special(data):
             kind = Special(data[7])
             if kind == Special.ENABLE:
                 m.enabled = m.faults.status is None
+                m.lost = False
             elif kind == Special.DISABLE:
                 m.enabled, m.command = False, None
             elif kind == Special.SET_ZERO:
                 m.q = 0.0
             elif kind == Special.CLEAR_ERROR:
-                m.faults.status = None
+                m.faults.status, m.lost = None, False
             self._reply_feedback(m)
             return
         command = unpack_mit(data, m.limits)
@@ -354,10 +398,12 @@ class SimMotorBus:
         if op == REFRESH:
             self._reply_feedback(m)
             return
+        if op == PARAM_WRITE and register == REG_TIMEOUT and not m.timeout_locked:
+            m.timeout_steps = int(unpack_param_reply(data).value)
         values = {REG_PMAX: m.limits.p_max, REG_VMAX: m.limits.v_max, REG_TMAX: m.limits.t_max,
-                  REG_MST_ID: m.config.master_id}
+                  REG_MST_ID: m.config.master_id, REG_TIMEOUT: m.timeout_steps}
         if op in (PARAM_READ, PARAM_WRITE) and register in values:
-            self._send(m, pack_param_reply(can_id, register, values[register]))
+            self._send(m, pack_param_reply(can_id, register, values[register], op))
 
     def _reply_feedback(self, m: SimMotor) -> None:
         if m.faults.silent:
@@ -371,7 +417,8 @@ class SimMotorBus:
         f = m.faults
         if (f.drop_every and m.replies % f.drop_every == 0) or (f.drop_rate and self._rng.random() < f.drop_rate):
             return
-        msg = can.Message(arbitration_id=m.config.master_id, data=data, is_extended_id=False)
+        msg = can.Message(arbitration_id=m.config.master_id, data=data, is_extended_id=False, is_fd=self.fd,
+                          bitrate_switch=self.fd)
         if f.delay_s > 0:
             self._delayed.append((self._t + f.delay_s, msg))
         else:

@@ -1,7 +1,8 @@
 """The simulated devices behind the camera and arm registries (registered by sim_fallback/plugin.py).
 
 - camera `sim`: a D415 rendered in the PyBullet world of the rig;
-- arm `sim`: the world's Panda (`SimArm`), its joint torques measured as its Damiao motors would
+- arm `sim`: the world's arm (`SimArm`: the robot config's, the Panda by default), its joint torques measured as its
+  Damiao motors would
   (sim_fallback/torque_sensing.py) and its finger pads' friction drawn per episode (`episode_signals`);
 - arm `sim-can`: the real CAN driver (`CanArm`) talking to simulated Damiao motors on a virtual bus (its bare bus,
   for bring-up commands that address the motors directly, from `open_sim_can_bus`). In lockstep
@@ -80,15 +81,15 @@ def open_sim_camera(_argument: str, world: SimWorld | None = None, width: int = 
 
 
 def open_sim_arm(_argument: str, robot: RobotConfig, world: SimWorld | None = None) -> SimArm:
-    """The world's Panda, connected on construction, with the signals of the world's episode."""
+    """The world's arm, connected on construction, with the signals of the world's episode."""
     if world is None:
         raise ArmError("arm 'sim' needs a simulated world: use it with --camera sim, or use --arm sim-can")
-    _check_panda(robot, world)
+    _check_robot(robot, world)
     return _episode_arm(robot, world)
 
 
 def open_sim_can_arm(_argument: str, robot: RobotConfig, world: SimWorld | None = None) -> CanArm:
-    """A CanArm on simulated Damiao motors, in lockstep (the world's Panda when `world` is given)."""
+    """A CanArm on simulated Damiao motors, in lockstep (the world's arm when `world` is given)."""
     return sim_can_arm(robot, world)[0]
 
 
@@ -116,7 +117,7 @@ def sim_can_arm(config: RobotConfig, world: SimWorld | None = None, faults: dict
     if world is None:
         motors = SimMotorBus(config)
     else:
-        _check_panda(config, world)
+        _check_robot(config, world)
         motors = SimMotorBus(config, PyBulletMotors(_episode_arm(config, world, signals), config))
     for name, f in (faults or {}).items():
         motors.motor(name).faults = f
@@ -138,7 +139,8 @@ def _episode_arm(robot: RobotConfig, world: SimWorld, signals: EpisodeSignals | 
                   torque_sensing=signals.torque_sensing)
 
 
-def _check_panda(config: RobotConfig, world: SimWorld) -> None:
+def _check_robot(config: RobotConfig, world: SimWorld) -> None:
     if tuple(config.joint_names) != tuple(world.robot_spec.arm_joints):
-        raise ArmError(f"{config.label} is not the simulated Panda (joints {config.joint_names}): "
-                       "use --robot panda_sim with the simulation")
+        raise ArmError(f"{config.label} is not the arm of the simulated world (joints {config.joint_names}, the "
+                       f"world's {list(world.robot_spec.arm_joints)}): build the world with the config's "
+                       "robot_spec()")

@@ -8,7 +8,9 @@ further along the wall; boxes and cylinders stand on the counter and on the floo
 
 The target (a procedural unit or any `Furniture`, e.g. a PartNet-Mobility model) takes its place by its size: up to
 TALL_FROM_M high and no deeper than MAX_RUN_DEPTH_M it stands in the run, which takes its height and depth; taller,
-it ends the run as a tall unit; otherwise it stands free against the wall beside the run.
+it ends the run as a tall unit; lower than MIN_RUN_HEIGHT_M and small enough for the counter (an appliance, a box
+with drawers) it stands on the countertop, its front near the counter's edge; otherwise it stands free against the
+wall beside the run.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from sim_fallback.unit_families import (
     Look,
     Role,
     Split,
+    lowest_run_height,
     random_carcass,
     random_finish,
     random_look,
@@ -35,6 +38,8 @@ from sim_fallback.unit_families import (
 TALL_FROM_M = 1.2  # a target at least this high stands at the end of the run as a tall unit
 MIN_RUN_HEIGHT_M = 0.5  # ... lower than this it stands free
 MAX_RUN_DEPTH_M = 0.8
+ON_COUNTER_M = (0.55, 0.9)  # a low target no deeper and no wider than this stands on the counter (depth, width)
+COUNTER_EDGE_M = 0.03  # ... its front this far back from the counter's edge
 WALL_HEIGHT_M = (2.4, 2.7)
 COUNTER_M = (0.03, 0.045)  # countertop thickness
 OVERHANG_M = (0.02, 0.04)  # over the fronts
@@ -70,11 +75,19 @@ class Room:
 
 
 def role_of(furniture: Furniture) -> Role:
-    """Where a target stands by its size: in the run ("base"), ending it ("tall") or on its own ("free")."""
-    _, depth, height = furniture.size_m
+    """Where a target stands by its size: in the run ("base"), ending it ("tall"), on the countertop ("counter") or
+    on its own ("free")."""
+    width, depth, height = furniture.size_m
     if height >= TALL_FROM_M:
         return "tall"
+    if height < MIN_RUN_HEIGHT_M and depth <= ON_COUNTER_M[0] and width <= ON_COUNTER_M[1]:
+        return "counter"
     return "base" if height >= MIN_RUN_HEIGHT_M and depth <= MAX_RUN_DEPTH_M else "free"
+
+
+def standing_height(furniture: Furniture) -> float:
+    """The lowest a target stands above the floor (m): on it, or on the lowest countertop for a "counter" target."""
+    return lowest_run_height() + COUNTER_M[0] if role_of(furniture) == "counter" else 0.0
 
 
 def random_target(task: str, split: Split, look: Look, rng: np.random.Generator, source: str) -> tuple[Role, Furniture]:
@@ -101,6 +114,8 @@ def random_room(target: Furniture, role: Role, split: Split, look: Look, rng: np
         run = Carcass(depth, height, run.plinth_m, run.wall_m, run.front_m)
     counter_top = _base_run(room, target if role == "base" else None, run, look, split, rng, source)
     ends = room.y_range()
+    if role == "counter":
+        _on_counter(room, target, counter_top, ends, rng)
     tall_end = float(rng.choice([-1.0, 1.0]))
     if role == "tall" or rng.random() < 0.6:
         tall = target if role == "tall" else random_unit(
@@ -120,7 +135,7 @@ def random_room(target: Furniture, role: Role, split: Split, look: Look, rng: np
         gap = float(rng.uniform(*FREE_GAP_M))
         y = all_ends[0] - gap - width / 2 if tall_end > 0 else all_ends[1] + gap + width / 2
         room.add(free, depth / 2 + float(rng.uniform(0.0, 0.05)), y, target=role == "free")
-    _counter_objects(room, counter_top, run.depth_m, ends, rng)
+    _counter_objects(room, counter_top, run.depth_m, ends, rng, role == "counter")
     _floor_objects(room, rng)
     _shell(room, tall_end, closed if side_wall else None, rng)
     return room
@@ -179,10 +194,23 @@ def _free_unit(split: Split, rng: np.random.Generator, source: str) -> Furniture
                        random_look(split, rng), split, rng, f"{source} free {layout}").furniture()
 
 
+def _on_counter(room: Room, target: Furniture, counter_top: float, ends: tuple[float, float],
+                rng: np.random.Generator) -> None:
+    """The target on the countertop, somewhere along the run, its front COUNTER_EDGE_M back from the edge."""
+    width, depth, _ = target.size_m
+    counter = next(s for s in room.statics if s.name == "countertop")
+    edge = counter.pose[0] + counter.size[0] / 2
+    y = float(rng.uniform(ends[0] + width / 2, max(ends[1] - width / 2, ends[0] + width / 2)))
+    room.add(target, edge - COUNTER_EDGE_M - depth / 2, y, counter_top, target=True)
+
+
 def _counter_objects(room: Room, counter_top: float, depth: float, ends: tuple[float, float],
-                     rng: np.random.Generator) -> None:
-    """Boxes and cylinders on the counter, toward its back, apart from each other."""
+                     rng: np.random.Generator, target_on_it: bool = False) -> None:
+    """Boxes and cylinders on the counter, toward its back, apart from each other (and from the target on it)."""
     taken: list[tuple[float, float]] = []
+    if target_on_it:
+        placed = room.furniture[room.target]
+        taken.append((placed.pose[1], placed.furniture.size_m[0] / 2 + 0.05))
     for _ in range(int(rng.integers(2, 6))):
         cylinder = rng.random() < 0.5
         size = (np.repeat(rng.uniform(0.06, 0.16), 2) if cylinder else rng.uniform(0.06, 0.22, 2))

@@ -10,17 +10,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from drivers.arm.robots import PANDA_REACH, Reach
 from sim_fallback.errors import PartError, SceneError
 from sim_fallback.furniture import Finish, Furniture, PartKind
 from sim_fallback.furniture_body import PartGeometry, measure_parts
-from sim_fallback.kitchen import Room, random_room, random_target, role_of
+from sim_fallback.kitchen import Room, random_room, random_target, role_of, standing_height
 from sim_fallback.layout import Layout, Placed, StaticShape
 from sim_fallback.parts import ordered, resolve
 from sim_fallback.placement import (
     BASE_HEIGHT_M,
-    HANDLE_HEIGHT_M,
     STAND_HALF_M,
     CameraMount,
+    Obstacle,
+    arm_at_start,
     base_heights,
     park_robot,
     place_camera,
@@ -66,12 +68,13 @@ class KitchenScenario:
 
     @classmethod
     def make(cls, task: PartKind, seed: int, split: Split = "train", part: str | None = None,
-             target: Furniture | None = None, condition: Condition = "normal", style: str | None = None
-             ) -> KitchenScenario:
+             target: Furniture | None = None, condition: Condition = "normal", style: str | None = None,
+             reach: Reach = PANDA_REACH) -> KitchenScenario:
         """A kitchen scenario, deterministic from (task, seed, split) and the arguments. `part`: the `--part` text
         (default: the seed picks a reachable part of the task's kind); `target`: the furniture to open (default: a
         procedural unit of the split's family, drawn again until it has that part within reach); `style`: every
-        procedural unit's handle style (default: drawn). SceneError when the part is not there or out of reach."""
+        procedural unit's handle style (default: drawn); `reach`: the arm's (default: the Panda's). SceneError when
+        the part is not there or out of reach."""
         if condition not in CONDITIONS or task not in KINDS or split not in SPLITS:
             raise SceneError(f"kitchen scenario {task!r}/{split!r}/{condition!r}: the task is one of {KINDS}, the "
                              f"split one of {SPLITS}, the condition one of {CONDITIONS}")
@@ -84,8 +87,8 @@ class KitchenScenario:
                 (role_of(target), target)
             room = random_room(furniture, role, split, look, rng, source)
             try:
-                chosen = _choose_part(room, task, part, rng)
-                return _park(cls, task, seed, split, room, chosen, condition)
+                chosen = _choose_part(room, task, part, rng, reach)
+                return _park(cls, task, seed, split, room, chosen, condition, reach)
             except PartError as exc:
                 if target is not None:  # another kitchen would not change its parts nor their heights
                     raise
@@ -95,54 +98,56 @@ class KitchenScenario:
         raise error  # type: ignore[misc]
 
 
-def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Generator) -> PartGeometry:
-    """The target part: the one `text` names, else one of the task's kind within reach, drawn from `rng`."""
+def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Generator,
+                 reach: Reach) -> PartGeometry:
+    """The target part: the one `text` names, else one of the task's kind within `reach`, drawn from `rng`."""
     placed = room.furniture[room.target]
     geometry = measure_parts(placed.furniture)
     if text is not None:
         chosen = resolve(placed.furniture, geometry, task, text)
-        if base_heights(_grip_height(placed, chosen), task) is None:
+        if base_heights(_grip_height(placed, chosen), task, reach) is None:
             raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} is out of the robot's "
-                             f"reach: {_reach(placed, [chosen], task)}")
+                             f"reach: {_reach(placed, [chosen], task, reach)}")
         return chosen
-    reachable = reachable_parts(placed, geometry, task)
+    reachable = reachable_parts(placed, geometry, task, reach)
     if not reachable:
-        raise PartError(_no_reach(placed, geometry, task))
+        raise PartError(_no_reach(placed, geometry, task, reach))
     return reachable[int(rng.integers(len(reachable)))]
 
 
-def reach_problem(furniture: Furniture, task: PartKind) -> str | None:
-    """Why `furniture`, standing on the floor as a given target does, has no part of the task's kind the robot can
-    reach (one line); None when it has one."""
-    placed, geometry = Placed(furniture, (0.0, 0.0, 0.0, 0.0)), measure_parts(furniture)
-    return None if reachable_parts(placed, geometry, task) else _no_reach(placed, geometry, task)
+def reach_problem(furniture: Furniture, task: PartKind, reach: Reach = PANDA_REACH) -> str | None:
+    """Why `furniture`, standing where a given target does at the lowest (the floor, or a countertop:
+    `standing_height`), has no part of the task's kind an arm of `reach` can reach (one line); None when it has
+    one."""
+    placed, geometry = Placed(furniture, (0.0, 0.0, standing_height(furniture), 0.0)), measure_parts(furniture)
+    return None if reachable_parts(placed, geometry, task, reach) else _no_reach(placed, geometry, task, reach)
 
 
-def reachable_parts(placed: Placed, geometry: list[PartGeometry], task: PartKind) -> list[PartGeometry]:
-    """The parts of the task's kind (in a user's order) whose grip some robot base height brings into reach."""
-    return [g for g in ordered(geometry, task) if base_heights(_grip_height(placed, g), task) is not None]
+def reachable_parts(placed: Placed, geometry: list[PartGeometry], task: PartKind, reach: Reach) -> list[PartGeometry]:
+    """The parts of the task's kind (in a user's order) whose grip some robot base height brings into `reach`."""
+    return [g for g in ordered(geometry, task) if base_heights(_grip_height(placed, g), task, reach) is not None]
 
 
-def _no_reach(placed: Placed, geometry: list[PartGeometry], task: PartKind) -> str:
+def _no_reach(placed: Placed, geometry: list[PartGeometry], task: PartKind, reach: Reach) -> str:
     return (f"{placed.furniture.source} has no {task} within the robot's reach: "
-            f"{_reach(placed, ordered(geometry, task), task)}")
+            f"{_reach(placed, ordered(geometry, task), task, reach)}")
 
 
 def _grip_height(placed: Placed, part: PartGeometry) -> float:
     return float((placed.T @ [*part.grip, 1.0])[2])
 
 
-def _reach(placed: Placed, parts: list[PartGeometry], task: str) -> str:
+def _reach(placed: Placed, parts: list[PartGeometry], task: str, reach: Reach) -> str:
     heights = ", ".join(f"{g.name} {_grip_height(placed, g):.2f} m" for g in parts) or f"it has no {task}"
-    (low, high), (base_low, base_high) = HANDLE_HEIGHT_M[task], BASE_HEIGHT_M
+    (low, high), (base_low, base_high) = reach.height(task), BASE_HEIGHT_M
     return (f"its grips stand above the floor at {heights}; the robot reaches {task} grips {low + base_low:.2f}-"
             f"{high + base_high:.2f} m above the floor (its base {base_low:g}-{base_high:g} m up, the grip "
             f"{low:g}-{high:g} m above the base): name another part, or give another seed")
 
 
 def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, room: Room, part: PartGeometry,
-          condition: Condition) -> KitchenScenario:
-    """The robot parked in front of `part`, the camera placed, all in the robot base frame."""
+          condition: Condition, reach: Reach) -> KitchenScenario:
+    """The robot parked in front of `part` (its grip in `reach`), the camera placed, all in the robot base frame."""
     rng = np.random.default_rng([SPLITS.index(split), KINDS.index(task), seed, 3])
     placed = room.furniture[room.target]
     T_room = placed.T
@@ -151,10 +156,10 @@ def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, r
     others = [p.footprint() for k, p in enumerate(room.furniture) if k != room.target]
     others += [s.footprint() for s in room.statics if s.name not in ("floor", "wall")]
     try:
-        T = park_robot(grip, normal, task, others, rng)
+        T = park_robot(grip, normal, task, others, rng, reach)
     except ValueError as exc:
         raise SceneError(f"{placed.furniture.source}, {part.name}: {exc}") from None
-    lo, hi = base_heights(_grip_height(placed, part), task)  # type: ignore[misc]
+    lo, hi = base_heights(_grip_height(placed, part), task, reach)  # type: ignore[misc]
     height = float(rng.uniform(lo, hi))
     T[2, 3] = -height
     layout = Layout(tuple(room.furniture), tuple(room.statics), room.target, part.name).moved(T)
@@ -162,13 +167,13 @@ def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, r
         stand = StaticShape("robot stand", "box", (2 * STAND_HALF_M, 2 * STAND_HALF_M, height - 0.002),
                             (0.0, 0.0, -height / 2 - 0.001, 0.0), STAND)
         layout = Layout(layout.furniture, (*layout.statics, stand), layout.target, layout.part)
-    camera = _camera(layout, part, T @ T_room, -height, task, rng)
+    camera = _camera(layout, part, T @ T_room, -height, task, rng, arm_at_start(reach, task))
     return cls(task, seed, split, layout, height, camera, random_start(rng), condition)
 
 
 def _camera(layout: Layout, part: PartGeometry, T_base_furniture: np.ndarray, floor_z: float, task: PartKind,
-            rng: np.random.Generator) -> CameraMount:
-    """A camera that sees the part's front closed and its grip opened by OPENED[task]."""
+            rng: np.random.Generator, arm: Obstacle) -> CameraMount:
+    """A camera that sees the part's front closed and its grip opened by OPENED[task], past the `arm` at its start."""
     def base(points: np.ndarray) -> np.ndarray:
         return np.asarray(points) @ T_base_furniture[:3, :3].T + T_base_furniture[:3, 3]
 
@@ -180,7 +185,7 @@ def _camera(layout: Layout, part: PartGeometry, T_base_furniture: np.ndarray, fl
     obstacles += [(s.footprint(), *s.heights) for s in layout.statics if s.name != "floor"]
     try:
         return place_camera(base(part.front_centre), base(part.grip), T_base_furniture[:3, :3] @ part.normal, must_see,
-                            floor_z, obstacles, rng)
+                            floor_z, obstacles, rng, arm)
     except ValueError as exc:
         raise SceneError(f"{layout.target_furniture.furniture.source}, {part.name}: {exc}") from None
 

@@ -1,13 +1,14 @@
 """Where the robot and the camera stand in front of a target part (pure geometry, metres, radians, z up).
 
 The robot parks the way RGBManip places its objects (the paper's benchmark) and a user parks a robot in front of
-what it must open: the target part's grip 0.5-0.85 m from the robot base (drawers 0.55-0.68 m), within +-0.4 rad of
-its forward axis, the front turned up to +-0.2 rad away from facing it.
+what it must open: the target part's grip in the arm's `Reach` (drivers/arm/robots.py: for the Panda 0.5-0.85 m from
+the robot base, drawers 0.55-0.68 m), within +-0.4 rad of its forward axis, the front turned up to +-0.2 rad away
+from facing it.
 
 Reach rule: the robot base stands BASE_HEIGHT_M above the floor (from on the floor up to a mobile base with a lift),
-at a height drawn so that the grip lies HANDLE_HEIGHT_M above the robot base, where the box world's handles are
-(the heights at which a Panda pulls a drawer 45 cm and swings a door without meeting its joint limits). A part
-whose grip no base height brings into that band is out of reach.
+at a height drawn so that the grip lies in the arm's reach height band above the robot base (for the Panda where the
+box world's handles are: the heights at which it pulls a drawer 45 cm and swings a door without meeting its joint
+limits). A part whose grip no base height brings into that band is out of reach.
 
 The camera stands as a user mounts it: on a tripod beside the robot, or on a mast on the robot's base looking over
 the arm; aimed near the part, not at its centre, with the part's front (closed) and its grip (opened) inside the
@@ -21,15 +22,9 @@ from typing import Literal
 
 import numpy as np
 
+from drivers.arm.robots import Reach
 from sim_fallback.layout import inside
 
-# Robot base to the target front's centre (horizontal) and grip centre above the robot base, per task. A drawer is
-# pulled toward the robot: its ranges keep a 45 cm pull in the Panda's dexterous workspace (nearer or lower handles
-# put joint 2 on its limit before the end, farther ones start near full stretch), measured with
-# `well_conditioned_start` over the pull. Doors stand where RGBManip (and the paper) place objects, 0.5-0.85 m:
-# nearer, a 70 deg door's free edge sweeps through the robot's own column (`SimWorld.sweep_hits_robot_base`).
-CABINET_DISTANCE_M = {"drawer": (0.55, 0.68), "door": (0.5, 0.85)}
-HANDLE_HEIGHT_M = {"drawer": (0.72, 0.86), "door": (0.62, 0.78)}
 CABINET_BEARING_RAD = 0.4  # the target lies within +-this of the robot's x axis
 CABINET_YAW_RAD = 0.2  # its front turns up to +-this away from facing the robot
 BASE_HEIGHT_M = (0.0, 1.0)  # the robot base above the floor
@@ -41,16 +36,18 @@ MIN_RANGE_M = 0.55  # the camera stays this far from the part (a D415 sees from 
 MAX_VIEW_ANGLE_DEG = 60.0  # the camera sees the front at most this far from straight on
 AIM_OFFSET_M = (0.15, 0.10)  # the aim point strays up to this far from the part's centre (sideways, up or down)
 SIGHT_END_M = 0.03  # the line of sight's end at the part may pass through what holds the part
-# what the arm at its start configuration (sim_fallback/start.py) fills, base frame: no line of sight crosses it
+# what the arm at its start configuration (sim_fallback/start.py) fills, base frame: no line of sight crosses it.
+# Its front edge is the Panda's hand at its start, or nearer for an arm parked nearer (`arm_at_start`).
 ARM_AT_START = (np.array([[0.45, 0.12], [0.45, -0.12], [-0.15, -0.12], [-0.15, 0.12]]), 0.0, 0.95)
+ARM_CLEARANCE_M = 0.05  # the arm at its start stays this far short of the nearest grip its reach allows
 CameraKind = Literal["tripod", "base"]
 
 
-def base_heights(grip_height_m: float, task: str) -> tuple[float, float] | None:
-    """The robot base heights above the floor (lo, hi) that put a grip `grip_height_m` above the floor in reach;
+def base_heights(grip_height_m: float, task: str, reach: Reach) -> tuple[float, float] | None:
+    """The robot base heights above the floor (lo, hi) that put a grip `grip_height_m` above the floor in `reach`;
     None when there are none."""
-    lo = max(BASE_HEIGHT_M[0], grip_height_m - HANDLE_HEIGHT_M[task][1])
-    hi = min(BASE_HEIGHT_M[1], grip_height_m - HANDLE_HEIGHT_M[task][0])
+    lo = max(BASE_HEIGHT_M[0], grip_height_m - reach.height(task)[1])
+    hi = min(BASE_HEIGHT_M[1], grip_height_m - reach.height(task)[0])
     return (lo, hi) if lo <= hi else None
 
 
@@ -62,13 +59,14 @@ def turn(yaw: float) -> np.ndarray:
 
 
 def park_robot(grip: np.ndarray, normal: np.ndarray, task: str, obstacles: list[np.ndarray],
-               rng: np.random.Generator, attempts: int = 60) -> np.ndarray:
+               rng: np.random.Generator, reach: Reach, attempts: int = 60) -> np.ndarray:
     """T_base_room: the room (where the target's grip and horizontal front `normal` are given) seen from a robot
-    parked in front of the part, its stand clear of the `obstacles` (footprints, Nx2 in the room frame). The base
-    height is not in it (z unchanged). ValueError when no parking spot is found."""
+    parked in front of the part with the grip at a distance in its `reach`, its stand clear of the `obstacles`
+    (footprints, Nx2 in the room frame). The base height is not in it (z unchanged). ValueError when no parking spot
+    is found."""
     heading = np.arctan2(normal[1], normal[0])
     for _ in range(attempts):
-        distance = rng.uniform(*CABINET_DISTANCE_M[task])
+        distance = rng.uniform(*reach.distance(task))
         bearing = rng.uniform(-CABINET_BEARING_RAD, CABINET_BEARING_RAD)
         yaw = bearing + np.pi + rng.uniform(-CABINET_YAW_RAD, CABINET_YAW_RAD)  # the front's normal, robot frame
         T = turn(yaw - heading)
@@ -137,10 +135,12 @@ Obstacle = tuple[np.ndarray, float, float]  # a footprint (Nx2, convex, in order
 
 
 def place_camera(centre: np.ndarray, grip: np.ndarray, normal: np.ndarray, must_see: np.ndarray, floor_z: float,
-                 obstacles: list[Obstacle], rng: np.random.Generator, attempts: int = 80) -> CameraMount:
+                 obstacles: list[Obstacle], rng: np.random.Generator, arm: Obstacle = ARM_AT_START,
+                 attempts: int = 80) -> CameraMount:
     """A camera mount seeing the points `must_see` (base frame) from beside the robot, aimed near `centre` (the
     part's front centre), within MAX_VIEW_ANGLE_DEG of the front's `normal`, its lines of sight to `centre` and to
-    the `grip` clear of the `obstacles` (base frame) and of the arm. ValueError when no mount sees it all."""
+    the `grip` clear of the `obstacles` (base frame) and of the `arm` at its start. ValueError when no mount sees it
+    all."""
     first: CameraKind = "tripod" if rng.random() < 0.5 else "base"
     for attempt in range(attempts):
         kind = first if attempt < attempts // 2 else ("base" if first == "tripod" else "tripod")
@@ -151,7 +151,7 @@ def place_camera(centre: np.ndarray, grip: np.ndarray, normal: np.ndarray, must_
             eye = np.array([rng.uniform(-0.25, -0.1), side * rng.uniform(0.1, 0.3), rng.uniform(0.95, 1.3)])
         seen_from = (eye - centre) / np.linalg.norm(eye - centre)
         if (np.linalg.norm(centre - eye) < MIN_RANGE_M or seen_from @ normal < np.cos(np.radians(MAX_VIEW_ANGLE_DEG))
-                or not all(_clear(eye, p, [*obstacles, ARM_AT_START]) for p in (centre, grip))):
+                or not all(_clear(eye, p, [*obstacles, arm]) for p in (centre, grip))):
             continue
         forward = (centre - eye) / np.linalg.norm(centre - eye)
         sideways = np.cross(forward, [0.0, 0.0, 1.0])
@@ -164,6 +164,14 @@ def place_camera(centre: np.ndarray, grip: np.ndarray, normal: np.ndarray, must_
                 return CameraMount(kind, tuple(float(v) for v in eye), tuple(float(v) for v in aim))  # type: ignore
     raise ValueError("no camera position beside the robot or on its base sees the whole target part: the part is "
                      "too large or too close to the robot")
+
+
+def arm_at_start(reach: Reach, task: str) -> Obstacle:
+    """The volume the arm fills at its start (ARM_AT_START), its front edge drawn back to ARM_CLEARANCE_M short of
+    the nearest grip of `reach`: a user parks an arm so that it starts clear of what it is to open."""
+    footprint, lo, hi = ARM_AT_START
+    front = min(footprint[:, 0].max(), reach.distance(task)[0] - ARM_CLEARANCE_M)
+    return np.column_stack([np.minimum(footprint[:, 0], front), footprint[:, 1]]), lo, hi
 
 
 def _clear(eye: np.ndarray, point: np.ndarray, obstacles: list[Obstacle]) -> bool:

@@ -12,17 +12,12 @@ from typing import Literal
 
 import numpy as np
 
+from drivers.arm.robots import PANDA_REACH, Reach
 from sim_fallback.cabinet_urdf import KINDS, SPLITS, CabinetSpec, Split, cabinet_furniture, random_cabinet
 from sim_fallback.errors import SceneError
 from sim_fallback.kitchen_scenario import KitchenScenario
 from sim_fallback.layout import Layout, Placed, StaticShape
-from sim_fallback.placement import (  # noqa: F401 - the box world's placement rules, also the kitchen's
-    CABINET_BEARING_RAD,
-    CABINET_DISTANCE_M,
-    CABINET_YAW_RAD,
-    HANDLE_HEIGHT_M,
-    look_at,
-)
+from sim_fallback.placement import CABINET_BEARING_RAD, CABINET_YAW_RAD, look_at
 from sim_fallback.start import CONDITIONS, Q_START, START_JITTER_RAD, Condition  # noqa: F401
 from sim_fallback.worlds import WORLDS
 
@@ -69,18 +64,19 @@ class Scenario:
     @classmethod
     def make(
         cls, task: Task, seed: int, split: Split = "train", camera: CameraPlacement | None = None,
-        condition: Condition = "normal",
+        condition: Condition = "normal", reach: Reach = PANDA_REACH,
     ) -> Scenario:
-        """A random scenario, deterministic from (task, seed, split); `camera` overrides the random one; the
-        condition changes the joint only (same cabinet, placement and camera)."""
+        """A random scenario, deterministic from (task, seed, split), the handle in the arm's `reach` (default: the
+        Panda's); `camera` overrides the random one; the condition changes the joint only (same cabinet, placement
+        and camera)."""
         if condition not in CONDITIONS:
             raise ValueError(f"unknown object condition {condition!r}: use one of {', '.join(CONDITIONS)}")
         cabinet = random_cabinet(task, seed, split)
         rng = np.random.default_rng([SPLITS.index(split), KINDS.index(task), seed, 1])  # not the cabinet's
-        distance = rng.uniform(*CABINET_DISTANCE_M[task])
+        distance = rng.uniform(*reach.distance(task))
         bearing = rng.uniform(-CABINET_BEARING_RAD, CABINET_BEARING_RAD)
         yaw = bearing + np.pi + rng.uniform(-CABINET_YAW_RAD, CABINET_YAW_RAD)  # front faces the robot
-        handle_height = rng.uniform(*HANDLE_HEIGHT_M[task])
+        handle_height = rng.uniform(*reach.height(task))
         pedestal = max(handle_height - cabinet.handle_cabinet[2], rng.uniform(*MIN_PEDESTAL_M))
         random_camera = CameraPlacement(
             distance_m=float(rng.uniform(0.65, 1.0)),
@@ -131,17 +127,18 @@ class Scenario:
 
 
 def make_scenario(world: str, task: Task, seed: int, split: Split = "train", part: str | None = None,
-                  target=None, condition: Condition = "normal") -> Scenario | KitchenScenario:
-    """The scenario of `world` ("kitchen" or "box"), deterministic from its arguments. `part` (the user's `--part`
-    text) and `target` (a `Furniture` to open) apply to kitchens; the box world has its one cabinet. SceneError
-    for an unknown world, or a part the box world's cabinet does not have."""
+                  target=None, condition: Condition = "normal",
+                  reach: Reach = PANDA_REACH) -> Scenario | KitchenScenario:
+    """The scenario of `world` ("kitchen" or "box"), deterministic from its arguments, the target's grip in the arm's
+    `reach`. `part` (the user's `--part` text) and `target` (a `Furniture` to open) apply to kitchens; the box world
+    has its one cabinet. SceneError for an unknown world, or a part the box world's cabinet does not have."""
     if world == "box":
-        scenario = Scenario.make(task, seed, split, condition=condition)
+        scenario = Scenario.make(task, seed, split, condition=condition, reach=reach)
         if part not in (None, task, "0"):
             raise SceneError(f"--part {part!r}: the box world's cabinet has one part, its {task} (0): drop --part, or "
                              "use --world kitchen")
         return scenario
     if world == "kitchen":
-        return KitchenScenario.make(task, seed, split, part=part, target=target, condition=condition)
+        return KitchenScenario.make(task, seed, split, part=part, target=target, condition=condition, reach=reach)
     raise SceneError(f"--world {world!r} is not a world: use one of {', '.join(WORLDS)}")
 

@@ -20,6 +20,7 @@ DELAY_S = 0.05  # the `delay` fault: replies this late (the default feedback tim
 BUS_FAULTS = {
     "bus-off": "the bus goes bus-off: one error frame, then no motor answers",
     "error-passive": "the controller reports error-passive (one error frame); the motors keep answering",
+    "cable-pulled": "the cable to the motors is cut: no frame reaches them, none comes back, and no error frame",
 }
 MOTOR_FAULTS = {
     "silent": "the motor stops answering and ignores every frame (it stays enabled)",
@@ -74,6 +75,8 @@ class SimFault:
             motors.inject_bus_off()
         elif self.kind == "error-passive":
             motors.inject_error_passive()
+        elif self.kind == "cable-pulled":
+            motors.bus_dead = True
         else:
             faults = self._motor(motors).faults
             if self.kind == "silent":

@@ -21,7 +21,7 @@ from sim_fallback.mechanisms import random_mechanism
 from sim_fallback.units import TRAY_CLEARANCE_M, FrontSpec, HandlePlace, UnitSpec, handle_position
 
 Split = Literal["train", "test"]
-Role = Literal["base", "tall", "wall", "free"]
+Role = Literal["base", "tall", "wall", "free", "counter"]  # "counter": a given target only
 LAYOUTS: dict[str, tuple[str, ...]] = {
     "base": ("drawers", "door", "doors", "drawer-over-door", "drawer-over-doors"),
     "tall": ("doors", "drawers-door"), "wall": ("door", "doors"), "free": ("chest", "cupboard")}
@@ -107,6 +107,11 @@ def random_carcass(split: Split, role: Role, rng: np.random.Generator) -> Carcas
         depth, height = float(rng.uniform(*r["free_depth"])), float(rng.uniform(*r["free_height"]))
         plinth *= 0.6
     return Carcass(depth, height, plinth, float(rng.uniform(*r["wall_m"])), float(rng.uniform(*r["front_m"])))
+
+
+def lowest_run_height() -> float:
+    """The lowest base run of any family (m): where the countertop stands at the least."""
+    return min(sizes["height"][0] for sizes in _SIZES.values())
 
 
 def random_width(split: Split, layout: str, rng: np.random.Generator) -> float:

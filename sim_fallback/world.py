@@ -1,5 +1,5 @@
-"""The PyBullet world of one scenario: the Panda, the scenario's furniture and static shapes, the parts'
-mechanisms, a physics clock and the ground truth.
+"""The PyBullet world of one scenario: the robot (the Panda unless a robot config's arm is given), the scenario's
+furniture and static shapes, the parts' mechanisms, a physics clock and the ground truth.
 
 Each `SimWorld` owns its own DIRECT-mode client, so several can coexist. Devices (`SimCamera`,
 `SimArm`) are built from a world but keep only a `PhysicsClock` and body ids, never the world: the
@@ -22,13 +22,14 @@ import numpy as np
 import open3d as o3d
 import pybullet as pb
 
-from drivers.arm.robots import panda
+from drivers.arm.robots import RobotSpec, panda
 from sim_fallback.furniture import Finish, Mechanism, Part
 from sim_fallback.furniture_body import grip_frame, link_indices, link_pose, load_furniture, part_links
 from sim_fallback.kitchen_scenario import KitchenScenario
 from sim_fallback.layout import Layout, Placed
 from sim_fallback.mechanisms import JointMechanism, MechanismForces, set_friction
 from sim_fallback.scenario import Scenario
+from sim_fallback.start import Q_START
 from sim_fallback.static_body import static_body
 
 PHYSICS_HZ = 240
@@ -103,11 +104,14 @@ class SimWorld:
     `furniture_ids` the furniture's bodies in the layout's order, `statics_id` the body of the static shapes;
     `finishes` the looks of surfaces by (body id, link index; -1 the base) for the renderer. floor: the box world's
     4 m floor square (costs render time; off by default: background pixels then read depth 0 like out-of-range
-    stereo); kitchens have their own.
+    stereo); kitchens have their own. robot: the arm standing at the base frame's origin (a robot config's
+    `robot_spec()`; default the Franka Panda), started at its `start` configuration with the scenario's jitter.
     """
 
-    def __init__(self, scenario: Scenario | KitchenScenario, floor: bool = False) -> None:
+    def __init__(self, scenario: Scenario | KitchenScenario, floor: bool = False,
+                 robot: RobotSpec | None = None) -> None:
         self.scenario = scenario
+        self.robot_spec = robot or panda()
         self.client = pb.connect(pb.DIRECT)
         self.clock = PhysicsClock(self.client)
         self.finishes: dict[tuple[int, int], Finish] = {}
@@ -127,18 +131,18 @@ class SimWorld:
         # contacts solved in a fixed order, not in the order of their memory addresses: an episode's outcome
         # then does not depend on what ran before it in the same process (a benchmark worker's earlier episodes)
         pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=c)
-        self.robot_spec = panda()
         robot_urdf = _low_poly_copy(self.robot_spec.urdf, Path(self._tmp.name))
         self.robot_id = pb.loadURDF(str(robot_urdf), useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE,
                                     physicsClientId=c)
         names = [pb.getJointInfo(self.robot_id, j, physicsClientId=c)[1].decode()
                  for j in range(pb.getNumJoints(self.robot_id, physicsClientId=c))]
         self.robot_joints = {name: j for j, name in enumerate(names)}
-        for name, q in zip(self.robot_spec.arm_joints, sc.q_start, strict=True):
+        jitter = np.asarray(sc.q_start) - Q_START  # the scenario's, around the start of whichever arm stands here
+        for name, q in zip(self.robot_spec.arm_joints, self.robot_spec.start + jitter, strict=True):
             pb.resetJointState(self.robot_id, self.robot_joints[name], q, physicsClientId=c)
-        half_open = self.robot_spec.gripper_max_width_m / 2
-        for name in self.robot_spec.finger_joints:
-            pb.resetJointState(self.robot_id, self.robot_joints[name], half_open, physicsClientId=c)
+        fingers = self.robot_spec.finger_positions(self.robot_spec.gripper_max_width_m)
+        for name, q in zip(self.robot_spec.finger_joints, fingers, strict=True):
+            pb.resetJointState(self.robot_id, self.robot_joints[name], q, physicsClientId=c)
         self.furniture_ids: list[int] = []
         joints = [joint for k, placed in enumerate(layout.furniture)
                   for joint in self._load(placed, k == layout.target, layout.part)]
@@ -255,8 +259,9 @@ class SimWorld:
         posture gets out of the way then (a door hinged close to the robot cannot reach a wide angle). Ground
         truth for evaluation; the joints are put back as they were."""
         c, j, robot = self.client, self.cabinet_joint, self.robot_id
+        first, second = (self.robot_joints[name] for name in self.robot_spec.arm_joints[:2])
         start, velocity = pb.getJointState(self.cabinet_id, j, physicsClientId=c)[:2]
-        held = [pb.getJointState(robot, k, physicsClientId=c)[:2] for k in (0, 1)]
+        held = [pb.getJointState(robot, k, physicsClientId=c)[:2] for k in (first, second)]
         values = np.append(np.arange(start, value, SWEEP_STEP if value >= start else -SWEEP_STEP), value)
 
         def hits(link: int) -> bool:
@@ -270,20 +275,20 @@ class SimWorld:
             return np.linspace(*pb.getJointInfo(robot, joint, physicsClientId=c)[8:10], count)
 
         try:
-            if hits(-1):
+            if any(hits(link) for link in range(-1, first)):  # the base and the links fixed to it
                 return True
-            for turn in postures(0, BASE_TURNS):
-                pb.resetJointState(robot, 0, float(turn), physicsClientId=c)
-                if hits(0):
+            for turn in postures(first, BASE_TURNS):
+                pb.resetJointState(robot, first, float(turn), physicsClientId=c)
+                if hits(first):
                     continue
-                for tilt in postures(1, SHOULDER_TILTS):
-                    pb.resetJointState(robot, 1, float(tilt), physicsClientId=c)
-                    if not hits(1):
+                for tilt in postures(second, SHOULDER_TILTS):
+                    pb.resetJointState(robot, second, float(tilt), physicsClientId=c)
+                    if not hits(second):
                         return False
             return True
         finally:
             pb.resetJointState(self.cabinet_id, j, start, velocity, physicsClientId=c)
-            for k, (q, dq) in enumerate(held):
+            for k, (q, dq) in zip((first, second), held, strict=True):
                 pb.resetJointState(robot, k, q, dq, physicsClientId=c)
 
     def close(self) -> None:
@@ -300,11 +305,14 @@ class SimWorld:
 
 
 def _low_poly_copy(urdf: Path, directory: Path) -> Path:
-    """A copy of the robot URDF drawn with its collision meshes decimated to a quarter of their triangles:
+    """A URDF whose visuals are pybullet_data's large meshes (package://meshes/...): a copy drawn with its
+    collision meshes decimated to a quarter of their triangles (any other URDF is returned as it is):
     same kinematics, dynamics and collisions, but TinyRenderer draws the frame ~30 ms faster than with
     the visual meshes (1-2 MB each) and ~6 ms faster than with whole collision meshes, whose surfaces
     the decimated ones keep within ~1 mm (median; 99% within 7 mm): arm silhouette IoU ~0.98."""
     meshes = urdf.parent / "meshes"
+    if "package://meshes/" not in urdf.read_text():
+        return urdf
 
     def low_poly(match: re.Match) -> str:
         return str(_decimated(meshes / "collision" / f"{match.group(1)}.obj"))

@@ -11,15 +11,18 @@ from contextlib import contextmanager  # noqa: E402
 import pytest  # noqa: E402
 
 import deploy.calibration_workflow as workflow  # noqa: E402
-import sim_fallback.scenario as scenario  # noqa: E402
+from drivers.arm.robot_config import PANDA_SIM_CONFIG  # noqa: E402
 
 NEAR_DOORS_M = (0.4, 0.7)  # the scenario's door distances before RGBManip's 0.5-0.85 m: scenes some tests need
 
 
 @pytest.fixture
-def near_doors(monkeypatch):
-    """Doors placed 0.4-0.7 m from the robot, where some swing into the arm's own column or are grasped pressed."""
-    monkeypatch.setitem(scenario.CABINET_DISTANCE_M, "door", NEAR_DOORS_M)
+def near_doors(tmp_path):
+    """A simulated Panda's robot config whose scenes place doors 0.4-0.7 m from it, where some swing into the arm's
+    own column or are grasped pressed (its `reach`)."""
+    path = tmp_path / "panda_near_doors.toml"
+    path.write_text(PANDA_SIM_CONFIG.read_text() + f"\n[reach]\ndoor_distance_m = {list(NEAR_DOORS_M)}\n")
+    return path
 
 
 @pytest.fixture

@@ -21,10 +21,10 @@ def _typestore():
 
 
 def write_bag(path: Path, s: Synthetic, aligned: bool, storage: str = "sqlite3", color_encoding: str = "rgb8",
-              depth_lag_ms: float = 3.0, extrinsics: bool = True) -> Path:
-    """`s` as realsense-ros publishes it: colour, camera_info, and either aligned depth or depth with its
-    camera_info and (with `extrinsics`) the depth-to-colour extrinsics; depth stamped `depth_lag_ms` after its
-    colour image."""
+              depth_lag_ms: float = 3.0, extrinsics: bool = True, color_d: tuple = (0.0,) * 5) -> Path:
+    """`s` as realsense-ros publishes it: colour, camera_info (its plumb_bob coefficients `color_d`), and either
+    aligned depth or depth with its camera_info and (with `extrinsics`) the depth-to-colour extrinsics; depth stamped
+    `depth_lag_ms` after its colour image."""
     ts = _typestore()
     T = ts.types
     plugin = {"sqlite3": StoragePlugin.SQLITE3, "mcap": StoragePlugin.MCAP}[storage]
@@ -34,12 +34,12 @@ def write_bag(path: Path, s: Synthetic, aligned: bool, storage: str = "sqlite3",
         return T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=int(
             round((t_s - sec) * 1e9))), frame_id=frame)
 
-    def info(t_s: float, fx: float, frame: str):
+    def info(t_s: float, fx: float, frame: str, d: tuple = (0.0,) * 5):
         c = (s.width - 1) / 2, (s.height - 1) / 2
         K = np.array([fx, 0, c[0], 0, fx, c[1], 0, 0, 1], float)
         return T["sensor_msgs/msg/CameraInfo"](
             header=header(t_s, frame), height=s.height, width=s.width, distortion_model="plumb_bob",
-            d=np.zeros(5), k=K, r=np.eye(3).ravel(), p=np.zeros(12), binning_x=0, binning_y=0,
+            d=np.array(d, float), k=K, r=np.eye(3).ravel(), p=np.zeros(12), binning_x=0, binning_y=0,
             roi=T["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False))
 
     def image(t_s: float, pixels: np.ndarray, encoding: str, frame: str):
@@ -70,7 +70,7 @@ def write_bag(path: Path, s: Synthetic, aligned: bool, storage: str = "sqlite3",
             t = t0 + k * s.period_ms / 1000
             depth_mm = np.round(depth.astype(float) * s.depth_units_m * 1000).astype(np.uint16)
             rgb = color[..., ::-1] if color_encoding == "bgr8" else color
-            put(f"{NS}/color/camera_info", t, info(t, s.color_fx, "camera_color_optical_frame"))
+            put(f"{NS}/color/camera_info", t, info(t, s.color_fx, "camera_color_optical_frame", color_d))
             put(f"{NS}/color/image_raw", t, image(t, rgb, color_encoding, "camera_color_optical_frame"))
             if not aligned:
                 put(f"{NS}/depth/camera_info", t, info(t, s.depth_fx, "camera_depth_optical_frame"))

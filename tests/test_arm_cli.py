@@ -27,7 +27,7 @@ def test_scan_lists_the_simulated_motors(capsys):
     motors = json.loads(out)["motors"]
     assert code == 0 and [m["can_id"] for m in motors] == list(range(1, 9))
     assert motors[0] == {"can_id": 1, "master_id": 0x11, "status": "disabled", "p_max": 12.5, "v_max": 25.0,
-                         "t_max": 200.0}
+                         "t_max": 200.0, "timeout_ms": 0.0, "fd": False}  # the factory timeout: never
 
 
 def test_scan_of_an_empty_range_fails(capsys):

@@ -65,12 +65,12 @@ def test_missing_config():
     with pytest.raises(ArmError, match="not found"):
         load_robot_config("configs/robots/nope.toml")
     with pytest.raises(ArmError, match=r"not found: give the path of a TOML file or a shipped config's name "
-                                       r"\(damiao_6dof, panda_sim\)"):
+                                       r"\(damiao_6dof, openarm, panda_sim\)"):
         load_robot_config("nope")
 
 
 def test_shipped_configs_load_by_name_and_ship_in_the_wheel(tmp_path):
-    assert shipped_robot_configs() == ["damiao_6dof", "panda_sim"]
+    assert shipped_robot_configs() == ["damiao_6dof", "openarm", "panda_sim"]
     assert load_robot_config("panda_sim").source == PANDA_SIM_CONFIG == CONFIG_DIR / "panda_sim.toml"
     user = tmp_path / "panda_sim"  # a path is read as given, even one named like a shipped config
     user.write_text(PANDA_SIM_CONFIG.read_text().replace('name = "panda-sim"', 'name = "mine"'))
@@ -80,7 +80,9 @@ def test_shipped_configs_load_by_name_and_ship_in_the_wheel(tmp_path):
                     str(tmp_path / "dist"), str(root)], check=True, capture_output=True, timeout=300)
     (wheel,) = (tmp_path / "dist").glob("axisloop-*.whl")
     names = zipfile.ZipFile(wheel).namelist()
-    assert {"drivers/arm/configs/panda_sim.toml", "drivers/arm/configs/damiao_6dof.toml"} <= set(names)
+    assert {"drivers/arm/configs/panda_sim.toml", "drivers/arm/configs/damiao_6dof.toml",
+            "drivers/arm/configs/openarm.toml", "drivers/arm/openarm/openarm.urdf", "drivers/arm/openarm/LICENSE",
+            "drivers/arm/openarm/NOTICE", "drivers/arm/openarm/meshes/link1.stl"} <= set(names)
 
 
 def test_registry_builds_every_arm_kind_and_refuses_unknown():

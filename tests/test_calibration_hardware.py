@@ -93,7 +93,7 @@ def test_a_missing_d415_is_one_clear_error_before_the_arm_opens(calib_dir, capsy
     (["hand-eye", "--camera", "replay:/data/frames", "--arm", "can"], "a recording cannot show"),
     (["intrinsics", "--camera", "sim", "--arm", "can", "--robot", str(PANDA_SIM_CONFIG)], "cannot see --arm can"),
     (["hand-eye", "--arm", "ideal"], "is not one of sim, sim-can, can"),
-    (["hand-eye", "--camera", "usb"], "is not one of sim, d415"),
+    (["hand-eye", "--camera", "usb"], "is not one of sim, realsense[:SERIAL], d415[:SERIAL], d435[:SERIAL]"),
     (["hand-eye", "--arm", "sim-can", "--robot", "damiao_6dof"], "is not the simulated Panda"),
 ])
 def test_bad_device_choices_are_one_clear_error(args, message, calib_dir, capsys):

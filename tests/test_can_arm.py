@@ -268,7 +268,8 @@ def test_realtime_loop_runs_and_holds():
 
 
 def test_realtime_watchdog_trips_on_a_missed_cycle():
-    watchdog = CONFIG.watchdog.model_copy(update={"max_late_cycles": 5.0, "feedback_timeout_s": 5.0})
+    watchdog = CONFIG.watchdog.model_copy(update={"max_late_cycles": 5.0, "feedback_timeout_s": 5.0,
+                                                  "motor_timeout_s": 1.0})  # the late cycle trips first
     arm, motors = _arm(CONFIG.model_copy(update={"watchdog": watchdog}), lockstep=False)
     old = sys.getswitchinterval()
     with arm:

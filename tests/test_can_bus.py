@@ -5,7 +5,14 @@ import errno
 import can
 import pytest
 
-from drivers.arm.can_bus import CAN_ERR_BUSOFF, CAN_ERR_CRTL, CAN_ERR_CRTL_RX_PASSIVE, CanBus, classify_send_error
+from drivers.arm.can_bus import (
+    CAN_ERR_BUSOFF,
+    CAN_ERR_CRTL,
+    CAN_ERR_CRTL_RX_PASSIVE,
+    CanBus,
+    classify_send_error,
+    fix_bus_off,
+)
 from drivers.errors import ArmError, CanBusError
 
 
@@ -46,11 +53,20 @@ def test_error_passive_error_frame(pair):
 
 def test_no_buffer_space_is_named_with_the_fix():
     exc = can.CanOperationError("Failed to transmit: [Errno 105] No buffer space available", error_code=errno.ENOBUFS)
-    err = classify_send_error(exc, "can0", 0x03)
+    err = classify_send_error(exc, "can0", 0x03, fix_bus_off("can0", 1_000_000, False, 5_000_000))
     assert isinstance(err, CanBusError) and isinstance(err, ArmError)
     assert "No buffer space" in str(err) and "txqueuelen" in str(err) and "0x3" in str(err)
-    other = classify_send_error(can.CanOperationError("Network is down"), "can0", 0x03)
+    other = classify_send_error(can.CanOperationError("Network is down"), "can0", 0x03,
+                                fix_bus_off("can0", 1_000_000, False, 5_000_000))
     assert "Network is down" in str(other) and "ip link" in str(other)
+
+
+def test_the_bus_off_fix_restarts_the_link_as_configured():
+    """An OpenArm's CAN FD link is restarted with its data bitrate and FD on; a classic link without them."""
+    fd = fix_bus_off("can1", 1_000_000, True, 5_000_000)
+    assert "ip link set can1 up type can bitrate 1000000 dbitrate 5000000 fd on restart-ms 100" in fd
+    classic = fix_bus_off("can0", 500_000, False, 5_000_000)
+    assert "type can bitrate 500000 restart-ms 100" in classic and "fd on" not in classic
 
 
 def test_unknown_interface_is_one_clear_error():

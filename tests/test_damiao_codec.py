@@ -26,17 +26,17 @@ def _hex(data: bytes) -> str:
 
 @pytest.mark.parametrize("value", NON_FINITE)
 def test_a_non_finite_command_encodes_as_zero_in_every_field(value):
-    # q = 0 -> 0x8000 and dq = tau = 0 -> 0x800 (32767.5 and 2047.5 round to even); kp = kd = 0 -> 0x000
-    assert _hex(pack_mit(value, value, value, value, value, J4310)) == "80 00 80 00 00 00 08 00"
+    # q = 0 -> 0x7FFF and dq = tau = 0 -> 0x7FF (32767.5 and 2047.5 truncated); kp = kd = 0 -> 0x000
+    assert _hex(pack_mit(value, value, value, value, value, J4310)) == "7f ff 7f f0 00 00 07 ff"
 
 
 @pytest.mark.parametrize("value", NON_FINITE)
 @pytest.mark.parametrize(("field", "expected"), [
-    ("q", "80 00 00 0f ff ff ff ff"),  # q 0x8000 between full-scale others
-    ("dq", "ff ff 80 0f ff ff ff ff"),  # dq 0x800
+    ("q", "7f ff 00 0f ff ff ff ff"),  # q 0x7FFF between full-scale others
+    ("dq", "ff ff 7f ff ff ff ff ff"),  # dq 0x7FF
     ("kp", "ff ff 00 00 00 ff ff ff"),  # kp 0x000 (not its range's centre 0x800: a stiff gain toward nowhere)
     ("kd", "ff ff 00 0f ff 00 0f ff"),  # kd 0x000
-    ("tau", "ff ff 00 0f ff ff f8 00"),  # tau 0x800
+    ("tau", "ff ff 00 0f ff ff f7 ff"),  # tau 0x7FF
 ])
 def test_each_non_finite_field_alone_becomes_zero(field, expected, value):
     assert _hex(pack_mit(*FULL_SCALE, J4310)) == "ff ff 00 0f ff ff ff ff"

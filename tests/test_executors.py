@@ -160,7 +160,7 @@ def test_ray_cancels_unfinished_jobs_after_a_failure(ray_executor, tmp_path):
 
 
 def test_ray_runs_a_simulated_episode(ray_executor):
-    job = dict(task="drawer", seed=0, split="train", target=0.05)
+    job = dict(task="drawer", seed=0, split="train", target=0.05, world="box")
     (result,) = ray_executor.map(simulate_episode, [job])
     assert (result["task"], result["seed"], result["split"]) == ("drawer", 0, "train")
     assert result["stop_reason"] == StopReason.TARGET_REACHED

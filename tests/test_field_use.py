@@ -340,10 +340,11 @@ def test_record_with_a_calibration_places_an_eye_in_hand_camera(capsys, tmp_path
 def test_a_moving_camera_keeps_its_pose_per_frame(tmp_path):
     """drivers.camera.record with an eye-in-hand camera (posed as the rig poses it, from the arm's tool pose at
     each frame): each frame's pose is kept with it."""
+    from drivers.camera.base import Camera
     from drivers.camera.posed import PosedCamera
     from drivers.camera.record import record
 
-    class Replay:
+    class Replay(Camera):
         intrinsics = INTR
 
         def __init__(self):

@@ -13,7 +13,7 @@ from deploy.control.state import StopReason
 PRESSED_DOOR_SEED = 42
 
 
-def _episode(monkeypatch, ease: bool) -> tuple[dict, list[float]]:
+def _episode(monkeypatch, robot, ease: bool) -> tuple[dict, list[float]]:
     pushes: list[float] = []
     original = stages._ease_off_press
 
@@ -25,18 +25,19 @@ def _episode(monkeypatch, ease: bool) -> tuple[dict, list[float]]:
         pushes.append(float(w[:3] @ episode.kin.fk(state.q)[:3, 2]))
 
     monkeypatch.setattr(stages, "_ease_off_press", recorded)
-    return simulate_episode("door", PRESSED_DOOR_SEED, split="test", target=20.0, world="box"), pushes
+    return simulate_episode("door", PRESSED_DOOR_SEED, split="test", target=20.0, world="box",
+                            robot=robot), pushes
 
 
 def test_a_pressed_handle_is_eased_off_before_closing_and_the_door_opens(near_doors, monkeypatch):
-    result, pushes = _episode(monkeypatch, ease=True)
+    result, pushes = _episode(monkeypatch, near_doors, ease=True)
     assert pushes and pushes[0] < stages.PRESS_N
     assert result["success"], result["message"]
     assert result["true_opened_deg"] >= 20.0
 
 
 def test_without_easing_off_the_first_pull_reads_the_released_push_as_resistance(near_doors, monkeypatch):
-    result, pushes = _episode(monkeypatch, ease=False)
+    result, pushes = _episode(monkeypatch, near_doors, ease=False)
     assert pushes and pushes[0] > stages.PRESS_N  # the scenario does press: the test above is not vacuous
     assert result["stop_reason"] == StopReason.BLOCKED
     assert np.isclose(result["true_opened_deg"], 0.0, atol=1.0)

@@ -13,6 +13,7 @@ from drivers.arm.damiao import (
     PARAM_ID,
     REG_MST_ID,
     REG_PMAX,
+    REG_TIMEOUT,
     REG_TMAX,
     REG_VMAX,
     Status,
@@ -112,7 +113,7 @@ def _motor(can_id: int, master_id: int, registers: dict[int, float], feedback: b
     return answer
 
 
-LIMIT_REGISTERS = {REG_MST_ID: 0x13, REG_PMAX: 12.5, REG_VMAX: 30.0, REG_TMAX: 10.0}
+LIMIT_REGISTERS = {REG_MST_ID: 0x13, REG_PMAX: 12.5, REG_VMAX: 30.0, REG_TMAX: 10.0, REG_TIMEOUT: 2000}
 
 
 def test_read_param_skips_other_registers_and_names_the_motor_when_silent(connect):
@@ -151,7 +152,8 @@ def test_scan_reports_ids_limits_and_the_feedback_status(connect, feedback, stat
     bus, _ = connect(_motor(3, 0x13, LIMIT_REGISTERS, feedback))
     found = scan_bus(bus, range(1, 5), timeout_s=0.005)
     assert [m.to_dict() for m in found] == [
-        {"can_id": 3, "master_id": 0x13, "status": status, "p_max": 12.5, "v_max": 30.0, "t_max": 10.0}]
+        {"can_id": 3, "master_id": 0x13, "status": status, "p_max": 12.5, "v_max": 30.0, "t_max": 10.0,
+         "timeout_ms": 100.0, "fd": False}]
 
 
 def test_channel_converts_between_joint_and_motor_side():

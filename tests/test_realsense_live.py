@@ -1,7 +1,8 @@
-"""The live D415 camera's logic (background latest-frame reader, warm-up, timeout -> retry -> hardware reset ->
+"""The live RealSense camera's logic (background latest-frame reader, warm-up, timeout -> retry -> hardware reset ->
 reconnect -> one clear error, recording kept when the camera vanishes) on real librealsense pipelines fed from
 a recorded .db3 instead of USB; config validation; device description; no-camera errors."""
 
+import threading
 import time
 
 import pyrealsense2 as rs
@@ -9,9 +10,10 @@ import pytest
 from realsense_recordings import SERIAL, scene, write_db3
 
 from drivers.camera.frames_dir import FramesRecording
-from drivers.camera.realsense import D415Camera
+from drivers.camera.realsense import RealSenseCamera
 from drivers.camera.realsense_config import FilterConfig, RealSenseConfig
 from drivers.camera.realsense_device import UsbLink, describe_device, list_devices
+from drivers.camera.realsense_models import model_named
 from drivers.camera.realsense_reader import LatestFrameReader
 from drivers.camera.record import record
 from drivers.camera.registry import open_camera
@@ -29,6 +31,7 @@ class FileLink:
     def __init__(self, path):
         self.path = path
         self.prepared = 0
+        self.model = model_named("d415")
 
     def pipeline_config(self):
         config = rs.config()
@@ -51,7 +54,7 @@ def db3(tmp_path):
 
 def camera(path, **options):
     defaults = {"warmup_frames": 0, "frame_timeout_s": 0.2, "retries": 1, "filters": FilterConfig.none()}
-    return D415Camera(RealSenseConfig(**{**defaults, **options}), FileLink(path))
+    return RealSenseCamera(RealSenseConfig(**{**defaults, **options}), FileLink(path))
 
 
 def wait_until_drained(cam, timeout_s: float = 20.0) -> None:
@@ -113,6 +116,22 @@ def test_recording_stops_safely_and_keeps_frames_when_the_camera_vanishes(db3, t
     assert times == sorted(set(times))
 
 
+def test_reader_finishes_only_the_frames_read():
+    items, finished, polled = iter(range(50)), [], threading.Event()
+
+    def poll(timeout_s):
+        item = next(items, None)
+        if item is None:  # all 50 polled (and the last kept)
+            polled.set()
+            time.sleep(timeout_s)
+        return item
+
+    reader = LatestFrameReader(poll, lambda item: finished.append(item) or item, poll_timeout_s=0.01)
+    assert polled.wait(30)
+    assert reader.read(1.0) == 49 and finished == [49]  # the newest, and only it, made a frame
+    reader.stop()
+
+
 def test_reader_hands_over_errors_and_timeouts():
     frames = iter([None, None])
 
@@ -133,8 +152,9 @@ def test_reader_hands_over_errors_and_timeouts():
 
 
 @pytest.mark.parametrize("options, message", [
-    ({"width": 1000}, "resolution 1000x480 is not supported"),
-    ({"width": 1280, "height": 720, "fps": 60}, "60 fps at 1280x720"),
+    ({"width": 1000, "height": 480}, "D415: colour resolution 1000x480 is not supported; choose one of 1920x1080, "),
+    ({"width": 1280, "height": 720, "fps": 60}, "60 fps is not offered for colour at 1280x720; choose one of 6, 15, "),
+    ({"width": 1000}, "D415: colour resolution 1000x480 is not supported"),
     ({"visual_preset": "sharp"}, "unknown visual preset 'sharp'"),
     ({"color_exposure": -1.0}, "color_exposure must be a positive number"),
     ({"decimation": 9}, "decimation must be 1"),
@@ -150,7 +170,7 @@ def test_config_from_options():
     config = RealSenseConfig.from_options("123", width=1280, height=720, visual_preset="high_accuracy",
                                           temporal=True)
     assert config.serial == "123" and config.filters.temporal and config.filters.spatial
-    assert open_camera("d415:123").link.serial == "123"
+    assert open_camera("d415:123").link.serial == "123" and open_camera("d435:123").config.model == "d435"
 
 
 def test_no_camera_connected():
@@ -171,12 +191,16 @@ def test_describe_device():
     stream.type, stream.uid, stream.width, stream.height, stream.fps = rs.stream.depth, 0, 640, 480, 30
     stream.bpp, stream.fmt, stream.intrinsics = 2, rs.format.z16, rs.intrinsics()
     sensor.add_video_stream(stream)
-    assert describe_device(device) == {"serial": "42", "name": "Intel RealSense D415", "firmware": "5.16.0.1",
-                                       "usb_type": "3.2", "profiles": ["Depth 640x480 Z16 @30"]}
+    assert describe_device(device) == {
+        "serial": "42", "name": "Intel RealSense D415", "model": "d415", "firmware": "5.16.0.1", "usb_type": "3.2",
+        "color_sensor": None, "depth_scale": None, "intrinsics": None, "min_range_m": pytest.approx(0.305),
+        "stream": {"color": "640x480", "depth": "640x480", "fps": 30}, "profiles": ["Depth 640x480 Z16 @30"]}
 
 
 def test_unknown_camera_spec():
-    with pytest.raises(CameraError, match=r"unknown camera 'kinect': choose one of d415\[:SERIAL\], replay:PATH, sim"):
+    with pytest.raises(CameraError, match=r"unknown camera 'kinect': choose one of realsense\[:SERIAL\], "
+                                          r"d415\[:SERIAL\], d435\[:SERIAL\], d455\[:SERIAL\], d405\[:SERIAL\], "
+                                          r"l515\[:SERIAL\], replay:PATH, sim$"):
         open_camera("kinect")
     with pytest.raises(CameraError, match="camera 'replay' needs an argument: write replay:PATH"):
         open_camera("replay:")

@@ -60,7 +60,8 @@ def test_a_plug_in_simulated_camera_pairs_with_simulated_arms_only(monkeypatch):
 
 def test_a_kind_that_is_neither_simulated_nor_hardware_cannot_calibrate(monkeypatch):
     _add(monkeypatch, CAMERAS, "archive", argument=":PATH")
-    with pytest.raises(ConfigError, match=r"'archive:/x' is not one of sim, d415.*a recording cannot show"):
+    with pytest.raises(ConfigError,
+                       match=r"'archive:/x' is not one of sim, realsense\[:SERIAL\], d415.*a recording cannot show"):
         choose("archive:/x", None, None)
 
 

@@ -13,7 +13,7 @@ from drivers.arm.disable import disable_summary, with_summary
 from drivers.arm.robot_config import load_robot_config
 from drivers.errors import ArmError, CanBusError
 from sim_fallback.devices import sim_can_arm
-from sim_fallback.sim_faults import KINDS, SimFault
+from sim_fallback.sim_faults import BUS_FAULTS, KINDS, SimFault
 
 PANDA = load_robot_config("panda_sim")
 JOG = ("arm", "jog", "--joint", "panda_joint1", "--delta", "0.3", "--yes", "--json")
@@ -38,7 +38,7 @@ def _states(motors) -> dict[str, bool]:
 # --- the driver ------------------------------------------------------------------------------------------------
 
 
-def test_a_silent_motor_is_named_as_possibly_enabled_and_the_others_are_disabled():
+def test_a_silent_motor_is_named_as_disabled_by_its_timeout_and_the_others_by_the_disable():
     arm, motors = sim_can_arm(PANDA)
     with pytest.raises(ArmError) as caught, arm:
         _cycles(arm, 10)
@@ -46,23 +46,28 @@ def test_a_silent_motor_is_named_as_possibly_enabled_and_the_others_are_disabled
         _cycles(arm, 50)
     message = str(caught.value)
     assert "watchdog: joint panda_joint6" in message
-    assert "motors disabled except panda_joint6, which did not answer the disable and may still be enabled" in message
-    enabled = _states(motors)
-    assert enabled.pop("panda_joint6") and not any(enabled.values())  # the simulated motors agree
+    assert ("all 8 motors disabled: panda_joint6 did not answer the disable but has disabled itself by its own 100 ms "
+            "communication timeout") in message
+    assert not any(_states(motors).values())  # the simulated motors agree: the silent one timed out
+    assert motors.motor("panda_joint6").status.name == "COMMUNICATION_LOST"
     states = {s["name"]: s for s in caught.value.motors}
-    assert states["panda_joint6"] == {"name": "panda_joint6", "can_id": 6, "enabled": True, "status": "no answer"}
+    assert states["panda_joint6"]["enabled"] is False and states["panda_joint6"]["status"] == "timed out"
+    assert "100 ms communication timeout" in states["panda_joint6"]["cause"]
     assert all(not s["enabled"] and s["status"] == "disabled" for n, s in states.items() if n != "panda_joint6")
 
 
-def test_bus_off_says_no_motor_could_be_disabled():
+def test_after_a_bus_off_every_motor_disables_itself_by_its_timeout():
     arm, motors = sim_can_arm(PANDA)
     with pytest.raises(CanBusError) as caught, arm:
         _cycles(arm, 5)
         motors.inject_bus_off()
         _cycles(arm, 5)
-    assert "bus-off" in str(caught.value) and "no motor answered the disable" in str(caught.value)
-    assert all(_states(motors).values())  # a dead bus reaches nobody: the message must not say "disabled"
-    assert [s["enabled"] for s in caught.value.motors] == [True] * 8
+    message = str(caught.value)
+    assert "bus-off" in message
+    assert "none answered the disable, but each has disabled itself by its own 100 ms" in message
+    assert not any(_states(motors).values())  # a dead bus reaches nobody: their own timeouts disabled them
+    assert {m.status.name for m in motors.motors} == {"COMMUNICATION_LOST"}
+    assert [(s["enabled"], s["status"]) for s in caught.value.motors] == [(False, "timed out")] * 8
 
 
 def test_error_passive_disables_every_motor_and_says_so():
@@ -80,7 +85,8 @@ def test_a_motor_whose_replies_are_lost_is_reported_unconfirmed_though_it_obeyed
         motors.motor("panda_joint2").faults.drop_rate = 1.0
         _cycles(arm, 50)
     assert not motors.motor("panda_joint2").enabled  # it got the disable ...
-    assert "except panda_joint2" in str(caught.value)  # ... but nothing says so: the driver cannot know
+    # ... which nothing confirmed: the driver can only tell its timeout has passed since the last command
+    assert "panda_joint2 did not answer the disable but has disabled itself" in str(caught.value)
 
 
 def test_a_clean_stop_confirms_every_motor():
@@ -132,9 +138,10 @@ def test_a_fault_waits_for_its_time_on_the_motors_clock():
             _cycles(arm, int(0.1 * PANDA.control_rate_hz))
 
 
-# (kind, what the one line says, which motors may still be enabled)
+# (kind, what the one line says, which motors did not answer the disable: disabled by their communication timeout)
 EXPECTED = {
     "bus-off": ("went bus-off", "all"), "error-passive": ("error-passive", "none"),
+    "cable-pulled": ("watchdog: joint panda_joint1 .* sent no valid feedback", "all"),
     "silent": ("watchdog: joint panda_joint3", "panda_joint3"),
     "frame-loss": ("watchdog: joint panda_joint3", "panda_joint3"),
     "delay": ("watchdog: joint panda_joint3", "panda_joint3"),  # its answer to the disable comes late too
@@ -152,7 +159,7 @@ def test_every_kind_has_an_expectation():
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_every_fault_mid_jog_ends_with_one_line_and_the_motors_state(capsys, kind):
-    spec = f"{kind}@0.3" if kind in ("bus-off", "error-passive") else f"{kind}:panda_joint3@0.3"
+    spec = f"{kind}@0.3" if kind in BUS_FAULTS else f"{kind}:panda_joint3@0.3"
     code, out, err = run(capsys, *JOG, "--sim-fault", spec)
     words, left = EXPECTED[kind]
     lines = [line for line in err.splitlines() if line.strip()]
@@ -160,13 +167,12 @@ def test_every_fault_mid_jog_ends_with_one_line_and_the_motors_state(capsys, kin
     data = json.loads(out)
     assert data["exit_code"] == 2 and data["error"] == lines[0].removeprefix("error: ")
     assert re.search(words, data["error"]), data["error"]
-    enabled = [m["name"] for m in data["motors"] if m["enabled"]]
-    assert len(data["motors"]) == 8 and enabled == {"all": [m["name"] for m in data["motors"]], "none": []}.get(
-        left, [left])
-    if enabled:
-        assert "may still be enabled" in data["error"] and all(name in data["error"] for name in enabled)
-    else:
-        assert "motors disabled" in data["error"]
+    timed = [m["name"] for m in data["motors"] if m["status"] == "timed out"]
+    assert len(data["motors"]) == 8 and not any(m["enabled"] for m in data["motors"])
+    assert timed == {"all": [m["name"] for m in data["motors"]], "none": []}.get(left, [left])
+    assert "motors disabled" in data["error"] and "may still be enabled" not in data["error"]
+    if timed:
+        assert "disabled itself by its own 100 ms communication timeout" in data["error"]
 
 
 @pytest.mark.parametrize("command", [("arm", "status"), ("arm", "enable", "--yes", "--hold", "0.1"),
@@ -204,7 +210,8 @@ def test_a_fault_during_an_opening_names_the_joint_and_the_motors(capsys, tmp_pa
                        "--run-dir", tmp_path / "run", "--json")
     data = json.loads(out)
     assert code == 1 and data["stop_reason"] == StopReason.ARM_ERROR and "panda_joint2" in data["message"]
-    assert [m["name"] for m in data["motors"] if m["enabled"]] == ["panda_joint2"]
+    assert not any(m["enabled"] for m in data["motors"])
+    assert [m["name"] for m in data["motors"] if m["status"] == "timed out"] == ["panda_joint2"]
     assert (tmp_path / "run" / "steps.json").is_file() and (tmp_path / "run" / "report.png").is_file()
 
 
@@ -212,5 +219,6 @@ def test_a_fault_during_calibration_is_the_json_error_with_the_motors(capsys, tm
     code, out, err = run(capsys, "calibrate", "intrinsics", "--camera", "sim", "--arm", "sim-can", "--poses", "4",
                          "--yes", "--dir", tmp_path, "--sim-fault", "bus-off@0.5", "--json")
     data = json.loads(out)
-    assert code == 2 and "bus-off" in data["error"] and all(m["enabled"] for m in data["motors"])
+    assert code == 2 and "bus-off" in data["error"] and "communication timeout" in data["error"]
+    assert [(m["enabled"], m["status"]) for m in data["motors"]] == [(False, "timed out")] * 8
     assert not list(tmp_path.iterdir())  # nothing saved

@@ -45,6 +45,14 @@ def test_aligned_depth_converts_without_a_lost_pixel(capsys, tmp_path, storage):
             assert frame.t == pytest.approx(k / 30, abs=1e-6)
 
 
+def test_the_colour_lens_is_kept(tmp_path):
+    lens = (-0.0553, 0.0667, -0.0007, 0.0006, -0.0212)  # realsense-ros writes a RealSense lens as plumb_bob
+    bag = write_bag(tmp_path / "bag", scene(1), aligned=True, color_d=lens)
+    convert_recording(bag, tmp_path / "frames")
+    intrinsics = FramesRecording(tmp_path / "frames").intrinsics
+    assert intrinsics.distortion == "brown_conrady" and intrinsics.coeffs == pytest.approx(lens)
+
+
 def test_depth_with_extrinsics_is_reprojected(tmp_path):
     s = scene(2, width=96, height=72, depth_fx=50.0, color_fx=50.0, baseline_m=0.1)
     bag = write_bag(tmp_path / "bag", s, aligned=False, storage="mcap", color_encoding="bgr8")

@@ -8,6 +8,7 @@ import pybullet as pb
 import pytest
 
 from drivers.arm.kinematics import Kinematics
+from drivers.arm.robot_config import load_robot_config
 from sim_fallback.cabinet_urdf import cabinet_urdf, random_cabinet
 from sim_fallback.scenario import Scenario
 from sim_fallback.scripted import DEFAULT_TARGET, grasp_pose, opening_path
@@ -185,15 +186,16 @@ def test_a_door_hinged_close_to_the_robot_cannot_sweep_past_its_base(near_doors)
     """Evaluation only: placed near (0.4-0.7 m), test door 32 is hinged so close to the robot that 70 deg would
     pass through the base, door 17 through the shoulder at every posture of the first two joints; 45 deg clears
     both, and so does every drawer pull of the benchmarks. The joints are put back as they were."""
-    with SimWorld(Scenario.make("door", 32, "test")) as world:
+    near = load_robot_config(near_doors).robot_spec().reach
+    with SimWorld(Scenario.make("door", 32, "test", reach=near)) as world:
         assert world.sweep_hits_robot_base(np.radians(70.0))
         assert not world.sweep_hits_robot_base(np.radians(45.0))
         assert world.joint_value() == 0.0
         for k in (0, 1):
             assert pb.getJointState(world.robot_id, k, physicsClientId=world.client)[0] == pytest.approx(
                 world.scenario.q_start[k])
-    with SimWorld(Scenario.make("door", 17, "test")) as world:  # clears the plate and column, not the shoulder
+    with SimWorld(Scenario.make("door", 17, "test", reach=near)) as world:  # clears plate and column, not shoulder
         assert world.sweep_hits_robot_base(np.radians(70.0))
         assert not world.sweep_hits_robot_base(np.radians(45.0))
-    with SimWorld(Scenario.make("drawer", 0, "test")) as world:
+    with SimWorld(Scenario.make("drawer", 0, "test", reach=near)) as world:
         assert not world.sweep_hits_robot_base(0.45)

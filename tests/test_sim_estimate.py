@@ -19,7 +19,7 @@ from sim_fallback.scripted import record_scripted
 @pytest.mark.parametrize(("task", "max_angle_deg"), [("drawer", 3.0), ("door", 2.0)])
 def test_estimate_on_a_simulated_recording(capsys, tmp_path, task, max_angle_deg):
     out = tmp_path / task
-    assert main(["sim", "record", "--task", task, "--seed", "0", "--out", str(out)]) == 0
+    assert main(["sim", "record", "--task", task, "--seed", "0", "--world", "box", "--out", str(out)]) == 0
     capsys.readouterr()
     assert main(["axis", "estimate", str(out), "--json"]) == 0
     estimate = json.loads(capsys.readouterr().out)

@@ -10,13 +10,13 @@ import pybullet as pb
 import pytest
 from sim_scenes import showroom
 
+from drivers.arm.robots import PANDA_REACH
 from sim_fallback.cabinet_urdf import cabinet_urdf
 from sim_fallback.errors import PartError, SceneError
 from sim_fallback.furniture_body import grip_frame, measure_parts, part_links
 from sim_fallback.handles import STYLES
 from sim_fallback.kitchen_scenario import KitchenScenario
 from sim_fallback.parts import ordered, resolve
-from sim_fallback.placement import HANDLE_HEIGHT_M
 from sim_fallback.scenario import Scenario, make_scenario
 from sim_fallback.unit_families import LAYOUTS, random_carcass, random_look, random_unit, random_width
 from sim_fallback.world import SimWorld
@@ -107,7 +107,7 @@ def test_kitchen_scenes_build_with_their_run_counter_walls_floor_and_objects():
                     check_handle_where_truth_says(world, loaded)
                     check_opens_along_its_truth(world, loaded)
                 grip = world.target_handle()[0]
-                low, high = HANDLE_HEIGHT_M[task]
+                low, high = PANDA_REACH.height(task)
                 assert low - 1e-6 <= grip[2] <= high + 1e-6  # the reach rule: the grip where the box world's are
                 assert world.truth().part == sc.part and world.truth().body_id == world.cabinet_id
     assert make_scenario("kitchen", "drawer", 0, "test") != make_scenario("kitchen", "drawer", 1, "test")

@@ -21,6 +21,8 @@ from deploy.geometry.metrics import axis_angle_error_deg, axis_position_error_m
 from deploy.geometry.types import Axis, JointType
 from deploy.perception.bench import missing_weights
 from deploy.perception.registry import default_segmenter
+from deploy.rig import load_robot
+from drivers.arm.robots import Reach
 from sim_fallback.errors import SceneError
 from sim_fallback.partnet import PartNetError
 from sim_fallback.scenes import check_scene, load_object, task_objects
@@ -34,17 +36,20 @@ def simulate_episode(task: str, seed: int, split: str = "train", target: float |
                      overrides: dict[str, Any] | None = None, run_dir: Path | None = None,
                      setup: Setup | None = None, condition: str = "normal", world: str = "kitchen",
                      part: str | None = None, assets: Path | None = None, object_id: str | None = None,
-                     scale: str = "real", **options: Any) -> dict:
+                     scale: str = "real", robot: Path | None = None,
+                     **options: Any) -> dict:
     """One simulated episode of `task` ("drawer" | "door") on scenario `seed` of `world` ("kitchen" or "box"),
     `target` in m (drawer) or deg (door), with what a real robot senses: `segmenter` (default: the machine's
     default, `rgbd` without weights), a camera pose calibrated with `calibration_error` (mm, deg) and the simulated
     user's pixel on the part; `policy` None: the config's. `part`, `assets`, `object_id`, `scale`: the part and
     PartNet-Mobility object (`deploy.rig.SimScene`). `options` override `[opening]` settings, `overrides` any
     setting by dotted name; `setup(world, arm)` changes the world first (tests); `condition` is the object's joint
-    ("normal", "locked", "stiff"). The episode's JSON with the truth-based fields."""
+    ("normal", "locked", "stiff"); `robot` the robot config whose arm stands in the world (None: the simulated
+    Panda). The episode's JSON with the truth-based fields."""
     target_field = {"drawer": "distance_m", "door": "angle_deg"}[task]
     request = OpenRequest(task="auto" if auto_joint else task, scene=task, seed=seed, split=split,  # type: ignore
-                          policy=policy, arm=arm, run_dir=run_dir, segmenter=segmenter,  # type: ignore[arg-type]
+                          policy=policy, arm=arm, robot=robot, run_dir=run_dir,  # type: ignore[arg-type]
+                          segmenter=segmenter,
                           calibration_error=tuple(calibration_error),  # type: ignore[arg-type]
                           condition=condition,  # type: ignore[arg-type]
                           world=world, part=part, assets=assets, object_id=object_id, scale=scale,
@@ -90,6 +95,7 @@ def bench_open(
     segmenter: str | None = None,
     calibration_error: tuple[float, float] = CALIBRATION_ERROR,
     condition: str = "normal",
+    robot: Path | None = None,
     world: str = "kitchen",
     part: str | None = None,
     assets: Path | None = None,
@@ -100,6 +106,7 @@ def bench_open(
     """`episodes` consecutive scenario seeds from `seed` in `world`; success rate (truth), mean true opening,
     median axis angle error (and, for doors, position error), per-frame perception + geometry time, seconds
     per episode and failure causes {stop_reason: count}, and the success and failures per part (`per_part`).
+    `robot`: the robot config whose arm stands in the world (None: the simulated Panda's, panda_sim).
     Realistic by default: the machine's default segmenter, a calibrated camera pose off by `calibration_error` (mm,
     deg), the simulated user's pixel on the part as the only word about it, the sensor models of every simulated
     episode (`sensors`); the JSON states them. `part`: every episode's part (None: the seed's). `assets`: a folder
@@ -120,10 +127,12 @@ def bench_open(
     if ray_address is None:
         _warn_above_cores(min(workers, episodes))
     policy = policy or OpeningConfig().policy
-    objects, unusable = _objects(task, range(seed, seed + episodes), world, assets, object_id, scale)
+    reach = load_robot("sim", robot).reach.reach()
+    objects, unusable = _objects(task, range(seed, seed + episodes), world, assets, object_id, scale, reach)
     scene = dict(world=world, part=part, assets=assets, scale=scale)
     jobs = [dict(task=task, seed=s, split=split, target=target, policy=policy, segmenter=segmenter,
-                 calibration_error=tuple(calibration_error), condition=condition, object_id=objects[s], **scene,
+                 calibration_error=tuple(calibration_error), condition=condition, robot=robot, object_id=objects[s],
+                 **scene,
                  **options) for s in range(seed, seed + episodes)]
     results = []
     with make_executor(workers, ray_address) as executor:
@@ -135,6 +144,7 @@ def bench_open(
         "task": task, f"target_{'m' if task == 'drawer' else 'deg'}": target, "split": split, "policy": policy,
         "episodes": episodes, "first_seed": seed, "workers": workers if ray_address is None else None,
         "joint": "auto" if options.get("auto_joint") else "told", "segmenter": segmenter, "condition": condition,
+        "robot": str(robot or "panda_sim"),
         "calibration_error": {"translation_mm": calibration_error[0], "rotation_deg": calibration_error[1]},
         "world": world, "assets": None if assets is None else str(assets), "part": part,
         "scale": scale if assets is not None else None, "pointer": POINTER, "sensors": _sensors(results),
@@ -158,13 +168,13 @@ def bench_episode(**job: Any) -> dict:
 
 
 def _objects(task: str, seeds: range, world: str, assets: Path | None, object_id: str | None,
-             scale: str) -> tuple[dict[int, str | None], dict[str, str]]:
+             scale: str, reach: Reach) -> tuple[dict[int, str | None], dict[str, str]]:
     """The PartNet-Mobility object of each seed (None without `assets`) and why each other object of the folder
-    cannot be used; one-line errors before any episode for a bad folder, object or world."""
+    cannot be used by an arm of `reach`; one-line errors before any episode for a bad folder, object or world."""
     check_scene(world, assets, object_id)
     if assets is None:
         return dict.fromkeys(seeds), {}
-    choice = task_objects(assets, task, scale)
+    choice = task_objects(assets, task, scale, reach)
     if object_id is not None:
         load_object(assets, object_id, scale)  # one line when it is not there or does not load
         if object_id in choice.problems:

@@ -7,7 +7,19 @@ from typing import Annotated
 
 import typer
 
-from deploy.commands.options import ArmOpt, JsonOpt, RobotOpt, SimFaultOpt, dry_run_option, yes_option
+from deploy.commands.options import (
+    ArmOpt,
+    BitrateOpt,
+    ChannelOpt,
+    DataBitrateOpt,
+    InterfaceOpt,
+    JsonOpt,
+    RobotOpt,
+    SimFaultOpt,
+    can_settings,
+    dry_run_option,
+    yes_option,
+)
 from deploy.commands.output import console, err_console, print_json, print_rows, print_table, progress_bar
 
 app = typer.Typer(help="Arm bring-up: scan the CAN bus, status, enable/disable/zero, home, jog, move.",
@@ -20,9 +32,12 @@ HoldOpt = Annotated[float, typer.Option("--hold", min=0.0,
                                         help="Seconds to hold the goal before damping and disabling.")]
 
 
-def _print_motors(title: str, motors: list[dict]) -> None:
-    keys = [k for k in ("name", "can_id", "master_id", "status", "q", "tau", "t_mos_c", "p_max", "v_max", "t_max")
-            if motors and k in motors[0]]
+SCAN_KEYS = ("can_id", "master_id", "status", "p_max", "v_max", "t_max", "timeout_ms", "fd")
+STATUS_KEYS = ("name", "can_id", "status", "q", "tau", "t_mos_c", "timeout_ms")  # the rest: --json
+
+
+def _print_motors(title: str, motors: list[dict], keys: tuple[str, ...]) -> None:
+    keys = [k for k in keys if motors and k in motors[0]]
     print_table(title, keys, [[f"{m[k]:.2f}" if isinstance(m[k], float) else str(m[k]) for k in keys]
                               for m in motors])
 
@@ -42,6 +57,10 @@ def scan_cmd(
     robot: RobotOpt = None,
     first_id: Annotated[int, typer.Option(min=1, max=0x7FE, help="First CAN id to try (1 .. 2046).")] = 1,
     last_id: Annotated[int, typer.Option(min=1, max=0x7FE, help="Last CAN id to try (1 .. 2046).")] = 16,
+    interface: InterfaceOpt = None,
+    channel: ChannelOpt = None,
+    bitrate: BitrateOpt = None,
+    data_bitrate: DataBitrateOpt = None,
     sim_fault: SimFaultOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
@@ -55,11 +74,12 @@ def scan_cmd(
 
     if last_id < first_id:
         raise ConfigError(f"--last-id {last_id} is below --first-id {first_id}: give a range first .. last")
-    motors = scan(arm, load_robot(arm, robot), range(first_id, last_id + 1), parse_sim_faults(arm, sim_fault))
+    config = load_robot(arm, robot, can_settings(interface, channel, bitrate, data_bitrate))
+    motors = scan(arm, config, range(first_id, last_id + 1), parse_sim_faults(arm, sim_fault))
     if json_out:
         print_json({"motors": motors})
     elif motors:
-        _print_motors(f"motors answering on ids {first_id}..{last_id}", motors)
+        _print_motors(f"motors answering on ids {first_id}..{last_id}", motors, SCAN_KEYS)
     else:
         err_console.print(f"no motor answered on ids {first_id}..{last_id}: check power, wiring and bitrate")
     if not motors:
@@ -67,8 +87,9 @@ def scan_cmd(
 
 
 @app.command("status")
-def status_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, sim_fault: SimFaultOpt = None,
-               json_out: JsonOpt = False) -> None:
+def status_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, interface: InterfaceOpt = None,
+               channel: ChannelOpt = None, bitrate: BitrateOpt = None, data_bitrate: DataBitrateOpt = None,
+               sim_fault: SimFaultOpt = None, json_out: JsonOpt = False) -> None:
     """Joint positions, tool pose and each motor's status, temperatures and limits (enables the motors
     briefly, holding their position, then damps and disables them).
 
@@ -79,7 +100,7 @@ def status_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, sim_fault: SimFa
     from drivers.arm.disable import disable_summary
 
     faults = parse_sim_faults(arm, sim_fault)
-    a = make_arm(arm, load_robot(arm, robot))
+    a = make_arm(arm, load_robot(arm, robot, can_settings(interface, channel, bitrate, data_bitrate)))
     with released(a):
         inject_sim_faults(a, faults)
     data = status(a)
@@ -89,7 +110,7 @@ def status_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, sim_fault: SimFa
     else:
         print_rows("arm", {k: v for k, v in data.items() if not k.startswith("motors")}, digits=None)
         if after:
-            _print_motors("motors (while enabled)", data["motors"])
+            _print_motors("motors (while enabled)", data["motors"], STATUS_KEYS)
             console.print(f"then damped; {disable_summary(after)}")
     if any(m["enabled"] for m in after):  # a motor did not confirm the disable: it may still be enabled
         raise typer.Exit(1)
@@ -102,6 +123,10 @@ def enable_cmd(
     clear_errors: Annotated[bool, typer.Option(help="Send clear-error to every motor first.")] = False,
     hold: Annotated[float, typer.Option(min=0.0, help="Seconds to hold position (Ctrl-C stops earlier).")] = 5.0,
     yes: YesOpt = False,
+    interface: InterfaceOpt = None,
+    channel: ChannelOpt = None,
+    bitrate: BitrateOpt = None,
+    data_bitrate: DataBitrateOpt = None,
     sim_fault: SimFaultOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
@@ -116,7 +141,7 @@ def enable_cmd(
     from drivers.arm.disable import disable_summary
 
     faults = parse_sim_faults(arm, sim_fault)
-    a = make_arm(arm, load_robot(arm, robot))
+    a = make_arm(arm, load_robot(arm, robot, can_settings(interface, channel, bitrate, data_bitrate)))
     with released(a):
         inject_sim_faults(a, faults)
         if not yes and not typer.confirm(f"Enable the motors of the {arm} arm and hold position?", err=json_out):
@@ -137,8 +162,9 @@ def enable_cmd(
 
 
 @app.command("disable")
-def disable_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, sim_fault: SimFaultOpt = None,
-                json_out: JsonOpt = False) -> None:
+def disable_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, interface: InterfaceOpt = None,
+                channel: ChannelOpt = None, bitrate: BitrateOpt = None, data_bitrate: DataBitrateOpt = None,
+                sim_fault: SimFaultOpt = None, json_out: JsonOpt = False) -> None:
     """Disable every configured motor at once and check each one answers (the arm goes limp: support it first).
     Exits 1 when a motor did not answer.
 
@@ -148,7 +174,8 @@ def disable_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, sim_fault: SimF
     from deploy.rig import load_robot
     from drivers.arm.disable import disable_summary
 
-    states = disable_all(load_robot(arm, robot), arm, parse_sim_faults(arm, sim_fault))
+    config = load_robot(arm, robot, can_settings(interface, channel, bitrate, data_bitrate))
+    states = disable_all(config, arm, parse_sim_faults(arm, sim_fault))
     if json_out:
         print_json({"motors": states})
     else:
@@ -163,6 +190,10 @@ def zero_cmd(
     arm: ArmOpt = "sim-can",
     robot: RobotOpt = None,
     yes: YesOpt = False,
+    interface: InterfaceOpt = None,
+    channel: ChannelOpt = None,
+    bitrate: BitrateOpt = None,
+    data_bitrate: DataBitrateOpt = None,
     sim_fault: SimFaultOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
@@ -174,7 +205,8 @@ def zero_cmd(
     from deploy.arm_bringup import parse_sim_faults, set_zero
     from deploy.rig import load_robot
 
-    faults, config = parse_sim_faults(arm, sim_fault), load_robot(arm, robot)
+    faults = parse_sim_faults(arm, sim_fault)
+    config = load_robot(arm, robot, can_settings(interface, channel, bitrate, data_bitrate))
     if not yes and not typer.confirm(f"Set the zero of {joint}'s motor at its current position?", err=json_out):
         raise typer.Exit(1)
     result = set_zero(config, arm, joint, faults)
@@ -184,14 +216,15 @@ def zero_cmd(
         print_rows(f"zero of {joint}", result, digits=None)
 
 
-def _move(kind: str, robot: Path | None, what: str, dry_run: bool, yes: bool, hold: float, json_out: bool,
-          sim_fault: list[str] | None, **target) -> None:
-    """Plan `what` (home, jog or move) from the measured joints, show it, ask, then run it."""
+def _move(kind: str, robot: Path | None, can: tuple, what: str, dry_run: bool, yes: bool, hold: float,
+          json_out: bool, sim_fault: list[str] | None, **target) -> None:
+    """Plan `what` (home, jog or move) from the measured joints, show it, ask, then run it; `can`: the command
+    line's [can] settings."""
     from deploy.arm_bringup import execute, inject_sim_faults, make_arm, parse_sim_faults, plan, released
     from deploy.rig import load_robot
 
     faults = parse_sim_faults(kind, sim_fault)
-    config = load_robot(kind, robot)
+    config = load_robot(kind, robot, can)
     a = make_arm(kind, config)
     with released(a):
         inject_sim_faults(a, faults)
@@ -220,12 +253,15 @@ def _move(kind: str, robot: Path | None, what: str, dry_run: bool, yes: bool, ho
 
 @app.command("home")
 def home_cmd(arm: ArmOpt = "sim-can", robot: RobotOpt = None, dry_run: DryRunOpt = False, yes: YesOpt = False,
-             hold: HoldOpt = 0.0, sim_fault: SimFaultOpt = None, json_out: JsonOpt = False) -> None:
+             hold: HoldOpt = 0.0, interface: InterfaceOpt = None, channel: ChannelOpt = None,
+             bitrate: BitrateOpt = None, data_bitrate: DataBitrateOpt = None, sim_fault: SimFaultOpt = None,
+             json_out: JsonOpt = False) -> None:
     """Move to the config's ready pose (q_ready) slowly, after showing the plan and asking.
 
     Example: deploy arm home --arm can --robot my_arm.toml --dry-run
     """
-    _move(arm, robot, "home", dry_run, yes, hold, json_out, sim_fault)
+    _move(arm, robot, can_settings(interface, channel, bitrate, data_bitrate), "home", dry_run, yes, hold, json_out,
+          sim_fault)
 
 
 @app.command("jog")
@@ -237,6 +273,10 @@ def jog_cmd(
     dry_run: DryRunOpt = False,
     yes: YesOpt = False,
     hold: HoldOpt = 0.0,
+    interface: InterfaceOpt = None,
+    channel: ChannelOpt = None,
+    bitrate: BitrateOpt = None,
+    data_bitrate: DataBitrateOpt = None,
     sim_fault: SimFaultOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
@@ -244,7 +284,8 @@ def jog_cmd(
 
     Example: deploy arm jog --joint panda_joint1 --delta 0.1 --yes
     """
-    _move(arm, robot, "jog", dry_run, yes, hold, json_out, sim_fault, joint=joint, delta=delta)
+    _move(arm, robot, can_settings(interface, channel, bitrate, data_bitrate), "jog", dry_run, yes, hold, json_out,
+          sim_fault, joint=joint, delta=delta)
 
 
 @app.command("move")
@@ -256,6 +297,10 @@ def move_cmd(
     dry_run: DryRunOpt = False,
     yes: YesOpt = False,
     hold: HoldOpt = 0.0,
+    interface: InterfaceOpt = None,
+    channel: ChannelOpt = None,
+    bitrate: BitrateOpt = None,
+    data_bitrate: DataBitrateOpt = None,
     sim_fault: SimFaultOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
@@ -263,4 +308,33 @@ def move_cmd(
 
     Example: deploy arm move --pose 0.45 0.0 0.6 0 90 0 --dry-run
     """
-    _move(arm, robot, "move", dry_run, yes, hold, json_out, sim_fault, pose=pose)
+    _move(arm, robot, can_settings(interface, channel, bitrate, data_bitrate), "move", dry_run, yes, hold, json_out,
+          sim_fault, pose=pose)
+
+
+@app.command("find-port")
+def find_port_cmd(json_out: JsonOpt = False) -> None:
+    """List the CAN interfaces and adapters on this machine: SocketCAN links (state, bitrate, CAN FD), serial
+    adapters with their USB ids (Damiao's USB-CAN dongle: --interface damiao), and what python-can detects.
+
+    Example: deploy arm find-port
+    """
+    from drivers.arm.can_ports import find_ports
+
+    found = find_ports()
+    if json_out:
+        print_json(found)
+        return
+    links = found["socketcan"]
+    print_table("SocketCAN links", ["name", "kind", "up", "state", "bitrate", "data_bitrate", "fd"],
+                [[str(link[k]) for k in ("name", "kind", "up", "state", "bitrate", "data_bitrate", "fd")]
+                 for link in links]) if links else console.print("no SocketCAN link (`ip link` shows none)")
+    serial = found["serial"]
+    print_table("serial adapters", ["device", "usb_id", "adapter", "interface"],
+                [[str(a[k] or a.get("product") or "-") if k == "adapter" else str(a[k])
+                  for k in ("device", "usb_id", "adapter", "interface")] for a in serial]) \
+        if serial else console.print("no serial adapter (/dev/ttyACM*, /dev/ttyUSB*)")
+    for config in found["python_can"]:
+        console.print(f"python-can: --interface {config['interface']} --channel {config.get('channel')}")
+    if not any(found.values()):
+        console.print("nothing found: plug the adapter in; docs/arm.md says how to bring each kind up")

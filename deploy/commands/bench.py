@@ -167,6 +167,7 @@ def bench_open_cmd(
     segmenter: BenchSegmenterOpt = None,
     calibration_error: CalibrationErrorOpt = CALIBRATION_ERROR,
     condition: BenchConditionOpt = Condition.normal,
+    robot: RobotOpt = None,
     world: WorldOpt = WorldChoice.kitchen,
     part: PartOpt = None,
     assets: AssetsOpt = None,
@@ -191,7 +192,8 @@ def bench_open_cmd(
         data = bench_open(task.value, goal, episodes, split.value, policy.value, seed, workers,
                           progress=bar.advance, ray_address=ray, auto_joint=auto_joint or joint is JointTold.auto,
                           segmenter=segmenter, calibration_error=calibration_error, condition=condition.value,
-                          world=world.value, part=part, assets=assets, object_id=object_id, scale=scale.value)
+                          world=world.value, part=part, assets=assets, object_id=object_id, scale=scale.value,
+                          robot=robot)
     if json_out:
         print_json(data)
         return

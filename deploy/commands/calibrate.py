@@ -11,10 +11,15 @@ from typing import Annotated, Any
 import typer
 
 from deploy.commands.options import (
+    BitrateOpt,
+    ChannelOpt,
+    DataBitrateOpt,
+    InterfaceOpt,
     JsonOpt,
     SimFaultOpt,
     StationSeedOpt,
     above,
+    can_settings,
     dry_run_option,
     kind_option,
     overwrite_option,
@@ -143,13 +148,13 @@ def _reuse_answer(path: Path, about: str) -> bool:
 
 def _request(camera: str, arm: str | None, robot: Path | None, pivot_mm, sim_fault: list[str] | None, board,
              poses: int, seed: int, setup: str | None, existing: ExistingChoice, directory: Path | None,
-             dry_run: bool, pivot_from_record: bool = False) -> Any:
+             dry_run: bool, pivot_from_record: bool = False, can: tuple = ()) -> Any:
     """The workflow's request from the options: devices checked (deploy.calibration_devices.choose), faults parsed."""
     from deploy.arm_bringup import parse_sim_faults
     from deploy.calibration_devices import choose
     from deploy.calibration_workflow import Request
 
-    choice = choose(camera, arm, robot, pivot_mm, pivot_from_record)
+    choice = choose(camera, arm, robot, pivot_mm, pivot_from_record, can)
     return Request(choice, board, poses, seed, setup, existing.value, directory, dry_run,
                    parse_sim_faults(choice.arm, sim_fault))
 
@@ -182,7 +187,8 @@ def intrinsics_cmd(
     squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 36.0, marker_mm: MarkerMmOpt = 27.0,
     dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False, existing: ExistingOpt = ExistingChoice.ask,
     directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 0,
-    sim_fault: SimFaultOpt = None, json_out: JsonOpt = False,
+    interface: InterfaceOpt = None, channel: ChannelOpt = None, bitrate: BitrateOpt = None,
+    data_bitrate: DataBitrateOpt = None, sim_fault: SimFaultOpt = None, json_out: JsonOpt = False,
 ) -> None:
     """Fit the camera's own intrinsics from board views at N stations (default: RealSense factory values).
 
@@ -198,7 +204,7 @@ def intrinsics_cmd(
     check_poses("intrinsics", poses)
     board = _board(squares, square_mm, marker_mm, dictionary, legacy)
     request = _request(camera, arm, robot, pivot_mm, sim_fault, board, poses, seed, setup.value, existing, directory,
-                       dry_run)
+                       dry_run, can=can_settings(interface, channel, bitrate, data_bitrate))
     outcome = intrinsics(request, _ask(yes))
     _show(outcome, json_out, keep=("factory", "std"))
     if json_out or outcome.status != "done":
@@ -220,7 +226,8 @@ def hand_eye_cmd(
     marker_mm: MarkerMmOpt = 28.0, dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False,
     existing: ExistingOpt = ExistingChoice.ask,
     directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 0,
-    sim_fault: SimFaultOpt = None, json_out: JsonOpt = False,
+    interface: InterfaceOpt = None, channel: ChannelOpt = None, bitrate: BitrateOpt = None,
+    data_bitrate: DataBitrateOpt = None, sim_fault: SimFaultOpt = None, json_out: JsonOpt = False,
 ) -> None:
     """Hand-eye: move through N diverse poses, detect the board, solve, refine and save the calibration.
 
@@ -237,7 +244,7 @@ def hand_eye_cmd(
     check_poses("hand-eye", poses)
     board = _board(squares, square_mm, marker_mm, dictionary, legacy)
     request = _request(camera, arm, robot, pivot_mm, sim_fault, board, poses, seed, setup and setup.value, existing,
-                       directory, dry_run)
+                       directory, dry_run, can=can_settings(interface, channel, bitrate, data_bitrate))
     _show(hand_eye(request, _ask(yes)), json_out, keep=("methods",))
 
 
@@ -250,7 +257,8 @@ def check_cmd(
     point: Annotated[bool, typer.Option("--point", help="Eye-in-hand: move the tool tip to 2 cm in front of "
                                         "the board's centre corner.")] = False,
     directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 1,
-    sim_fault: SimFaultOpt = None, json_out: JsonOpt = False,
+    interface: InterfaceOpt = None, channel: ChannelOpt = None, bitrate: BitrateOpt = None,
+    data_bitrate: DataBitrateOpt = None, sim_fault: SimFaultOpt = None, json_out: JsonOpt = False,
 ) -> None:
     """Check the stored calibration: spread of the fixed frame over fresh poses, a one-shot test, warnings.
 
@@ -262,5 +270,6 @@ def check_cmd(
 
     check_poses("check", poses)
     request = _request(camera, arm, robot, pivot_mm, sim_fault, BoardConfig(), poses, seed, None,
-                       ExistingChoice.reuse, directory, dry_run, pivot_from_record=True)
+                       ExistingChoice.reuse, directory, dry_run, pivot_from_record=True,
+                       can=can_settings(interface, channel, bitrate, data_bitrate))
     _show(check(request, _ask(yes), max_age_days, point), json_out)

@@ -12,17 +12,22 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from deploy.commands.options import (
+    BitrateOpt,
+    ChannelOpt,
+    DataBitrateOpt,
+    InterfaceOpt,
     JsonOpt,
     RobotOpt,
     SimFaultOpt,
     WorldChoice,
     WorldOpt,
     above,
+    can_settings,
     kind_option,
     overwrite_option,
     view_option,
 )
-from deploy.commands.output import console, print_json, print_table, progress_bar
+from deploy.commands.output import console, print_json, progress_bar
 from drivers.arm.registry import ARMS
 from drivers.camera.registry import CAMERAS
 
@@ -34,11 +39,13 @@ top_level = typer.Typer()  # its commands sit directly under `deploy`
 
 CameraSpecOpt = kind_option(CAMERAS, "--camera", " sim: a simulated drawer, seed 0 (of --world, where given).")
 WidthOpt = Annotated[int | None, typer.Option(min=1, max=8192, show_default=False, help=(
-    "Image width (d415: 640, 848 or 1280; sim: any) \\[default: 640; a replay: the recording's, which it keeps]."))]
+    "Image width: a RealSense model's colour resolutions (docs/cameras.md); sim: any \\[default: the model's; sim: "
+    "640; a replay: the recording's, which it keeps]."))]
 HeightOpt = Annotated[int | None, typer.Option(min=1, max=8192, show_default=False, help=(
-    "Image height (d415: 480 or 720; sim: any) \\[default: 480; a replay: the recording's, which it keeps]."))]
-FpsOpt = Annotated[int, typer.Option(min=1, max=1000, help="Frames per second (d415: 6, 15, 30 or 60; sim: up to "
-                                     "240, its physics rate; a replay keeps the recording's times).")]
+    "Image height, with --width \\[default: the model's; sim: 480; a replay: the recording's, which it keeps]."))]
+FpsOpt = Annotated[int, typer.Option(min=1, max=1000, help=(
+    "Frames per second: a RealSense model's rates (docs/cameras.md); sim: up to 240, its physics rate; a replay "
+    "keeps the recording's times."))]
 OverwriteOpt = overwrite_option("recording at --out")
 ArmRecordOpt = kind_option(ARMS, "--arm", " Recorded with every frame: joint positions and tool pose (the arm is "
                            "read, never enabled; --robot names its config).", optional=True)
@@ -60,7 +67,8 @@ def open_any_camera(spec: str, width: int | None = None, height: int | None = No
 
 @app.command("list")
 def list_cameras(json_out: JsonOpt = False) -> None:
-    """List connected RealSense cameras: serial, name, firmware, USB type and supported profiles.
+    """List connected RealSense cameras: model, serial, firmware, USB type, colour intrinsics with the lens model,
+    depth unit and minimum range at the model's default resolution, and the supported profiles.
 
     Example: deploy cameras list --json
     """
@@ -73,9 +81,44 @@ def list_cameras(json_out: JsonOpt = False) -> None:
     if not cameras:
         console.print("no RealSense camera connected")
         return
-    print_table("RealSense cameras", ("serial", "name", "firmware", "usb_type", "profiles"),
-                [(cam["serial"], cam["name"], cam["firmware"], cam["usb_type"], "\n".join(cam["profiles"]))
-                 for cam in cameras])
+    for cam in cameras:
+        console.print("\n".join(camera_lines(cam)), markup=False, highlight=False)
+
+
+def camera_lines(cam: dict) -> list[str]:
+    """A camera of `list_devices` as text lines of at most 80 columns."""
+    model = cam["model"].upper() if cam["model"] else "RealSense (not in the model table: --camera realsense)"
+    stream = cam["stream"]
+    lines = [f"{model} {cam['name']}", f"  serial {cam['serial']}, firmware {cam['firmware']}, USB {cam['usb_type']}"]
+    intr = cam["intrinsics"]
+    if intr is not None:
+        lines.append(f"  colour {intr['width']}x{intr['height']} from the {cam['color_sensor']}: fx {intr['fx']:.2f} "
+                     f"fy {intr['fy']:.2f} cx {intr['cx']:.2f} cy {intr['cy']:.2f}")
+        coeffs = " ".join(f"{name} {c:.4g}" for name, c in zip(("k1", "k2", "p1", "p2", "k3"),
+                                                               intr.get("coeffs", [0.0] * 5), strict=True))
+        lines.append(f"  {intr.get('distortion', 'none')}: {coeffs}")
+    if cam["depth_scale"] is not None:
+        near = "" if cam["min_range_m"] is None else f", minimum range {cam['min_range_m']:.2f} m"
+        lines.append(f"  depth unit {cam['depth_scale'] * 1000:.3g} mm at {stream['depth']}{near}")
+    lines.append("  profiles:")
+    lines += ["    " + line for line in _grouped_profiles(cam["profiles"])]
+    return lines
+
+
+def _grouped_profiles(profiles: list[str]) -> list[str]:
+    """"Depth 640x480 Z16 @30" profiles as one wrapped line per stream and format: "Depth Z16: 640x480 @6/15/30"."""
+    import textwrap
+
+    rates: dict[tuple[str, str], dict[str, list[int]]] = {}
+    for profile in profiles:
+        stream, size, fmt, fps = profile.split()
+        rates.setdefault((stream, fmt), {}).setdefault(size, []).append(int(fps.lstrip("@")))
+    lines = []
+    for (stream, fmt), sizes in rates.items():
+        modes = ", ".join(f"{size} @{'/'.join(map(str, sorted(fps)))}" for size, fps in
+                          sorted(sizes.items(), key=lambda item: -int(item[0].split("x")[0])))
+        lines += textwrap.wrap(f"{stream} {fmt}: {modes}", 76, subsequent_indent="  ")
+    return lines
 
 
 SNAPSHOT = {"color.png": None, "depth.png": None, "depth_color.png": None, "intrinsics.json": None}
@@ -150,6 +193,10 @@ def record_cmd(
     fps: FpsOpt = 30,
     view: ViewOpt = False,
     overwrite: OverwriteOpt = False,
+    interface: InterfaceOpt = None,
+    channel: ChannelOpt = None,
+    bitrate: BitrateOpt = None,
+    data_bitrate: DataBitrateOpt = None,
     sim_fault: SimFaultOpt = None,
     world: WorldOpt = WorldChoice.kitchen,
     json_out: JsonOpt = False,
@@ -175,7 +222,8 @@ def record_cmd(
           progress_bar("record", frames, *columns) as bar):
         summary = record_rig(camera, out, frames, seconds, arm, robot, {"width": width, "height": height,
                                                                         "fps": fps}, bar.advance, view,
-                              calibration, sim_faults=faults, world=world.value)
+                              calibration, sim_faults=faults, world=world.value,
+                              can=can_settings(interface, channel, bitrate, data_bitrate))
     if json_out:
         print_json(summary)
     else:
@@ -189,8 +237,9 @@ def convert(
                                                    "realsense-ros topics (.db3, .mcap or the bag folder), or a TUM "
                                                    "RGB-D or Open3D folder (docs/recording-format.md).")],
     out: Annotated[Path, typer.Option(help="Frames directory to write.")],
-    depth_scale: Annotated[float, typer.Option(callback=above(0.0), help="Depth unit of the frames directory, in "
-                                               "metres.")] = 0.001,
+    depth_scale: Annotated[float | None, typer.Option(callback=above(0.0), show_default=False, help=(
+        "Depth unit of the frames directory, in metres \\[default: the recording's, at most 0.001: a D405's 0.1 mm "
+        "steps are kept].")) ] = None,
     overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
 ) -> None:
@@ -212,12 +261,12 @@ def convert(
     if json_out:
         print_json(summary)
     else:
-        console.print(f"wrote {summary['frames']} frames ({summary['seconds']:.2f} s) to {out} "
-                      f"(source depth unit {summary['source_depth_scale']:g} m)")
+        console.print(f"wrote {summary['frames']} frames ({summary['seconds']:.2f} s) to {out} (depth unit "
+                      f"{summary['depth_scale']:g} m; the source's {summary['source_depth_scale']:g} m)")
         if summary["depth_out_of_range_px"]:
             console.print(f"{summary['depth_out_of_range_px']} depth pixels lay beyond what 16 bits of "
-                          f"{depth_scale:g} m hold and were stored as no depth: pass a larger --depth-scale to "
-                          "keep them")
+                          f"{summary['depth_scale']:g} m hold and were stored as no depth: pass a larger "
+                          "--depth-scale to keep them")
         unpaired, listed = summary.get("unpaired_frames") or {}, summary.get("source_frames") or {}
         if any(unpaired.values()):
             known = None not in (listed.get("color"), listed.get("depth"))

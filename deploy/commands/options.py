@@ -120,6 +120,26 @@ def overwrite_option(what: str) -> Any:
                                         "without it an existing one is refused.")]
 
 
+CAN_PANEL = "CAN bus (over the robot config's \\[can])"
+InterfaceOpt = Annotated[str | None, typer.Option(
+    "--interface", rich_help_panel=CAN_PANEL, help="python-can interface: socketcan, damiao (Damiao's USB-CAN "
+    "dongle: pip install python-can-damiao), slcan, gs_usb, pcan, ... (`deploy arm find-port` lists what is here).")]
+ChannelOpt = Annotated[str | None, typer.Option(
+    "--channel", rich_help_panel=CAN_PANEL, help="CAN channel: can0, /dev/ttyACM0, ...")]
+BitrateOpt = Annotated[int | None, typer.Option(
+    "--bitrate", min=1, rich_help_panel=CAN_PANEL, help="Nominal bitrate, bit/s (socketcan: set with `ip link`).")]
+DataBitrateOpt = Annotated[int | None, typer.Option(
+    "--data-bitrate", min=1, rich_help_panel=CAN_PANEL, help="CAN FD data bitrate, bit/s: turns CAN FD on.")]
+
+
+def can_settings(interface: str | None, channel: str | None, bitrate: int | None,
+                 data_bitrate: int | None) -> tuple[tuple[str, Any], ...]:
+    """--interface, --channel, --bitrate and --data-bitrate as [can] settings (a data bitrate means CAN FD)."""
+    given = {"interface": interface, "channel": channel, "bitrate": bitrate, "data_bitrate": data_bitrate,
+             "fd": True if data_bitrate is not None else None}
+    return tuple((k, v) for k, v in given.items() if v is not None)
+
+
 CameraOpt = kind_option(CAMERAS, "--camera")
 ArmOpt = kind_option(ARMS, "--arm")
 SegmenterOpt = kind_option(SEGMENTERS, "--segmenter", " \\[default: gdino-sam2 where its weights are on this "
@@ -157,7 +177,7 @@ BoxOpt = Annotated[tuple[float, float, float, float] | None, typer.Option(
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object instead of a table (on an error: "
                                        "{error, kind, exit_code, motors}).")]
 PolicyOpt = Annotated[PolicyChoice, typer.Option(help=f"{POLICIES.help()}.")]
-RobotOpt = robot_option("Robot config: a shipped one's name (panda_sim, damiao_6dof) or a TOML file "
+RobotOpt = robot_option("Robot config: a shipped one's name (panda_sim, openarm, damiao_6dof) or a TOML file "
                         "\\[default: panda_sim].")
 StationSeedOpt = seed_option("Seed of the station generator (and sim noise).")
 SimFaultOpt = sim_fault_option()

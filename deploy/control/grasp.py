@@ -25,6 +25,8 @@ MIN_FRONT_POINTS = 30
 PLANE_TOLERANCE_M = 0.004  # RANSAC inlier distance of the front plane
 FACE_BAND_M = 0.01  # points this close to the front plane belong to the front face
 REGRASP_RADIUS_M = 0.12  # a slipped handle is looked for this close to where the gripper held it
+APPROACH_STEP_M = 0.025  # the planned approach is followed through a pose every this much (a short arm's joints
+# turn fast near the handle: the path check needs its waypoints dense enough to tell a turn from a branch change)
 HANDLE_MIN_STANDOFF_M, HANDLE_MAX_STANDOFF_M = 0.01, 0.08  # a handle stands this far out of its front
 
 
@@ -142,9 +144,10 @@ def pregrasp_configuration(
     the Panda is redundant, so a few elbow seeds facing the handle are tried. `pulls` are the pulls wanted, most
     wanted first (e.g. a door's arc, then shorter ones): the first that some seed carries decides. Raises IKError
     when none does."""
-    T_pre = pregrasp_pose(T_grasp, approach_m)
+    n = max(1, int(np.ceil(approach_m / APPROACH_STEP_M)))
+    approach = [pregrasp_pose(T_grasp, approach_m * (n - k) / n) for k in range(n)]  # from the pre-grasp pose on
     for poses in pulls:
-        best = well_conditioned_start(kin, [T_pre, T_grasp, *poses], q_start, LIMIT_MARGIN_RAD)
+        best = well_conditioned_start(kin, [*approach, T_grasp, *poses], q_start, LIMIT_MARGIN_RAD)
         if best is not None:
             return best
     p = T_grasp[:3, 3]

@@ -68,7 +68,8 @@ class Observer:
         self._camera, self._segmenter, self._kin, self._config = camera, segmenter, kin, config
         self._folder, self._view, self._self_filter = folder, view or EpisodeView(), self_filter
         self._pipeline_config = config.replace(estimator={
-            "name": config.acting_estimator, "joint": "auto" if joint is None else joint.value})
+            "name": config.acting_estimator, "joint": "auto" if joint is None else joint.value,
+        }).for_range(camera.min_range_m)
         self._pipeline = AxisPipeline(self._pipeline_config)
         self._first: FirstLook | None = None
         self._near_object = np.zeros((0, 0), bool)  # the first frame's object mask, dilated

@@ -23,7 +23,7 @@ from deploy.errors import ConfigError
 from deploy.perception.base import Pointer
 from deploy.perception.registry import default_segmenter
 from deploy.report.run_folder import RunFolder
-from deploy.rig import Rig, RigSpec, SimScene, open_rig
+from deploy.rig import Rig, RigSpec, SimScene, load_robot, open_rig
 from drivers.camera.registry import CAMERAS
 from drivers.interrupts import Interrupted
 
@@ -53,6 +53,7 @@ class OpenRequest:
     camera: str = "sim"
     arm: str = "sim"
     robot: Path | None = None
+    can: tuple[tuple[str, Any], ...] = ()  # [can] settings of the command line over the robot config's
     calibration: Path | None = None
     segmenter: str | None = None
     seed: int = 0
@@ -87,7 +88,7 @@ class OpenRequest:
     def rig_spec(self, config: Config) -> RigSpec:
         simulated = CAMERAS.entry(self.camera)[0].simulated
         width, height = self.resolution
-        return RigSpec(camera=self.camera, arm=self.arm, robot=self.robot, calibration=self.calibration,
+        return RigSpec(camera=self.camera, arm=self.arm, robot=self.robot, can=self.can, calibration=self.calibration,
                        segmenter=self.segmenter or default_segmenter(config.perception),
                        perception=config.perception,
                        scene=self.sim_scene(),
@@ -178,7 +179,9 @@ def _with_object(request: OpenRequest) -> OpenRequest:
         return request
     from sim_fallback.scenes import task_objects
 
-    return replace(request, object_id=task_objects(request.assets, request.scene, request.scale).for_seed(request.seed))
+    reach = load_robot(request.arm, request.robot).reach.reach()
+    return replace(request, object_id=task_objects(request.assets, request.scene, request.scale,
+                                                   reach).for_seed(request.seed))
 
 
 def _pointed(config: Config, rig: Rig, evaluation: Any, seed: int) -> tuple[Config, dict | None]:

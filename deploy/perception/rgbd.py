@@ -22,7 +22,7 @@ import open3d as o3d
 
 from deploy.errors import PerceptionError
 from deploy.geometry.boxes import front_box, front_direction
-from deploy.geometry.cloud import depth_to_points
+from deploy.geometry.cloud import depth_to_points, project
 from deploy.geometry.types import Box
 from deploy.perception.base import Pointer, Segmenter
 from deploy.perception.classical import keep_touching
@@ -55,7 +55,8 @@ def pixel_points(frame: Frame, step: int, valid: np.ndarray | None = None,
     if valid is not None:
         keep &= valid[::step, ::step]
     K = np.diag([1.0 / step, 1.0 / step, 1.0]) @ frame.intrinsics.K
-    points = depth_to_points(depth, K, mask=keep, T_base_camera=frame.T_base_camera, min_depth_m=0.0)
+    points = depth_to_points(depth, K, mask=keep, T_base_camera=frame.T_base_camera, min_depth_m=0.0,
+                             dist=frame.intrinsics.dist_coeffs)
     return points, np.argwhere(keep)
 
 
@@ -243,8 +244,7 @@ class RGBDSegmenter(Segmenter):
         h, w = frame.depth_m[::TRACK_STEP, ::TRACK_STEP].shape
         if cam[:, 2].min() <= 0.05:  # the region reaches behind the camera: search the whole image
             return slice(0, h), slice(0, w)
-        K = frame.intrinsics
-        uv = cam[:, :2] / cam[:, 2:3] * [K.fx, K.fy] + [K.cx, K.cy]
+        uv = project(cam, frame.intrinsics.K, frame.intrinsics.dist_coeffs)
         (c0, r0), (c1, r1) = np.floor(uv.min(axis=0) / TRACK_STEP), np.ceil(uv.max(axis=0) / TRACK_STEP) + 1
         rows = slice(int(np.clip(r0, 0, h)), int(np.clip(r1, 0, h)))
         return rows, slice(int(np.clip(c0, 0, w)), int(np.clip(c1, 0, w)))

@@ -11,6 +11,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from deploy.geometry.cloud import project
 from drivers.arm.body import RobotBody
 from drivers.camera.base import Frame
 
@@ -38,7 +39,7 @@ class SelfFilter:
             cam = vertices @ T[:3, :3].T + T[:3, 3]
             if cam[:, 2].min() < NEAR_M:
                 continue
-            uv = cam[:, :2] / cam[:, 2:3] * [K.fx, K.fy] + [K.cx, K.cy]
+            uv = project(cam, K.K, K.dist_coeffs)
             grow = K.fx * self.margin_m / float(cam[:, 2].mean())
             hull = cv2.convexHull(uv.astype(np.float32))[:, 0]
             grown = (hull[:, None, :] + grow * _OCTAGON[None]).reshape(-1, 2)  # the hull grown by `grow` px

@@ -31,7 +31,8 @@ def write_report(path: Path, result: EpisodeResult, errors: list[tuple[float, fl
         for step, axis in axes:
             o, d = np.array(axis["origin"]), np.array(axis["direction"])
             uv = points_to_pixels(np.array([o - AXIS_HALF_LENGTH_M * d, o + AXIS_HALF_LENGTH_M * d]),
-                                  first_frame.intrinsics.K, first_frame.T_base_camera)
+                                  first_frame.intrinsics.K, first_frame.T_base_camera,
+                                  first_frame.intrinsics.dist_coeffs)
             ax_img.plot(uv[:, 0], uv[:, 1], color=plt.cm.viridis(norm(step)), lw=1.5)
         h, w = first_frame.color.shape[:2]
         ax_img.set_xlim(0, w)

@@ -17,10 +17,11 @@ from drivers.errors import ArmError
 
 
 class RobotBody:
-    """Collision-mesh vertices of every link of `urdf`, posed by arm joints + finger joints (each finger at
-    half the gripper opening)."""
+    """Collision-mesh vertices of every link of `urdf`, posed by arm joints + finger joints (each finger at its
+    `finger_joint_per_m` times the gripper opening; default half of it)."""
 
-    def __init__(self, urdf: Path, arm_joints: Sequence[str], finger_joints: Sequence[str] = ()) -> None:
+    def __init__(self, urdf: Path, arm_joints: Sequence[str], finger_joints: Sequence[str] = (),
+                 finger_joint_per_m: Sequence[float] | None = None) -> None:
         urdf = Path(urdf)
         self.model = pin.buildModelFromUrdf(str(urdf))
         try:
@@ -32,6 +33,8 @@ class RobotBody:
         self.data, self.geometry_data = self.model.createData(), pin.GeometryData(self.geometry)
         self._arm = [self._index(name) for name in arm_joints]
         self._fingers = [self._index(name) for name in finger_joints]
+        self._finger_scale = np.array(finger_joint_per_m if finger_joint_per_m is not None else
+                                      [0.5] * len(finger_joints), float)
         self._vertices = [np.asarray(g.geometry.vertices(), float) * np.asarray(g.meshScale, float)
                           if hasattr(g.geometry, "vertices") else np.zeros((0, 3))
                           for g in self.geometry.geometryObjects]
@@ -40,7 +43,8 @@ class RobotBody:
     def from_robot(cls, robot) -> RobotBody:
         """The body of a RobotSpec (drivers.arm.robots) or RobotConfig (built once per process and model)."""
         spec = robot.robot_spec() if hasattr(robot, "robot_spec") else robot
-        return _cached(Path(spec.urdf), tuple(spec.arm_joints), tuple(spec.finger_joints))
+        return _cached(Path(spec.urdf), tuple(spec.arm_joints), tuple(spec.finger_joints),
+                       tuple(spec.finger_joint_per_m))
 
     def _index(self, joint: str) -> int:
         if not self.model.existJointName(joint):
@@ -51,7 +55,7 @@ class RobotBody:
         """Each link's mesh vertices (N, 3) in the base frame at arm joints `q`."""
         q_full = pin.neutral(self.model)
         q_full[self._arm] = q
-        q_full[self._fingers] = gripper_width_m / 2
+        q_full[self._fingers] = gripper_width_m * self._finger_scale
         pin.forwardKinematics(self.model, self.data, q_full)
         pin.updateGeometryPlacements(self.model, self.data, self.geometry, self.geometry_data)
         out = []
@@ -62,5 +66,6 @@ class RobotBody:
 
 
 @lru_cache(maxsize=4)
-def _cached(urdf: Path, arm_joints: tuple[str, ...], finger_joints: tuple[str, ...]) -> RobotBody:
-    return RobotBody(urdf, arm_joints, finger_joints)
+def _cached(urdf: Path, arm_joints: tuple[str, ...], finger_joints: tuple[str, ...],
+            finger_joint_per_m: tuple[float, ...]) -> RobotBody:
+    return RobotBody(urdf, arm_joints, finger_joints, finger_joint_per_m)

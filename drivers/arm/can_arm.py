@@ -22,6 +22,7 @@ the bus scan live in drivers/arm/motor_channels.py (re-exported here).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -31,7 +32,7 @@ from drivers.arm.base import GRIP_FORCE_N, Arm, ArmState
 from drivers.arm.can_bus import CanBus
 from drivers.arm.control_loop import ControlLoop, LoopStats
 from drivers.arm.damiao import PARAM_ID, Special, Status, refresh_request, special
-from drivers.arm.disable import disable_and_confirm, motor_states, with_summary
+from drivers.arm.disable import disable_and_confirm, motor_states, wait_for_timeouts, with_summary
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.motor_channels import (
     PMAX_MARGIN,
@@ -45,8 +46,9 @@ from drivers.arm.motor_channels import (
     receive_feedback,
     request_feedback,
     scan_bus,
+    set_timeout,
 )
-from drivers.arm.robot_config import RobotConfig
+from drivers.arm.robot_config import RobotConfig, WatchdogConfig
 from drivers.arm.safety import SafetyGuard, SafetyLimits
 from drivers.arm.signals import StopSignals
 from drivers.errors import ArmError
@@ -83,7 +85,7 @@ class CanArm(Arm):
         self._lock = self.loop.lock
         self._signals = StopSignals(self._stopped_by)
         self._enabled, self._closed = False, False
-        self._unconfirmed: set[str] = set()  # motors whose last disable went unanswered
+        self._unconfirmed, self._timed_out, self._last_sent_s = set(), set(), -np.inf  # see _disable_all
         self._gravity_data = self.kin.model.createData()  # the loop thread's own Pinocchio workspace
         self._tau_max = np.array([j.tau_max for j in config.joints])
         n = len(self.joints)
@@ -112,7 +114,7 @@ class CanArm(Arm):
             raise ArmError(f"arm {self.config.name!r} was disconnected: open a new one")
         self.loop.clear_fault()
         try:
-            enable_motors(self.bus, self.channels, self.limits, self.config.watchdog.reply_timeout_s, self.loop.now)
+            self._last_sent_s = enable_motors(self.bus, self.channels, self.limits, self.config.watchdog, self.loop.now)
             check_start_position(self.joints, self._measured_q(), self.limits)
         except ArmError:
             self._disable_all()
@@ -220,14 +222,14 @@ class CanArm(Arm):
             self.bus.send(c.config.can_id, special(Special.CLEAR_ERROR))
 
     def motor_report(self) -> list[dict]:
-        """Per motor: name, ids, status, position/velocity/torque (joint side), temperatures, limits."""
+        """Per motor: name, ids, status, joint-side q / dq / tau, temperatures, limits, communication timeout."""
         with self._lock:
             return [c.report() for c in self.channels]
 
     def motor_states(self) -> list[dict]:
-        """Every motor's state (name, CAN id, enabled, status); `enabled` where a disable went unanswered."""
+        """Every motor's state (drivers/arm/disable.py `motor_states`)."""
         with self._lock:
-            return motor_states(self.channels, self._unconfirmed)
+            return motor_states(self.channels, self._unconfirmed, self._timed_out)
 
     def __enter__(self) -> CanArm:
         """Connect; a failed connect leaves as `__exit__` does (`with` calls none after a failed enter)."""
@@ -241,13 +243,7 @@ class CanArm(Arm):
     def __exit__(self, exc_type, exc, tb) -> None:
         disconnect_reporting(self, exc)
 
-    @property
-    def fault(self) -> ArmError | None:
-        return self.loop.fault
-
-    def gravity_torques(self, q: np.ndarray) -> np.ndarray:
-        """Joint torques (N m) holding the arm still against gravity at q (URDF inertias, Pinocchio RNEA)."""
-        return pin.computeGeneralizedGravity(self.kin.model, self._gravity_data, np.asarray(q, float)).copy()
+    fault = property(lambda self: self.loop.fault, doc="The fault that tripped the loop (None while running).")
 
     # --- the control cycle (called by the loop) --------------------------------------------------------------
 
@@ -266,6 +262,7 @@ class CanArm(Arm):
                     self.gripper, self.config.gripper, self._grip_width, self._grip_force)))
         for can_id, data in frames:
             self.bus.send(can_id, data)
+        self._last_sent_s = time.perf_counter()
 
     def _read_feedback(self) -> None:
         """Read feedback until every motor answered this cycle or half a period passed; check it."""
@@ -276,6 +273,10 @@ class CanArm(Arm):
         for i, c in enumerate(self.channels):
             tau_max = None if c is self.gripper else self.config.joints[i].tau_max
             check_feedback(c, start - c.t_feedback, self.config.watchdog, tau_max)
+
+    def gravity_torques(self, q: np.ndarray) -> np.ndarray:
+        """Joint torques (N m) holding the arm still against gravity at q (URDF inertias, Pinocchio RNEA)."""
+        return pin.computeGeneralizedGravity(self.kin.model, self._gravity_data, np.asarray(q, float)).copy()
 
     def _gravity(self, q: np.ndarray) -> np.ndarray:
         """The feed-forward torque of this cycle: gravity compensation clipped to tau_max, or zeros."""
@@ -293,9 +294,11 @@ class CanArm(Arm):
             raise ArmError(f"arm {self.config.name!r} is not enabled (stopped or never connected): connect() first")
 
     def _disable_all(self) -> None:
+        """Disable every motor; the unconfirmed ones' communication timeouts are waited out (drivers/arm/disable.py)."""
         unconfirmed = disable_and_confirm(self.bus, self.channels, self.config.watchdog.reply_timeout_s, self._lock,
                                           self.loop.now)
         self._unconfirmed = {c.name for c in unconfirmed}
+        self._timed_out = {c.name for c in wait_for_timeouts(unconfirmed, self._last_sent_s)}
 
     def _on_trip(self, fault: ArmError) -> ArmError:
         """The loop tripped: disable every motor; the fault's message then names any that did not confirm."""
@@ -323,19 +326,24 @@ def disconnect_reporting(arm: CanArm, exc: BaseException | None) -> None:
         raise
 
 
-def enable_motors(bus: CanBus, channels: list[MotorChannel], limits: SafetyLimits, timeout_s: float,
-                  now: Callable[[], float]) -> None:
+def enable_motors(bus: CanBus, channels: list[MotorChannel], limits: SafetyLimits, watchdog: WatchdogConfig,
+                  now: Callable[[], float]) -> float:
     """Read each motor's PMAX/VMAX/TMAX, check the joints' ranges against them (`channels`: the joints in order,
-    then the gripper), enable each motor; ArmError naming the motor and the fix otherwise."""
+    then the gripper), set and read back each motor's communication timeout (`watchdog.motor_timeout_s`), enable
+    each motor; ArmError naming the motor and the fix otherwise. Returns the time (perf_counter) of the last enable.
+    """
+    timeout_s = watchdog.reply_timeout_s
     for i, c in enumerate(channels):
         c.limits = read_limits(bus, c, timeout_s)
         if i < len(limits.q_min):
             check_motor_range(c, limits, i)
+        set_timeout(bus, c, watchdog.motor_timeout_s, timeout_s)
     for c in channels:
         request_feedback(bus, c, special(Special.ENABLE), c.config.can_id, timeout_s, now)
         if c.feedback.status != Status.ENABLED:
             raise ArmError(f"motor {c.describe()} did not enable (status {c.feedback.status.name}): "
                            "clear its error (`deploy arm enable --clear-errors`) and check its supply")
+    return time.perf_counter()
 
 
 def check_motor_range(c: MotorChannel, limits: SafetyLimits, i: int) -> None:

@@ -24,11 +24,10 @@ if TYPE_CHECKING:
 CAN_ERR_CRTL, CAN_ERR_BUSOFF, CAN_ERR_RESTARTED = 0x004, 0x040, 0x100
 CAN_ERR_CRTL_RX_PASSIVE, CAN_ERR_CRTL_TX_PASSIVE = 0x10, 0x20
 
-FIX_BUS_OFF = ("check the CAN wiring, both 120 ohm terminations and the motor power, then restart the interface "
-               "(`sudo ip link set can0 down && sudo ip link set can0 up type can bitrate 1000000 restart-ms 100`)")
 FIX_PASSIVE = "too many bus errors: check the bitrate matches the motors, the wiring and the terminations"
 # the pip package an interface of python-can needs (its extra); the others need their vendor's driver
-INTERFACE_PACKAGES = {"slcan": "pyserial", "serial": "pyserial", "robotell": "pyserial", "seeedstudio": "pyserial",
+INTERFACE_PACKAGES = {"damiao": "python-can-damiao", "slcan": "pyserial", "serial": "pyserial", "robotell": "pyserial",
+                      "seeedstudio": "pyserial",
                       "gs_usb": "gs-usb", "cantact": "cantact", "canalystii": "canalystii", "neovi": "python-ics",
                       "nixnet": "nixnet", "udp_multicast": "msgpack"}
 FIX_NOBUFS = ("the transmit queue is full (frames are not acknowledged): check that the motors are powered and "
@@ -49,11 +48,14 @@ class CanBus:
         pump: Callable[[], None] | None = None,
     ) -> None:
         self.channel, self.interface, self.fd = channel, interface, fd
+        self.fix_bus_off = fix_bus_off(channel, bitrate, fd, data_bitrate)
         self.pump = pump
         kwargs: dict = {"interface": interface, "channel": channel}
         if interface not in ("virtual", "socketcan"):  # socketcan's bitrate is set with `ip link`
             kwargs["bitrate"] = bitrate
-        if fd:
+        if fd and interface == "virtual":  # python-can's in-process bus carries FD frames once told its protocol
+            kwargs["protocol"] = can.CanProtocol.CAN_FD
+        elif fd:
             kwargs.update(fd=True, data_bitrate=data_bitrate)
         can_log = logging.getLogger("can")
         level = can_log.level
@@ -61,7 +63,8 @@ class CanBus:
         try:
             self._bus = can.Bus(**kwargs)
         except (can.CanError, OSError, ValueError, ImportError) as exc:
-            if isinstance(exc, can.CanInterfaceNotImplementedError) and interface in can.interfaces.VALID_INTERFACES:
+            known = interface in can.interfaces.VALID_INTERFACES or interface in INTERFACE_PACKAGES
+            if isinstance(exc, can.CanInterfaceNotImplementedError) and known:
                 raise missing_driver_error(exc, interface) from exc
             raise CanBusError(
                 f"CAN interface {interface!r} channel {channel!r} cannot be opened ({exc}): check the adapter is "
@@ -78,14 +81,15 @@ class CanBus:
         return cls(c.channel, c.interface, c.bitrate, c.fd, c.data_bitrate, pump=pump)
 
     def send(self, arbitration_id: int, data: bytes) -> None:
-        """Send one standard-id frame; CanBusError naming the cause when the bus refuses it."""
+        """Send one standard-id frame (CAN FD with bitrate switch on an FD bus); CanBusError naming the cause when
+        the bus refuses it."""
         msg = can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False, is_fd=self.fd,
                           bitrate_switch=self.fd)
         try:
             with critical:  # python-can's virtual bus holds queue locks: a signal waits for the send's end
                 self._bus.send(msg, timeout=0.001)
         except (can.CanError, OSError) as exc:
-            raise classify_send_error(exc, self.channel, arbitration_id) from exc
+            raise classify_send_error(exc, self.channel, arbitration_id, self.fix_bus_off) from exc
 
     def recv(self, timeout: float) -> can.Message | None:
         """The next data frame within `timeout` s (None if none); CanBusError on an error frame or a dead bus."""
@@ -98,7 +102,7 @@ class CanBus:
                         self.pump()
                     msg = self._bus.recv(0.0 if self.pump is not None else remaining)
             except (can.CanError, OSError) as exc:
-                raise CanBusError(f"CAN {self.channel}: receive failed ({exc}): {FIX_BUS_OFF}") from exc
+                raise CanBusError(f"CAN {self.channel}: receive failed ({exc}): {self.fix_bus_off}") from exc
             if msg is not None and msg.is_error_frame:
                 self._raise_error_frame(msg)
             elif msg is not None:
@@ -120,7 +124,7 @@ class CanBus:
         except (NotImplementedError, can.CanError, OSError):
             return
         if state == can.BusState.ERROR:
-            raise CanBusError(f"CAN {self.channel} is bus-off: {FIX_BUS_OFF}")
+            raise CanBusError(f"CAN {self.channel} is bus-off: {self.fix_bus_off}")
         if state == can.BusState.PASSIVE:
             raise CanBusError(f"CAN {self.channel} is error-passive: {FIX_PASSIVE}")
 
@@ -128,7 +132,7 @@ class CanBus:
         cls = msg.arbitration_id
         detail = msg.data[1] if len(msg.data) > 1 else 0
         if cls & CAN_ERR_BUSOFF:
-            raise CanBusError(f"CAN {self.channel} went bus-off (error frame): {FIX_BUS_OFF}")
+            raise CanBusError(f"CAN {self.channel} went bus-off (error frame): {self.fix_bus_off}")
         if cls & CAN_ERR_CRTL and detail & (CAN_ERR_CRTL_RX_PASSIVE | CAN_ERR_CRTL_TX_PASSIVE):
             raise CanBusError(f"CAN {self.channel} controller is error-passive (error frame): {FIX_PASSIVE}")
         if cls & CAN_ERR_RESTARTED:
@@ -158,9 +162,18 @@ def missing_driver_error(exc: Exception, interface: str) -> CanBusError:
                        f"({exc}): {fix}")
 
 
-def classify_send_error(exc: Exception, channel: str, arbitration_id: int) -> CanBusError:
-    """The CanBusError for a failed send: a full transmit queue (ENOBUFS) or anything else."""
+def fix_bus_off(channel: str, bitrate: int, fd: bool, data_bitrate: int) -> str:
+    """What to do after a bus-off on `channel`: the checks, and the `ip link` line that restarts it as configured
+    (classic CAN or CAN FD at its bitrates)."""
+    link = f"type can bitrate {bitrate}" + (f" dbitrate {data_bitrate} fd on" if fd else "")
+    return ("check the CAN wiring, both 120 ohm terminations and the motor power, then restart the interface "
+            f"(`sudo ip link set {channel} down && sudo ip link set {channel} up {link} restart-ms 100`)")
+
+
+def classify_send_error(exc: Exception, channel: str, arbitration_id: int, fix: str) -> CanBusError:
+    """The CanBusError for a failed send: a full transmit queue (ENOBUFS) or anything else (`fix`: what to do after a
+    bus-off)."""
     code = getattr(exc, "error_code", None) or getattr(exc, "errno", None)
     if code == errno.ENOBUFS or "No buffer space" in str(exc):
         return CanBusError(f"CAN {channel}: No buffer space available sending to 0x{arbitration_id:X}: {FIX_NOBUFS}")
-    return CanBusError(f"CAN {channel}: sending to 0x{arbitration_id:X} failed ({exc}): {FIX_BUS_OFF}")
+    return CanBusError(f"CAN {channel}: sending to 0x{arbitration_id:X} failed ({exc}): {fix}")

@@ -1,6 +1,9 @@
 """Disabling every motor and knowing which ones did: a Damiao motor answers a disable with a feedback frame whose
 status is no longer "enabled", so a disable counts only once that answer came. A motor that never answers (a
-bus-off, a silent or unpowered motor, lost frames) may still be enabled, and every message says so by name.
+bus-off, a silent or unpowered motor, lost frames) may still be enabled, and every message says so by name, unless
+its communication timeout was set at enable and read back (drivers/arm/motor_channels.py `set_timeout`): once no
+command has reached it for that long it has disabled itself (`wait_for_timeouts`), and the messages say so, with
+the timeout as the cause.
 """
 
 from __future__ import annotations
@@ -65,13 +68,32 @@ def _disable(bus: CanBus, channels: list[MotorChannel], timeout_s: float, lock: 
     return list(pending.values())
 
 
-def motor_states(channels: Iterable[MotorChannel], unconfirmed: set[str]) -> list[dict]:
+def wait_for_timeouts(channels: Iterable[MotorChannel], last_command_s: float) -> list[MotorChannel]:
+    """The motors of `channels` (whose disable went unanswered) that hold a communication timeout: wait until that
+    long has passed since `last_command_s` (time.perf_counter of the last command sent to any motor: none reached
+    them later), after which each has disabled itself. Never raises; a signal waits for its end."""
+    timed = [c for c in channels if c.timeout_s]
+    if timed:
+        with critical:
+            time.sleep(max(0.0, last_command_s + max(c.timeout_s for c in timed) - time.perf_counter()))
+    return timed
+
+
+def motor_states(channels: Iterable[MotorChannel], unconfirmed: set[str],
+                 timed_out: frozenset[str] | set[str] = frozenset()) -> list[dict]:
     """Every motor's final state as the driver knows it: name, CAN id, enabled (True where a disable was not
-    confirmed: it may still be), status (the last feedback's, "no answer" where a disable went unanswered)."""
+    confirmed: it may still be), status (the last feedback's, "no answer" where a disable went unanswered, "timed
+    out" where it went unanswered but the motor's communication timeout has since disabled it: then `cause` says
+    so)."""
     states = []
     for c in channels:
         fb = c.feedback
-        if c.name in unconfirmed:
+        if c.name in timed_out:
+            ms = round(c.timeout_s * 1e3, 1)
+            states.append({"name": c.name, "can_id": c.config.can_id, "enabled": False, "status": "timed out",
+                           "timeout_ms": ms, "cause": f"its disable went unanswered, but no command has reached it for "
+                           f"its {ms:g} ms communication timeout: it has disabled itself"})
+        elif c.name in unconfirmed:
             states.append({"name": c.name, "can_id": c.config.can_id, "enabled": True, "status": "no answer"})
         else:
             status = fb.status.name.lower().replace("_", "-") if fb is not None else "no feedback"
@@ -81,23 +103,43 @@ def motor_states(channels: Iterable[MotorChannel], unconfirmed: set[str]) -> lis
 
 
 def disable_summary(states: list[dict]) -> str:
-    """"all N motors disabled", or the motors that may still be enabled and what to do about them."""
+    """"all N motors disabled" (and which disabled themselves by their timeout), or the motors that may still be
+    enabled and what to do about them."""
     left = _still_enabled(states)
-    return f"all {len(states)} {MOTORS_DISABLED}" if not left else _not_disabled(left, len(states))
+    return _all_disabled(states) if not left else _not_disabled(left, len(states))
 
 
 def with_summary(message: str, states: list[dict]) -> str:
     """`message` telling the truth about the motors, built from their states: when every motor confirmed, the
-    message as it is if it says "motors disabled", else with the count added; when some did not, the words
-    "motors disabled" (or the message's end) become which ones may still be enabled. Idempotent."""
-    left = _still_enabled(states)
-    if not left:
+    message as it is if it says "motors disabled", else with the count added; when some disabled themselves by
+    their timeout or may still be enabled, the words "motors disabled" (or the message's end) say so. Idempotent."""
+    left, timed = _still_enabled(states), _timed_out(states)
+    if not left and not timed:
         return message if MOTORS_DISABLED in message else f"{message}; {disable_summary(states)}"
-    outcome = _not_disabled(left, len(states))
+    outcome = disable_summary(states)
     if outcome in message:  # already told (the CLI may add the states of an error the driver reported)
         return message
     before, said, after = message.partition(MOTORS_DISABLED)
     return f"{before}{outcome}{after}" if said else f"{message}; {outcome}"
+
+
+def _all_disabled(states: list[dict]) -> str:
+    timed = _timed_out(states)
+    if not timed:
+        return f"all {len(states)} {MOTORS_DISABLED}"
+    ms = max(s["timeout_ms"] for s in states if s.get("status") == "timed out")
+    if len(timed) == len(states):
+        return (f"all {len(states)} {MOTORS_DISABLED}: none answered the disable, but each has disabled itself by "
+                f"its own {ms:g} ms communication timeout, no command having reached it for that long")
+    one = len(timed) == 1
+    return (f"all {len(states)} {MOTORS_DISABLED}: {', '.join(timed)} did not answer the disable but "
+            f"{'has disabled itself by its' if one else 'have disabled themselves by their'} own {ms:g} ms "
+            f"communication timeout, no command having reached {'it' if one else 'them'} for that long")
+
+
+def _timed_out(states: list[dict]) -> list[str]:
+    """The motors that did not answer the disable but have disabled themselves by their communication timeout."""
+    return [s["name"] for s in states if s.get("status") == "timed out"]
 
 
 def _still_enabled(states: list[dict]) -> list[str]:

@@ -22,6 +22,8 @@ LIMIT_BAND_RAD, LIMIT_WEIGHT = 1.0, 20.0  # track(): joints this near a limit al
 TRACK_POSTURE_SHARE = 0.5  # track(): the posture step saturates at this share of a joint's step limit
 IK_STALL_WINDOW, IK_STALL_RATIO = 20, 0.9  # give up when 20 iterations shrink the error < 10 %
 PATH_MAX_JOINT_STEP_RAD = 0.5  # a larger jump between path waypoints means IK switched branch
+GENERIC_SEEDS = 8  # well_conditioned_start on an arm of another layout: seeds drawn around its start ...
+GENERIC_SPREAD_RAD = 0.4  # ... this far (std per joint)
 
 
 class Kinematics:
@@ -312,14 +314,11 @@ def well_conditioned_start(
     kin: Kinematics, poses: Sequence[np.ndarray], q_template: np.ndarray, margin_rad: float = 0.1
 ) -> np.ndarray | None:
     """Joints at poses[0] from which every pose of the sequence is reached continuously, clear of the joint
-    limits by `margin_rad`, choosing among a few elbow seeds facing poses[0] the one whose path stays
-    farthest from singularities (largest smallest singular value of the Jacobian). A redundant arm needs
-    this: per-tick IK started near a singularity turns joints 1 and 3 fast. None when no seed works."""
+    limits by `margin_rad`, choosing among a few seeds (`_start_seeds`) the one whose path stays farthest from
+    singularities (largest smallest singular value of the Jacobian). A redundant arm needs this: per-tick IK
+    started near a singularity turns joints 1 and 3 fast. None when no seed works."""
     best, best_score = None, -np.inf
-    first = poses[0][:3, 3]
-    for q2, q4 in itertools.product((-0.6, 0.0, 0.6), (-2.6, -1.9)):
-        seed = np.array(q_template, float)
-        seed[:4] = np.arctan2(first[1], first[0]), q2, 0.0, q4
+    for seed in _start_seeds(kin, poses[0][:3, 3], np.array(q_template, float)):
         try:
             qs = kin.solve_path(poses, seed, restarts=0)
         except ArmError:
@@ -330,6 +329,24 @@ def well_conditioned_start(
         if score > best_score:
             best, best_score = qs[0], score
     return best
+
+
+def _start_seeds(kin: Kinematics, first: np.ndarray, q_template: np.ndarray) -> list[np.ndarray]:
+    """Elbow seeds facing `first` for an arm whose first joint turns about the vertical and whose fourth is the
+    elbow (the Panda's layout: the first joint toward the point, the second at -0.6, 0 or 0.6 rad, the fourth at
+    -2.6 or -1.9 rad), those of them that lie within the joint limits; when none does (another layout, such as
+    OpenArm's shoulder), the template and GENERIC_SEEDS fixed draws around it (GENERIC_SPREAD_RAD per joint, within
+    the limits): postures like the arm's own start, not whatever IK reaches first."""
+    seeds = []
+    for q2, q4 in itertools.product((-0.6, 0.0, 0.6), (-2.6, -1.9)):
+        seed = q_template.copy()
+        seed[:4] = np.arctan2(first[1], first[0]), q2, 0.0, q4
+        if np.all(seed >= kin.q_min) and np.all(seed <= kin.q_max):
+            seeds.append(seed)
+    if seeds:
+        return seeds
+    draws = np.random.default_rng(0).normal(0.0, GENERIC_SPREAD_RAD, (GENERIC_SEEDS, kin.dof))
+    return [q_template, *np.clip(q_template + draws, kin.q_min, kin.q_max)]
 
 
 def _is_pose(T: np.ndarray) -> bool:

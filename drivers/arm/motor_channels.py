@@ -22,8 +22,10 @@ from drivers.arm.damiao import (
     PARAM_ID,
     REG_MST_ID,
     REG_PMAX,
+    REG_TIMEOUT,
     REG_TMAX,
     REG_VMAX,
+    TIMEOUT_UNIT_S,
     Feedback,
     FrameError,
     MotorLimits,
@@ -31,7 +33,9 @@ from drivers.arm.damiao import (
     is_param_reply,
     pack_mit,
     param_read,
+    param_write,
     refresh_request,
+    timeout_steps,
     unpack_feedback,
     unpack_param_reply,
 )
@@ -46,11 +50,13 @@ T = TypeVar("T")
 
 @dataclass
 class MotorChannel:
-    """One motor on the bus: its config, the limits read from it, and its latest feedback."""
+    """One motor on the bus: its config, the limits read from it, the communication timeout it holds (s, read back
+    after setting it; None before), and its latest feedback."""
 
     name: str
     config: MotorConfig
     limits: MotorLimits
+    timeout_s: float | None = None
     feedback: Feedback | None = None
     t_feedback: float = -np.inf
     malformed: int = 0
@@ -93,6 +99,7 @@ class MotorChannel:
             "tau": None if fb is None else self.to_joint(fb.tau, "tau"),
             "t_mos_c": None if fb is None else fb.t_mos_c, "t_rotor_c": None if fb is None else fb.t_rotor_c,
             "p_max": self.limits.p_max, "v_max": self.limits.v_max, "t_max": self.limits.t_max,
+            "timeout_ms": None if self.timeout_s is None else round(self.timeout_s * 1e3, 1),
         }
 
 
@@ -162,6 +169,33 @@ def read_limits(bus: CanBus, c: MotorChannel, timeout_s: float) -> MotorLimits:
     except ValueError as exc:
         raise ArmError(f"motor {c.describe()} reports invalid limits {values}: {exc}; check its firmware "
                        "settings with the Damiao tool") from exc
+
+
+def set_timeout(bus: CanBus, c: MotorChannel, timeout_s: float, reply_timeout_s: float) -> None:
+    """Write the communication timeout of channel `c`'s motor (REG_TIMEOUT, in TIMEOUT_UNIT_S steps) and read it
+    back; `c.timeout_s` then holds what the motor holds. ArmError naming the motor when it does not answer or holds
+    another value."""
+    steps = timeout_steps(timeout_s)
+    who = c.describe()
+
+    def reply(msg: can.Message) -> float | None:
+        data = bytes(msg.data)
+        if msg.arbitration_id == c.config.master_id and is_param_reply(data, c.config.can_id):
+            answer = unpack_param_reply(data)
+            return answer.value if answer.register == REG_TIMEOUT else None
+        return None
+
+    if request_reply(bus, PARAM_ID, param_write(c.config.can_id, REG_TIMEOUT, steps), reply, reply_timeout_s) is None:
+        raise ArmError(f"motor {who} did not answer the write of its communication timeout (register {REG_TIMEOUT}) "
+                       f"{REQUEST_ATTEMPTS} times within {reply_timeout_s * 1e3:.0f} ms: check its power, CAN id, "
+                       "master id and the bus bitrate (`deploy arm scan`)")
+    held = read_param(bus, c.config.can_id, c.config.master_id, REG_TIMEOUT, reply_timeout_s, who)
+    if int(held) != steps:
+        raise ArmError(f"motor {who} holds a communication timeout of {held * TIMEOUT_UNIT_S * 1e3:g} ms after "
+                       f"{timeout_s * 1e3:g} ms was written (register {REG_TIMEOUT}, {TIMEOUT_UNIT_S * 1e6:g} us "
+                       "steps): without it the motor would not disable itself when the bus is lost; update its "
+                       "firmware with the Damiao tool")
+    c.timeout_s = held * TIMEOUT_UNIT_S
 
 
 def _is_feedback_of(msg: can.Message, master_id: int, can_id: int) -> bool:
@@ -234,35 +268,41 @@ def check_feedback(c: MotorChannel, age_s: float, watchdog: WatchdogConfig, tau_
 
 @dataclass(frozen=True)
 class ScannedMotor:
-    """A motor that answered a scan: its ids, status and the limits its registers hold."""
+    """A motor that answered a scan: its ids, status, the limits and communication timeout (s) its registers hold,
+    and whether its feedback came in CAN FD frames."""
 
     can_id: int
     master_id: int
     status: str
     limits: MotorLimits
+    timeout_s: float
+    fd: bool
 
     def to_dict(self) -> dict:
         return {"can_id": self.can_id, "master_id": self.master_id, "status": self.status,
-                "p_max": self.limits.p_max, "v_max": self.limits.v_max, "t_max": self.limits.t_max}
+                "p_max": self.limits.p_max, "v_max": self.limits.v_max, "t_max": self.limits.t_max,
+                "timeout_ms": round(self.timeout_s * 1e3, 1), "fd": self.fd}
 
 
-def _status_reply(master_id: int, can_id: int, limits: MotorLimits) -> Callable[[can.Message], str | None]:
-    """The scan's reply parser: the status name of the motor's first feedback frame ("malformed feedback" if bad)."""
+def _status_reply(master_id: int, can_id: int, limits: MotorLimits) -> Callable[[can.Message], tuple | None]:
+    """The scan's reply parser: the status name of the motor's first feedback frame ("malformed feedback" if bad)
+    and whether it came as a CAN FD frame."""
 
-    def reply(msg: can.Message) -> str | None:
+    def reply(msg: can.Message) -> tuple[str, bool] | None:
         if not _is_feedback_of(msg, master_id, can_id):
             return None
         try:
-            return unpack_feedback(bytes(msg.data), limits).status.name.lower()
+            return unpack_feedback(bytes(msg.data), limits).status.name.lower(), bool(msg.is_fd)
         except FrameError:
-            return "malformed feedback"
+            return "malformed feedback", bool(msg.is_fd)
 
     return reply
 
 
 def scan_bus(bus: CanBus, ids: range, timeout_s: float = 0.02) -> list[ScannedMotor]:
-    """Which CAN ids answer: each id's master id (register 7), PMAX/VMAX/TMAX and status (one feedback frame,
-    requested without changing the motor's state). Ids that do not answer are skipped."""
+    """Which CAN ids answer: each id's master id (register 7), PMAX/VMAX/TMAX, communication timeout and status
+    (one feedback frame, requested without changing the motor's state), and whether it answered in CAN FD frames.
+    Ids that do not answer are skipped."""
     found = []
     for can_id in ids:
         try:
@@ -270,9 +310,10 @@ def scan_bus(bus: CanBus, ids: range, timeout_s: float = 0.02) -> list[ScannedMo
         except ArmError:
             continue
         values = [read_param(bus, can_id, master, r, timeout_s, f"CAN id {can_id}") for r in
-                  (REG_PMAX, REG_VMAX, REG_TMAX)]
-        limits = MotorLimits(*values)
+                  (REG_PMAX, REG_VMAX, REG_TMAX, REG_TIMEOUT)]
+        limits = MotorLimits(*values[:3])
         answer = request_reply(bus, PARAM_ID, refresh_request(can_id), _status_reply(master, can_id, limits),
                                timeout_s, attempts=1)
-        found.append(ScannedMotor(can_id, master, answer or "no feedback", limits))
+        status, fd = answer or ("no feedback", False)
+        found.append(ScannedMotor(can_id, master, status, limits, values[3] * TIMEOUT_UNIT_S, fd))
     return found

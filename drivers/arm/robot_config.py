@@ -24,7 +24,7 @@ from drivers.arm.base import GRIP_FORCE_N
 from drivers.arm.damiao.config import GripperConfig, JointConfig, MotorConfig, StrictModel, WatchdogConfig
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.motion import Compliance
-from drivers.arm.robots import RobotSpec
+from drivers.arm.robots import Reach, RobotSpec
 from drivers.arm.safety import SafetyGuard, SafetyLimits
 from drivers.arm.trajectory import MotionLimits
 from drivers.errors import ArmError
@@ -78,6 +78,26 @@ class ComplianceConfig(StrictModel):
                           self.filter_time_constant_s)
 
 
+class ReachConfig(StrictModel):
+    """Where simulated scenes put the grip of the part to open, in the base frame (m): its horizontal distance from
+    the base and its height above it, per task (`drivers.arm.robots.Reach`; defaults: the Panda's)."""
+
+    drawer_distance_m: tuple[float, float] = Reach.drawer_distance_m
+    drawer_height_m: tuple[float, float] = Reach.drawer_height_m
+    door_distance_m: tuple[float, float] = Reach.door_distance_m
+    door_height_m: tuple[float, float] = Reach.door_height_m
+
+    @model_validator(mode="after")
+    def _bands(self) -> ReachConfig:
+        for key, (lo, hi) in self:
+            if lo > hi:
+                raise ValueError(f"reach.{key}: the band's low end {lo:g} is above its high end {hi:g}")
+        return self
+
+    def reach(self) -> Reach:
+        return Reach(**dict(self))
+
+
 class RobotConfig(StrictModel):
     """A whole arm. `urdf` is a path (relative to the config file) or `pybullet_data:<relative path>`."""
 
@@ -86,7 +106,9 @@ class RobotConfig(StrictModel):
     base_frame: str
     tool_frame: str
     locked_joints: list[str] = []
+    finger_joint_per_m: list[float] | None = None  # each locked (finger) joint per metre of opening; None: 0.5 each
     q_ready: list[float]
+    q_start: list[float] | None = None  # where simulated scenes start the arm (None: q_ready)
     workspace_min: WorkspaceCorner
     workspace_max: WorkspaceCorner
     control_rate_hz: float = Field(500.0, ge=MIN_CONTROL_RATE_HZ, le=2000)
@@ -94,6 +116,7 @@ class RobotConfig(StrictModel):
     can: CanConfig = CanConfig()
     watchdog: WatchdogConfig = WatchdogConfig()
     compliance: ComplianceConfig = ComplianceConfig()
+    reach: ReachConfig = ReachConfig()
     grip_force_n: float = Field(GRIP_FORCE_N, gt=0, le=MAX_GRIP_FORCE_N)  # the squeeze a grasp closes with
     joints: list[JointConfig] = Field(min_length=1)
     gripper: GripperConfig | None = None
@@ -101,8 +124,13 @@ class RobotConfig(StrictModel):
 
     @model_validator(mode="after")
     def _consistent(self) -> RobotConfig:
-        if len(self.q_ready) != len(self.joints):
-            raise ValueError(f"q_ready has {len(self.q_ready)} values for {len(self.joints)} joints")
+        for key in ("q_ready", "q_start"):
+            values = getattr(self, key)
+            if values is not None and len(values) != len(self.joints):
+                raise ValueError(f"{key} has {len(values)} values for {len(self.joints)} joints")
+        if self.finger_joint_per_m is not None and len(self.finger_joint_per_m) != len(self.locked_joints):
+            raise ValueError(f"finger_joint_per_m has {len(self.finger_joint_per_m)} values for "
+                             f"{len(self.locked_joints)} locked_joints: give one per finger joint")
         if any(lo >= hi for lo, hi in zip(self.workspace_min, self.workspace_max, strict=True)):
             raise ValueError("workspace_min must be below workspace_max on every axis")
         for key in ("can_id", "master_id"):
@@ -110,6 +138,11 @@ class RobotConfig(StrictModel):
             if len(set(ids)) != len(ids):
                 raise ValueError(f"two motors share a {key}: {ids}")
         self._master_ids_apart()
+        late_s = (self.watchdog.max_late_cycles + 1) / self.control_rate_hz
+        if self.watchdog.motor_timeout_s <= late_s:
+            raise ValueError(f"watchdog.motor_timeout_s {self.watchdog.motor_timeout_s:g} s would disable the motors "
+                             f"between two commands of a running arm (a cycle may come {late_s:g} s after the last "
+                             "at this control rate and max_late_cycles): give more")
         for j, q in zip(self.joints, self.q_ready, strict=True):
             if j.q_min is not None and j.q_max is not None and j.q_min >= j.q_max:
                 raise ValueError(f"joint {j.name}: q_min must be below q_max")
@@ -128,6 +161,17 @@ class RobotConfig(StrictModel):
                 raise ValueError(f"{m.label}'s master_id {m.master_id:#x} is {by_can_id[m.master_id]}'s "
                                  f"can_id: its feedback would reach {by_can_id[m.master_id]} as commands; give "
                                  "every motor a master_id no motor uses as can_id (e.g. can_id + 0x10)")
+
+    def with_can(self, **settings) -> RobotConfig:
+        """This config with [can] settings replaced (interface, channel, bitrate, fd, data_bitrate: the command
+        line's); ArmError naming a bad one."""
+        if not settings:
+            return self
+        try:
+            can = CanConfig.model_validate({**self.can.model_dump(), **settings})
+        except ValidationError as exc:
+            raise ArmError(f"CAN settings {settings}: {_problems(exc)}: fix the option") from exc
+        return self.model_copy(update={"can": can})
 
     @property
     def label(self) -> str:
@@ -167,9 +211,11 @@ class RobotConfig(StrictModel):
         return RobotSpec(
             name=self.name, urdf=self.urdf_path(), arm_joints=tuple(self.joint_names),
             finger_joints=tuple(self.locked_joints), tool_frame=self.tool_frame, q_ready=np.array(self.q_ready),
+            finger_joint_per_m=tuple(self.finger_joint_per_m or [0.5] * len(self.locked_joints)),
+            q_start=None if self.q_start is None else np.array(self.q_start),
             gripper_max_width_m=width, a_max=np.array([j.a_max for j in self.joints]),
             j_max=np.array([j.j_max for j in self.joints]), workspace_min=np.array(self.workspace_min),
-            workspace_max=np.array(self.workspace_max),
+            workspace_max=np.array(self.workspace_max), reach=self.reach.reach(),
         )
 
     def kinematics(self) -> Kinematics:

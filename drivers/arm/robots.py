@@ -10,13 +10,38 @@ import pybullet_data
 
 
 @dataclass(frozen=True)
+class Reach:
+    """Where an arm grasps a handle and pulls it comfortably, in its base frame (m): per task, the grip's horizontal
+    distance from the base and its height above the base. Simulated scenes park the robot so that the target's grip
+    falls in these bands, as a user parks an arm in front of what it must open (`scripts/reach_scan.py` maps an
+    arm's). The defaults are the Panda's: a 45 cm drawer pull and a door's swing stay clear of its joint limits."""
+
+    drawer_distance_m: tuple[float, float] = (0.55, 0.68)
+    drawer_height_m: tuple[float, float] = (0.72, 0.86)
+    door_distance_m: tuple[float, float] = (0.5, 0.85)
+    door_height_m: tuple[float, float] = (0.62, 0.78)
+
+    def distance(self, task: str) -> tuple[float, float]:
+        return self.drawer_distance_m if task == "drawer" else self.door_distance_m
+
+    def height(self, task: str) -> tuple[float, float]:
+        return self.drawer_height_m if task == "drawer" else self.door_height_m
+
+
+PANDA_REACH = Reach()
+
+
+@dataclass(frozen=True)
 class RobotSpec:
     """What the kinematics, safety and motion code need to know about one arm model.
 
     `tool_frame` is the URDF frame the grasp is planned for; `q_ready` (rad) holds the hand
     forward-horizontal in front of the robot; `a_max` (rad/s^2) and `j_max` (rad/s^3) are the
     per-joint hardware limits (velocity limits come from the URDF); the workspace box bounds the
-    tool position in the base frame (m).
+    tool position in the base frame (m). `finger_joint_per_m`: each finger joint's value (m or rad) per metre of
+    gripper opening (two prismatic fingers: 0.5 each; hinged fingers: their angle, linearised). `q_start` (rad):
+    where the arm starts in simulated scenes, around which they jitter it (None: q_ready). `reach`: where simulated
+    scenes put the target's grip.
     """
 
     name: str
@@ -30,6 +55,23 @@ class RobotSpec:
     j_max: np.ndarray
     workspace_min: np.ndarray
     workspace_max: np.ndarray
+    finger_joint_per_m: tuple[float, ...] = (0.5, 0.5)
+    q_start: np.ndarray | None = None
+    reach: Reach = PANDA_REACH
+
+    @property
+    def start(self) -> np.ndarray:
+        """The simulated scenes' start configuration (q_start, else q_ready)."""
+        return self.q_ready if self.q_start is None else self.q_start
+
+    def finger_positions(self, width_m: float) -> list[float]:
+        """The finger joints' values at gripper opening `width_m`."""
+        return [k * width_m for k in self.finger_joint_per_m]
+
+    def gripper_width(self, finger_positions) -> float:
+        """The gripper opening (m) the finger joints' values read (their mean)."""
+        return float(sum(q / k for q, k in zip(finger_positions, self.finger_joint_per_m, strict=True))
+                     / len(self.finger_joint_per_m))
 
 
 def panda_urdf() -> Path:
@@ -59,6 +101,7 @@ def panda() -> RobotSpec:
         j_max=np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0]),
         workspace_min=np.array([-0.9, -0.9, 0.02]),
         workspace_max=np.array([0.9, 0.9, 1.25]),
+        q_start=np.array([0.0, -1.2523, 0.0, -2.6382, 0.0, 2.9565, 0.7854]),
     )
 
 

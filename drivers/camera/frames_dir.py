@@ -23,6 +23,7 @@ from drivers.errors import CameraError, RecordingError
 FORMAT = "axisloop-frames"
 RUN_FRAMES = "frames"  # a run folder's recording
 VERSION = 1
+DEPTH_SCALE = 0.001  # metres per depth unit unless the writer is told otherwise (millimetres)
 _INTRINSICS_FIELDS = ("width", "height", "fx", "fy", "cx", "cy")
 
 
@@ -48,18 +49,20 @@ class FramesWriter:
     is refused unless the caller says it replaces it (`replace=True`: the whole folder is removed first, so no file
     of the old recording survives); any other non-empty directory is always refused. `camera` (the spec it came
     from) and `simulated` (frames rendered by a simulator) go to meta.json: they choose the filter profile on replay;
-    so does `robot` (the robot config the joints belong to: a shipped config's name or a file), where given.
+    so does `min_range_m`, the camera's minimum range (None: not known), which perception drops depth below.
+    `robot`: the robot config the joints belong to (a shipped config's name or a file), where given.
     """
 
     def __init__(
         self,
         path: str | Path,
         intrinsics: Intrinsics,
-        depth_scale: float = 0.001,
+        depth_scale: float = DEPTH_SCALE,
         T_base_camera: np.ndarray | None = None,
         camera: str | None = None,
         simulated: bool = False,
         replace: bool = False,
+        min_range_m: float | None = None,
         robot: str | None = None,
     ) -> None:
         if not (math.isfinite(depth_scale) and depth_scale > 0):
@@ -76,6 +79,7 @@ class FramesWriter:
             "T_base_camera": _pose_list(T_base_camera, "T_base_camera"),
             "camera": camera,
             "simulated": bool(simulated),
+            "min_range_m": min_range_m,
         }
         if robot is not None:
             meta["robot"] = robot
@@ -288,6 +292,8 @@ class FramesRecording:
         self.depth_scale: float = meta["depth_scale"]
         self.T_base_camera: np.ndarray | None = meta["T_base_camera"]
         self.camera: str | None = meta["camera"]
+        self.min_range_m: float | None = meta["min_range_m"]
+        """The recording camera's minimum range (m), when meta.json says it."""
         self.robot: str | None = meta["robot"]
         """The robot config the joints belong to (a shipped config's name or a file), where the writer knew it."""
         self.simulated: bool = meta["simulated"] or (self.path / "truth.json").is_file()
@@ -319,9 +325,12 @@ class FramesRecording:
             raise RecordingError(f"{file}: intrinsics field(s) {', '.join(missing)} missing; {fix}")
         try:
             intr = Intrinsics(
-                int(raw["width"]), int(raw["height"]), *(float(raw[k]) for k in ("fx", "fy", "cx", "cy"))
+                int(raw["width"]), int(raw["height"]), *(float(raw[k]) for k in ("fx", "fy", "cx", "cy")),
+                raw.get("distortion", "none"), tuple(float(c) for c in raw.get("coeffs", [0.0] * 5)),
             )
-            depth_scale = float(meta.get("depth_scale", 0.001))
+            depth_scale = float(meta.get("depth_scale", DEPTH_SCALE))
+            min_range = meta.get("min_range_m")
+            min_range = None if min_range is None else float(min_range)
             pose = meta.get("T_base_camera")
             pose = None if pose is None else np.asarray(pose, np.float64)
         except (TypeError, ValueError, OverflowError) as e:
@@ -332,6 +341,10 @@ class FramesRecording:
             raise RecordingError(f"{file}: intrinsics {intr.to_dict()} are not a valid camera; {fix}")
         if not (math.isfinite(depth_scale) and depth_scale > 0):
             raise RecordingError(f"{file}: depth_scale must be positive (m/unit), not {depth_scale}; {fix}")
+        if min_range is not None and not (math.isfinite(min_range) and min_range >= 0):
+            raise RecordingError(f"{file}: min_range_m must be a distance >= 0 (m) or null, not {min_range}; {fix}")
+        if not all(math.isfinite(c) for c in intr.coeffs):
+            raise RecordingError(f"{file}: intrinsics coeffs must be finite numbers, not {list(intr.coeffs)}; {fix}")
         if pose is not None and (pose.shape != (4, 4) or not np.all(np.isfinite(pose))):
             raise RecordingError(f"{file}: T_base_camera must be a 4x4 row-major nested list or null; {fix}")
         camera, simulated, robot = meta.get("camera"), meta.get("simulated", False), meta.get("robot")
@@ -339,7 +352,7 @@ class FramesRecording:
             raise RecordingError(f"{file}: camera and robot must be strings or null and simulated true or false; "
                                  f"{fix}")
         return {"intrinsics": intr, "depth_scale": depth_scale, "T_base_camera": pose, "camera": camera,
-                "simulated": simulated, "robot": robot}
+                "simulated": simulated, "min_range_m": min_range, "robot": robot}
 
     @property
     def records(self) -> list[dict]:
@@ -484,6 +497,10 @@ class FramesReplayCamera(Camera):
     @property
     def depth_scale(self) -> float:
         return self.recording.depth_scale
+
+    @property
+    def min_range_m(self) -> float | None:
+        return self.recording.min_range_m
 
     def connect(self) -> None:
         self._next = 0

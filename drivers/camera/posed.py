@@ -29,6 +29,10 @@ class PosedCamera(Camera):
     def depth_scale(self) -> float:
         return self.camera.depth_scale
 
+    @property
+    def min_range_m(self) -> float | None:
+        return self.camera.min_range_m
+
     def connect(self) -> None:
         self.camera.connect()
 

@@ -1,4 +1,6 @@
-"""The live Intel RealSense D415: aligned colour + depth from a background reader, with field-failure handling.
+"""A live Intel RealSense camera of any model: aligned colour + depth from a background reader, with field-failure
+handling. The model (`RealSenseConfig.model`, or the connected camera's) sets the streams' defaults and the
+minimum range (drivers/camera/realsense_models.toml).
 
 A read that times out is retried `config.retries` times; then the camera is hardware-reset and
 reconnected and read again; if it still delivers nothing (or does not come back, e.g. unplugged), the
@@ -16,15 +18,18 @@ import pyrealsense2 as rs
 from drivers.camera.base import Camera, Frame, Intrinsics
 from drivers.camera.realsense_config import RealSenseConfig
 from drivers.camera.realsense_device import UsbLink
+from drivers.camera.realsense_models import RealSenseModel, size_text
 from drivers.camera.realsense_reader import LatestFrameReader
 from drivers.camera.realsense_stream import RealSenseStream
 from drivers.errors import CameraError
 
 
 class DeviceLink(Protocol):
-    """Where a D415Camera's pipeline comes from (`UsbLink` for a USB camera)."""
+    """Where a RealSenseCamera's pipeline comes from (`UsbLink` for a USB camera); `model` is the camera's entry
+    of the model table (None: one it does not hold), known once `pipeline_config` chose the device."""
 
     name: str
+    model: RealSenseModel | None
 
     def pipeline_config(self) -> rs.config: ...
 
@@ -33,8 +38,9 @@ class DeviceLink(Protocol):
     def reset(self) -> None: ...
 
 
-class D415Camera(Camera):
-    """A RealSense D415 streaming `config` (default 640x480 at 30 fps) from `link` (default: USB)."""
+class RealSenseCamera(Camera):
+    """A RealSense camera streaming `config` (default: its model's resolutions and rate) from `link` (default:
+    USB)."""
 
     def __init__(self, config: RealSenseConfig | None = None, link: DeviceLink | None = None) -> None:
         self.config = config or RealSenseConfig()
@@ -43,13 +49,12 @@ class D415Camera(Camera):
         self._reader: LatestFrameReader | None = None
         self._last: Frame | None = None
         self._t_offset, self._index_offset = 0.0, 0
+        self._fps: int | None = None  # the stream's, once connected
         self.resets = 0
 
     @property
     def intrinsics(self) -> Intrinsics:
-        if self._stream is None:
-            raise CameraError(f"{self.link.name} is not connected: use `with camera:` or call connect() first")
-        return self._stream.intrinsics
+        return self._connected().intrinsics
 
     @property
     def serial(self) -> str | None:
@@ -59,9 +64,19 @@ class D415Camera(Camera):
     @property
     def depth_scale(self) -> float:
         """Metres per depth unit, read from the device."""
+        return self._connected().depth_scale
+
+    @property
+    def min_range_m(self) -> float | None:
+        """The nearest depth the camera measures at its depth resolution (its model's, from the datasheet); None for
+        a RealSense the model table does not hold."""
+        stream = self._connected()
+        return None if self.link.model is None else self.link.model.min_range_m(stream.depth_size[1])
+
+    def _connected(self) -> RealSenseStream:
         if self._stream is None:
             raise CameraError(f"{self.link.name} is not connected: use `with camera:` or call connect() first")
-        return self._stream.depth_scale
+        return self._stream
 
     def connect(self) -> None:
         if self._stream is not None:
@@ -71,8 +86,8 @@ class D415Camera(Camera):
             stream = RealSenseStream(self.link.pipeline_config(), c.filters)
         except RuntimeError as exc:
             raise CameraError(
-                f"{self.link.name}: could not start colour + depth at {c.width}x{c.height} {c.fps} fps ({exc}); "
-                "check the profiles in `deploy cameras list` and that no other program uses the camera"
+                f"{self.link.name}: could not start {self._asked()} ({exc}); check the profiles in `deploy cameras "
+                "list` and that no other program uses the camera"
             ) from None
         try:
             self.link.prepare(stream.device)
@@ -82,8 +97,12 @@ class D415Camera(Camera):
         except BaseException:
             stream.stop()
             raise
-        self._stream = stream
-        self._reader = LatestFrameReader(stream.poll)
+        self._stream, self._fps = stream, stream.fps
+        self._reader = LatestFrameReader(stream.poll, stream.to_frame)
+
+    def _asked(self) -> str:
+        s = self.config.stream(self.link.model)
+        return f"colour {size_text(s.color)} + depth {size_text(s.depth)} at {s.fps} fps"
 
     def disconnect(self) -> None:
         if self._reader is not None:
@@ -133,6 +152,6 @@ class D415Camera(Camera):
         self.link.reset()
         self.resets += 1
         if self._last is not None:
-            self._t_offset = self._last.t + 1.0 / self.config.fps
+            self._t_offset = self._last.t + 1.0 / self._fps
             self._index_offset = self._last.index + 1
         self.connect()

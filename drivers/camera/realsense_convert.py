@@ -45,17 +45,19 @@ def open_recording(src: Path) -> Camera:
 
 
 def convert_recording(
-    src: str | Path, out: str | Path, depth_scale: float = 0.001, progress: Callable[[Frame], None] | None = None
+    src: str | Path, out: str | Path, depth_scale: float | None = None,
+    progress: Callable[[Frame], None] | None = None
 ) -> dict:
     """Every frame of `src`, depth aligned to colour, raw (no post-processing), with the colour stream's
-    intrinsics, written to the frames directory `out`. Depth beyond the 16-bit range of `depth_scale` is stored
-    as 0, no depth (`depth_units`). Returns {"out", "frames", "seconds", "source", "source_depth_scale",
-    "depth_out_of_range_px", "source_frames", "unpaired_frames"} (source: "realsense" or "ros2";
-    source_depth_scale: metres per unit of the source's depth; depth_out_of_range_px: the depth pixels stored as 0
-    for being beyond the range; source_frames: {"depth", "color"} frames the recording's index lists and
-    unpaired_frames: {"depth", "color"} frames without a partner in the other stream, both for a RealSense
-    recording, else None). RecordingError when librealsense played fewer frames than the recording holds (the
-    frames written stay in `out`)."""
+    intrinsics (lens model and coefficients included), written to the frames directory `out` in units of
+    `depth_scale` m (None: the source's own unit, at most 1 mm, so a D405's 0.1 mm steps are kept). Depth beyond the
+    16-bit range of `depth_scale` is stored as 0, no depth (`depth_units`). Returns {"out", "frames", "seconds",
+    "source", "depth_scale", "source_depth_scale", "depth_out_of_range_px", "source_frames", "unpaired_frames"}
+    (source: "realsense" or "ros2"; depth_scale: the directory's unit; source_depth_scale: metres per unit of the
+    source's depth; depth_out_of_range_px: the depth pixels stored as 0 for being beyond the range; source_frames:
+    {"depth", "color"} frames the recording's index lists and unpaired_frames: {"depth", "color"} frames without a
+    partner in the other stream, both for a RealSense recording, else None). RecordingError when librealsense played
+    fewer frames than the recording holds (the frames written stay in `out`)."""
     src = Path(src)
     camera = open_recording(src)
     camera.connect()

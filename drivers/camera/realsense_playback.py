@@ -25,7 +25,8 @@ import pyrealsense2 as rs
 from drivers.camera.base import Camera, Frame, Intrinsics
 from drivers.camera.depth_align import DepthAligner
 from drivers.camera.realsense_config import FilterConfig
-from drivers.camera.realsense_stream import build_filters, intrinsics_of, is_distorted, to_rgb
+from drivers.camera.realsense_models import model_of
+from drivers.camera.realsense_stream import build_filters, intrinsics_of, to_rgb
 from drivers.errors import CameraError, RecordingError
 
 SUFFIXES = (".bag", ".db3")
@@ -211,6 +212,13 @@ class RealSenseReplayCamera(Camera):
         self.connect()
         return self._depth_scale
 
+    @property
+    def min_range_m(self) -> float | None:
+        """The recorded camera's minimum range at the recording's depth resolution (its model's); None for a camera
+        the model table does not hold."""
+        self.connect()
+        return self._min_range_m
+
     def connect(self) -> None:
         if self._depth is not None:
             return
@@ -223,7 +231,8 @@ class RealSenseReplayCamera(Camera):
             self.disconnect()
             raise RecordingError(
                 f"cannot play RealSense recording {self.path}: {exc}; the file is truncated, corrupt or lacks a "
-                "colour and a depth stream: record it again (RealSense Viewer or `deploy record`)"
+                "colour and a depth stream: record it again with both streams (the RealSense Viewer's record button, or "
+                "`rs-record`), or record a frames directory instead (`deploy record --camera d415 --out DIR`)"
             ) from None
         except BaseException:  # whatever it is (Ctrl-C too), no player is left started
             self.disconnect()
@@ -238,6 +247,9 @@ class RealSenseReplayCamera(Camera):
     def _setup(self) -> None:
         depth, color = self._depth, self._color
         self._depth_scale = float(depth.sensor.as_depth_sensor().get_depth_scale())
+        product = depth.device.get_info(rs.camera_info.name) if depth.device.supports(rs.camera_info.name) else None
+        model = model_of(product)
+        self._min_range_m = None if model is None else model.min_range_m(depth.profile.height())
         self._color_format = color.profile.format()
         if self._color_format not in _COLOR_FORMATS:
             raise RuntimeError(f"colour format {self._color_format} is not RGB8/BGR8/RGBA8/BGRA8")
@@ -249,12 +261,10 @@ class RealSenseReplayCamera(Camera):
         if color_there is None:
             raise RuntimeError("no colour stream beside the depth stream")
         self._extrinsics = depth.profile.get_extrinsics_to(color_there)
-        self._registered = False  # the extrinsics between the two devices' streams, which rs.align needs
         if color.profile.fps() <= 0:
             raise RuntimeError(f"its colour stream has no frame rate ({color.profile.fps()} fps)")
         self._period_ms = 1000.0 / color.profile.fps()
         self._filters = build_filters(self.filters)
-        self._align = rs.align(rs.stream.color)
         self._aligners: dict[Intrinsics, DepthAligner] = {}
         self._t0_ms: float | None = None
         self._n0 = 0
@@ -323,20 +333,13 @@ class RealSenseReplayCamera(Camera):
         for f in self._filters:
             depth = f.process(depth)
         return Frame(index=number - self._n0, t=(stamp_ms - self._t0_ms) / 1000.0,
-                     color=to_rgb(color, self._color_format), depth_m=self._aligned_depth(depth, color),
+                     color=to_rgb(color, self._color_format), depth_m=self._aligned_depth(depth),
                      intrinsics=self._intrinsics)
 
-    def _aligned_depth(self, depth: rs.frame, color: rs.frame) -> np.ndarray:
-        """The depth frame on the colour image's pixel grid, in metres: `DepthAligner` (no rounding holes;
-        co-registered streams pass through unchanged), or librealsense's `rs.align` for a lens with distortion."""
-        profile = depth.get_profile().as_video_stream_profile()
-        if is_distorted(self._color.profile) or is_distorted(profile):
-            if not self._registered:
-                self._depth.profile.register_extrinsics_to(self._color.profile, self._extrinsics)
-                self._registered = True
-            aligned = self._align.process(_frameset(depth, color)).get_depth_frame()
-            return np.asanyarray(aligned.get_data()).astype(np.float32) * np.float32(self._depth_scale)
-        intrinsics = intrinsics_of(profile)
+    def _aligned_depth(self, depth: rs.frame) -> np.ndarray:
+        """The depth frame on the colour image's pixel grid, in metres, by `DepthAligner` (no rounding holes;
+        co-registered streams pass through unchanged; the colour lens's distortion applied)."""
+        intrinsics = intrinsics_of(depth.get_profile().as_video_stream_profile())
         aligner = self._aligners.get(intrinsics)
         if aligner is None:
             e = self._extrinsics
@@ -351,12 +354,3 @@ def _close_players(*players: _StreamPlayer | None) -> None:
         if player is not None:
             player.close()
 
-
-def _frameset(depth: rs.frame, color: rs.frame) -> rs.composite_frame:
-    """A frameset of `depth` and `color` (for `rs.align`), made by a processing block in this thread."""
-    out = rs.frame_queue(1)
-    block = rs.processing_block(lambda frame, source: source.frame_ready(
-        source.allocate_composite_frame([frame, color])))
-    block.start(out)
-    block.invoke(depth)
-    return out.wait_for_frame(1000).as_frameset()

@@ -1,10 +1,12 @@
-"""The librealsense pipeline of the live D415 (also of a recording played as a camera, as the tests do): start,
-depth scale, post-processing, alignment of depth to colour, and framesets as `Frame`s. `RealSenseReplayCamera`
-plays recordings without it (see realsense_playback.py) but shares the filters and colour conversion here.
+"""The librealsense pipeline of the live RealSense camera (also of a recording played as a camera, as the tests
+do): start, depth scale, post-processing, alignment of depth to colour, and framesets as `Frame`s.
+`RealSenseReplayCamera` plays recordings without it (see realsense_playback.py) but shares the filters and colour
+conversion here.
 
-Recordings (playback, not real time) align depth to colour with `DepthAligner`: no rounding holes, and
-co-registered streams pass through unchanged. The live camera, and a stream with lens distortion, use
-librealsense's `rs.align` (C++, keeps up with 30 fps; it leaves some one-pixel rounding holes)."""
+Recordings (playback, not real time) and a colour lens with distortion align depth to colour with `DepthAligner`: no
+rounding holes, co-registered streams pass through unchanged, and the colour lens's distortion is applied (which
+librealsense's x86 `rs.align` leaves out). The live camera with undistorted lenses uses `rs.align` (C++, keeps up
+with 30 fps; it leaves some one-pixel rounding holes)."""
 
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import cv2
 import numpy as np
 import pyrealsense2 as rs
 
-from drivers.camera.base import Frame, Intrinsics
+from drivers.camera.base import DISTORTIONS, Frame, Intrinsics
 from drivers.camera.depth_align import DepthAligner
 from drivers.camera.realsense_config import HOLE_FILLING, FilterConfig
 
@@ -48,9 +50,14 @@ def build_filters(config: FilterConfig) -> list[rs.filter]:
 
 
 def intrinsics_of(profile: rs.video_stream_profile) -> Intrinsics:
-    """Our pinhole intrinsics from a librealsense video stream profile."""
+    """Our intrinsics, lens model and coefficients included, from a librealsense video stream profile; RuntimeError
+    for a fisheye lens model (a T265's), which frames cannot carry."""
     i = profile.get_intrinsics()
-    return Intrinsics(i.width, i.height, float(i.fx), float(i.fy), float(i.ppx), float(i.ppy))
+    if i.model.name not in DISTORTIONS:
+        raise RuntimeError(f"the {profile.stream_name()} stream's lens model {i.model.name} is not supported (only "
+                           f"{', '.join(DISTORTIONS)})")
+    return Intrinsics(i.width, i.height, float(i.fx), float(i.fy), float(i.ppx), float(i.ppy), i.model.name,
+                      tuple(float(c) for c in i.coeffs))
 
 
 class RealSenseStream:
@@ -74,6 +81,8 @@ class RealSenseStream:
             color = self.profile.get_stream(rs.stream.color).as_video_stream_profile()
             self.fps = color.fps()
             self.intrinsics = intrinsics_of(color)
+            depth = self.profile.get_stream(rs.stream.depth).as_video_stream_profile()
+            self.depth_size = depth.width(), depth.height()
             self.color_format = color.format()
             if self.color_format not in _TO_RGB:
                 raise RuntimeError(f"colour format {self.color_format} is not RGB8/BGR8/RGBA8/BGRA8")
@@ -90,10 +99,11 @@ class RealSenseStream:
         self._last_depth_number: int | None = None
         self.timed_out = False  # whether the last poll got no frameset at all
 
-    def poll(self, timeout_s: float) -> Frame | None:
-        """The next aligned frame, or None if none arrived within `timeout_s` (then `timed_out`). In playback, partial
-        framesets (colour and depth more than half a frame period apart, which the syncer emits when
-        not in real time) and repeated depth frames are skipped."""
+    def poll(self, timeout_s: float) -> rs.composite_frame | None:
+        """The next frameset, kept out of librealsense's frame pool for `to_frame`, or None if none arrived within
+        `timeout_s` (then `timed_out`). In playback, partial framesets (colour and depth more than half a frame period
+        apart, which the syncer emits when not in real time) and repeated depth frames are skipped. The first
+        frameset is the origin of the frames' index and time."""
         ok, frames = self.pipeline.try_wait_for_frames(max(1, int(timeout_s * 1000)))
         self.timed_out = not ok
         if not ok:
@@ -107,13 +117,15 @@ class RealSenseStream:
             if number == self._last_depth_number or apart_ms > 500.0 / self.fps:
                 return None
             self._last_depth_number = number
-        return self._to_frame(frames)
+        if self._t0_ms is None:
+            self._t0_ms, self._n0 = depth.get_timestamp(), depth.get_frame_number()
+        frames.keep()
+        return frames
 
-    def _to_frame(self, frames: rs.composite_frame) -> Frame:
+    def to_frame(self, frames: rs.composite_frame) -> Frame:
+        """A frameset of `poll` as a `Frame`: post-processed, depth aligned to colour, colour as RGB."""
         depth = frames.get_depth_frame()
         stamp_ms, number = depth.get_timestamp(), depth.get_frame_number()
-        if self._t0_ms is None:
-            self._t0_ms, self._n0 = stamp_ms, number
         for f in self._filters:
             frames = f.process(frames).as_frameset()
         rgb = to_rgb(frames.get_color_frame(), self.color_format)
@@ -124,7 +136,7 @@ class RealSenseStream:
         """The frameset's depth on the colour image's pixel grid, in metres."""
         depth = frames.get_depth_frame()
         profile = depth.get_profile().as_video_stream_profile()
-        if self.playback is None or self._distorted or is_distorted(profile):
+        if self.playback is None and not (self._distorted or is_distorted(profile)):
             aligned = self._align.process(frames).get_depth_frame()
             return np.asanyarray(aligned.get_data()).astype(np.float32) * np.float32(self.depth_scale)
         intrinsics = intrinsics_of(profile)

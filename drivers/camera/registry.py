@@ -1,11 +1,13 @@
-"""The camera kinds (`--camera`): a RealSense D415 and recordings; other packages add theirs (the simulated
-D415 registers from sim_fallback). `open_camera(spec)` builds one, not yet connected."""
+"""The camera kinds (`--camera`): any RealSense, each model of the model table by its name (d415, d435, d455, d405,
+l515: its defaults), and recordings; other packages add theirs (the simulated D415 registers from sim_fallback).
+`open_camera(spec)` builds one, not yet connected."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from drivers.camera.realsense_models import models, size_text
 from drivers.errors import CameraError
 from drivers.registry import Registry
 
@@ -14,8 +16,22 @@ if TYPE_CHECKING:
 
 CAMERAS: Registry[Camera] = Registry("camera", CameraError)  # factories: factory(argument, **options)
 STREAM_OPTIONS = ("width", "height", "fps")  # what `--width --height --fps` set, on kinds that take them
-CAMERAS.register("d415", "drivers.camera.registry:open_d415", "RealSense D415 (first attached, or SERIAL)",
-                 argument="[:SERIAL]", hardware=True, stream_options=STREAM_OPTIONS)
+CAMERAS.register("realsense", "drivers.camera.registry:open_realsense",
+                 "any RealSense (the one attached, or SERIAL), with its model's defaults", argument="[:SERIAL]",
+                 hardware=True, stream_options=STREAM_OPTIONS)
+
+
+def _register_models() -> None:
+    """Each model of the model table under its name: a RealSense of that model, with its defaults."""
+    for model in models().values():
+        default = model.default
+        CAMERAS.register(model.name, "drivers.camera.registry:open_realsense",
+                         f"{model.product.removeprefix('Intel ')} ({size_text(default.color)} at {default.fps} fps)",
+                         argument="[:SERIAL]", hardware=True, stream_options=STREAM_OPTIONS,
+                         factory_options={"model": model.name})
+
+
+_register_models()
 CAMERAS.register("replay", "drivers.camera.registry:open_replay",
                  "a recording (frames dir; RealSense .bag/.db3; ROS 2 bag .db3/.mcap/folder)", argument=":PATH")
 _REPLAY_OPTIONS = {"realtime", "loop"}
@@ -24,7 +40,8 @@ _REPLAY_OPTIONS = {"realtime", "loop"}
 def open_camera(spec: str, **options: object) -> Camera:
     """The camera named by `spec`, not yet connected (use `with open_camera(spec) as camera:`).
 
-    options: for d415, RealSenseConfig / FilterConfig fields (width, height, fps, visual_preset, spatial, ...);
+    options: for a RealSense, RealSenseConfig / FilterConfig fields (width, height, fps, visual_preset, spatial,
+    ...);
     for a frames directory, realtime and loop; for a RealSense .bag/.db3, filters (a FilterConfig).
     """
     return CAMERAS.open(spec, **options)
@@ -68,11 +85,12 @@ def simulated_source(spec: str) -> bool:
     return FramesRecording(argument).simulated
 
 
-def open_d415(serial: str, **options: object) -> Camera:
-    from drivers.camera.realsense import D415Camera
+def open_realsense(serial: str, **options: object) -> Camera:
+    """A RealSense camera (`model`, a name of the model table, among `options`: only a camera of that model)."""
+    from drivers.camera.realsense import RealSenseCamera
     from drivers.camera.realsense_config import RealSenseConfig
 
-    return D415Camera(RealSenseConfig.from_options(serial=serial or None, **options))
+    return RealSenseCamera(RealSenseConfig.from_options(serial=serial or None, **options))
 
 
 def open_replay(path: str, **options: object) -> Camera:

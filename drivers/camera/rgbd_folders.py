@@ -25,7 +25,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from drivers.camera.base import Frame, Intrinsics
-from drivers.camera.frames_dir import FramesWriter
+from drivers.camera.frames_dir import DEPTH_SCALE, FramesWriter
 from drivers.errors import RecordingError
 
 TUM_DEPTH_PER_M = 5000.0
@@ -82,12 +82,13 @@ def read_folder(src: Path) -> Folder:
     return read_tum(src) if kind == "tum" else read_open3d(src)
 
 
-def convert_folder(src: str | Path, out: str | Path, depth_scale: float = 0.001,
+def convert_folder(src: str | Path, out: str | Path, depth_scale: float | None = None,
                    progress: Callable[[Frame], None] | None = None) -> dict:
-    """Every frame of the folder `src` to the frames directory `out` (depth re-quantised to `depth_scale` m), as
-    `deploy convert` reports it: {"out", "frames", "seconds", "source", "source_depth_scale",
-    "depth_out_of_range_px", "source_frames", "unpaired_frames", "poses"}."""
+    """Every frame of the folder `src` to the frames directory `out` (depth re-quantised to `depth_scale` m; None:
+    the folder's own unit, at most 1 mm), as `deploy convert` reports it: {"out", "frames", "seconds", "source",
+    "depth_scale", "source_depth_scale", "depth_out_of_range_px", "source_frames", "unpaired_frames", "poses"}."""
     folder = read_folder(Path(src))
+    depth_scale = min(folder.depth_scale, DEPTH_SCALE) if depth_scale is None else depth_scale
     poses = [f.T_base_camera for f in folder.frames]
     static = poses[0] if all(p is not None for p in poses) and all(np.allclose(p, poses[0]) for p in poses) else None
     with FramesWriter(out, folder.intrinsics, depth_scale, static, f"convert:{folder.kind}") as writer:
@@ -100,7 +101,7 @@ def convert_folder(src: str | Path, out: str | Path, depth_scale: float = 0.001,
                 progress(frame)
     n = len(folder.frames)
     return {"out": str(out), "frames": n, "seconds": folder.frames[-1].t - folder.frames[0].t,
-            "source": folder.kind, "source_depth_scale": folder.depth_scale,
+            "source": folder.kind, "depth_scale": depth_scale, "source_depth_scale": folder.depth_scale,
             "depth_out_of_range_px": writer.depth_out_of_range_px,
             "source_frames": {"color": n + folder.unpaired["color"], "depth": n + folder.unpaired["depth"]},
             "unpaired_frames": folder.unpaired, "poses": sum(p is not None for p in poses)}

@@ -203,8 +203,12 @@ def _stamp(msg) -> float:
 
 
 def _intrinsics(info) -> Intrinsics:
+    """A CameraInfo's intrinsics, with its lens when it is plumb_bob (OpenCV's k1 k2 p1 p2 k3: what realsense-ros
+    writes for the RealSense lens models); another model is left out (pinhole)."""
     K = np.asarray(info.k, float).reshape(3, 3)
-    return Intrinsics(int(info.width), int(info.height), K[0, 0], K[1, 1], K[0, 2], K[1, 2])
+    coeffs = tuple(float(c) for c in info.d)
+    lens = ("brown_conrady", coeffs) if info.distortion_model == "plumb_bob" and len(coeffs) == 5 else ()
+    return Intrinsics(int(info.width), int(info.height), K[0, 0], K[1, 1], K[0, 2], K[1, 2], *lens)
 
 
 def _pixels(msg, dtype: type, channels: int) -> np.ndarray:

@@ -1,14 +1,19 @@
 """Damiao motor protocol in MIT mode: pure functions from values to CAN payloads and back.
 
-Frames (classic CAN, 8 bytes):
+Frames (8-byte payloads, the same on classic CAN and on CAN FD):
 - command on the motor's CAN id: q uint16 over [-PMAX, PMAX], dq uint12 over [-VMAX, VMAX], kp uint12 over
   [0, 500], kd uint12 over [0, 5], tau uint12 over [-TMAX, TMAX]
   (D0 = q>>8, D1 = q&FF, D2 = dq>>4, D3 = (dq&F)<<4 | kp>>8, D4 = kp&FF, D5 = kd>>4, D6 = (kd&F)<<4 | tau>>8,
   D7 = tau&FF); enable / disable / set zero / clear error = FF x7 then FC / FD / FE / FB.
 - feedback on the master id: D0 = status<<4 | (CAN id & F), q = D1<<8|D2, dq = D3<<4|D4>>4,
   tau = (D4&F)<<8|D5, D6 = MOS temperature, D7 = rotor temperature (deg C).
-- parameter read on 0x7FF: [id lo, id hi, 0x33, register, 0, 0, 0, 0]; the answer comes on the master id as
-  [id lo, id hi, 0x33, register, value (little-endian float32, or uint32 for integer registers)].
+- parameter read on 0x7FF: [id lo, id hi, 0x33, register, 0, 0, 0, 0]; write: [id lo, id hi, 0x55, register,
+  value]; the answer comes on the master id as [id lo, id hi, 0x33 or 0x55, register, value] (value: little-endian
+  float32, or uint32 for integer registers).
+
+Values map onto their unsigned fields by truncation, as the Damiao manual's reference code and the OpenArm vendor
+library (openarm_can `CanPacketEncoder`) do, so that a command's frame is the vendor's byte for byte
+(tests/test_damiao_vendor.py); a simulated motor's feedback rounds to the nearest step.
 """
 
 from __future__ import annotations
@@ -24,6 +29,8 @@ PARAM_ID = 0x7FF
 KP_MAX, KD_MAX = 500.0, 5.0
 PARAM_READ, PARAM_WRITE, REFRESH = 0x33, 0x55, 0xCC
 REG_MST_ID = 7
+REG_TIMEOUT = 9  # communication timeout: no command for this long and the motor disables itself; 0 = never
+TIMEOUT_UNIT_S = 50e-6  # one step of REG_TIMEOUT
 REG_PMAX, REG_VMAX, REG_TMAX = 21, 22, 23
 INTEGER_REGISTERS = frozenset({*range(7, 11), *range(13, 17), 35, 36})
 FRAME_LEN = 8
@@ -98,11 +105,13 @@ class FrameError(ValueError):
     """A frame that is not what the protocol allows (wrong length, unknown status, wrong kind)."""
 
 
-def _to_uint(x: float, lo: float, hi: float, bits: int) -> int:
-    """x clamped to [lo, hi], mapped linearly onto 0 .. 2^bits - 1 (rounded to nearest). A non-finite x reads as 0
-    (every range holds 0: no position offset, velocity, gain or torque), never as a range end."""
+def _to_uint(x: float, lo: float, hi: float, bits: int, nearest: bool = False) -> int:
+    """x clamped to [lo, hi], mapped linearly onto 0 .. 2^bits - 1, truncated (the Damiao reference's rule) or
+    rounded to the nearest step. A non-finite x reads as 0 (every range holds 0: no position offset, velocity, gain
+    or torque), never as a range end."""
     x = min(max(float(x), lo), hi) if math.isfinite(x) else 0.0  # a scalar clamp: np.clip is slow on scalars
-    return int(round((x - lo) / (hi - lo) * ((1 << bits) - 1)))
+    scaled = (x - lo) / (hi - lo) * ((1 << bits) - 1)
+    return int(round(scaled)) if nearest else int(scaled)
 
 
 def _to_float(u: int, lo: float, hi: float, bits: int) -> float:
@@ -152,10 +161,10 @@ def is_special(data: bytes) -> bool:
 
 def pack_feedback(can_id: int, status: Status, q: float, dq: float, tau: float, t_mos_c: int, t_rotor_c: int,
                   limits: MotorLimits) -> bytes:
-    """Feedback payload as a motor sends it (the simulated motor's side)."""
-    qi = _to_uint(q, -limits.p_max, limits.p_max, 16)
-    dqi = _to_uint(dq, -limits.v_max, limits.v_max, 12)
-    ti = _to_uint(tau, -limits.t_max, limits.t_max, 12)
+    """Feedback payload as a motor sends it (the simulated motor's side, rounded to the nearest step)."""
+    qi = _to_uint(q, -limits.p_max, limits.p_max, 16, nearest=True)
+    dqi = _to_uint(dq, -limits.v_max, limits.v_max, 12, nearest=True)
+    ti = _to_uint(tau, -limits.t_max, limits.t_max, 12, nearest=True)
     return bytes([
         (int(status) << 4) | (can_id & 0xF), qi >> 8, qi & 0xFF, dqi >> 4, ((dqi & 0xF) << 4) | (ti >> 8),
         ti & 0xFF, min(max(int(t_mos_c), 0), 255), min(max(int(t_rotor_c), 0), 255),
@@ -186,6 +195,19 @@ def param_read(can_id: int, register: int) -> bytes:
     return bytes([can_id & 0xFF, (can_id >> 8) & 0x07, PARAM_READ, register & 0xFF, 0, 0, 0, 0])
 
 
+def param_write(can_id: int, register: int, value: float) -> bytes:
+    """Parameter write request (sent on PARAM_ID); the motor answers with the value it now holds. The value lives
+    in RAM until the motor stores its parameters (this driver never does: a power cycle restores them)."""
+    _check_id(can_id)
+    return bytes([can_id & 0xFF, (can_id >> 8) & 0x07, PARAM_WRITE, register & 0xFF]) + \
+        param_value_bytes(register, value)
+
+
+def timeout_steps(timeout_s: float) -> int:
+    """The REG_TIMEOUT value of a communication timeout of `timeout_s` seconds (whole TIMEOUT_UNIT_S steps)."""
+    return int(round(timeout_s / TIMEOUT_UNIT_S))
+
+
 def refresh_request(can_id: int) -> bytes:
     """Ask a motor for one feedback frame without changing its state (sent on PARAM_ID)."""
     _check_id(can_id)
@@ -199,9 +221,9 @@ def param_value_bytes(register: int, value: float) -> bytes:
     return struct.pack("<f", float(value))
 
 
-def pack_param_reply(can_id: int, register: int, value: float) -> bytes:
-    """Parameter reply payload (the simulated motor's side)."""
-    return bytes([can_id & 0xFF, (can_id >> 8) & 0x07, PARAM_READ, register]) + param_value_bytes(register, value)
+def pack_param_reply(can_id: int, register: int, value: float, operation: int = PARAM_READ) -> bytes:
+    """Parameter reply payload to a read (or, with `operation` PARAM_WRITE, a write): the simulated motor's side."""
+    return bytes([can_id & 0xFF, (can_id >> 8) & 0x07, operation, register]) + param_value_bytes(register, value)
 
 
 def is_param_reply(data: bytes, can_id: int) -> bool:

@@ -109,10 +109,13 @@ class GripperConfig(MotorConfig):
 
 class WatchdogConfig(StrictModel):
     """When the driver disables the motors: feedback older than `feedback_timeout_s`, a control cycle later than
-    `max_late_cycles` periods, a parameter read unanswered after `reply_timeout_s` (per motor)."""
+    `max_late_cycles` periods, a parameter read unanswered after `reply_timeout_s` (per motor). When the motors
+    disable themselves: no command for `motor_timeout_s` (each motor's communication timeout register, written
+    and read back at enable), whatever became of the driver (a bus-off, a killed process, a pulled cable)."""
 
     feedback_timeout_s: float = Field(0.02, gt=0, le=1.0)
     max_late_cycles: float = Field(2.0, gt=0, le=1000)
     reply_timeout_s: float = Field(0.05, gt=0, le=1.0)
     torque_margin: float = Field(1.2, ge=1.0, le=5.0)  # measured |tau| above margin * tau_max is a fault
     stop_damping_s: float = Field(0.3, ge=0, le=5.0)  # stop(): damp (kp = 0) this long before disabling
+    motor_timeout_s: float = Field(0.1, ge=0.005, le=1.0)  # the motors' own watchdog (50 us steps)

@@ -21,6 +21,7 @@ class MotorLimits:
 
 # Factory defaults of PMAX / VMAX / TMAX per model; the driver reads the registers at connect instead.
 MODELS: dict[str, MotorLimits] = {
+    "DM3507": MotorLimits(12.5, 50.0, 5.0),
     "DM4310": MotorLimits(12.5, 30.0, 10.0),
     "DM4310_48V": MotorLimits(12.5, 50.0, 10.0),
     "DM4340": MotorLimits(12.5, 8.0, 28.0),

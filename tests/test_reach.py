@@ -1,0 +1,43 @@
+"""An arm's reach (robot config `[reach]`) decides where simulated scenes put the grip of the part to open."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from drivers.arm.robot_config import PANDA_SIM_CONFIG, load_robot_config
+from drivers.arm.robots import PANDA_REACH, Reach
+from sim_fallback.scenario import make_scenario
+from sim_fallback.world import SimWorld
+
+LOW = Reach(drawer_distance_m=(0.62, 0.66), drawer_height_m=(0.5, 0.56), door_distance_m=(0.62, 0.66),
+            door_height_m=(0.5, 0.56))  # an arm that grips lower than the Panda, and farther
+
+
+def test_a_robot_config_without_reach_has_the_pandas_and_one_with_it_its_own(tmp_path):
+    assert load_robot_config(PANDA_SIM_CONFIG).robot_spec().reach == PANDA_REACH
+    path = tmp_path / "low.toml"
+    path.write_text(PANDA_SIM_CONFIG.read_text() + "\n[reach]\ndrawer_height_m = [0.42, 0.46]\n")
+    reach = load_robot_config(path).robot_spec().reach
+    assert reach.drawer_height_m == (0.42, 0.46) and reach.door_height_m == PANDA_REACH.door_height_m
+    path.write_text(PANDA_SIM_CONFIG.read_text() + "\n[reach]\ndrawer_height_m = [0.6, 0.4]\n")
+    with pytest.raises(Exception, match="reach.drawer_height_m"):
+        load_robot_config(path)
+
+
+@pytest.mark.parametrize("world", ["kitchen", "box"])
+def test_scenes_put_the_grip_in_the_arms_reach(world):
+    """The same seeds, parked for the Panda and for an arm that reaches lower and farther: each grip lies in its
+    arm's bands (in the box world the distance is the front's centre's, and the handle stands out of it)."""
+    for seed in range(3):
+        for reach in (PANDA_REACH, LOW):
+            with SimWorld(make_scenario(world, "drawer", seed, "test", reach=reach)) as sim:
+                grip = sim.target_handle()[0]
+            distance, height = float(np.hypot(*grip[:2])), float(grip[2])
+            if world == "kitchen":
+                assert reach.distance("drawer")[0] - 1e-6 <= distance <= reach.distance("drawer")[1] + 1e-6
+                assert reach.height("drawer")[0] - 1e-6 <= height <= reach.height("drawer")[1] + 1e-6
+            else:
+                assert reach.distance("drawer")[0] - 0.1 <= distance <= reach.distance("drawer")[1] + 0.02
+            if reach is LOW and world == "kitchen":
+                assert height < PANDA_REACH.height("drawer")[0]
