@@ -38,9 +38,9 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
 
     Depth nearer than the recording camera's minimum range (meta.json `min_range_m`) is left out, unless
     `geometry.min_depth_m` says otherwise. Axes are in the base frame when the recording has `T_base_camera`, else
-    in the camera frame. progress(done, total) follows the frames; `viewer` (deploy.report.viewer.RerunViewer) is shown every frame, its mask and
-    the axis estimated at it, and is closed at the end. `deploy --verbose` logs the config used and every
-    frame's estimate.
+    in the camera frame. progress(done, total) follows the frames; `viewer` (deploy.report.viewer.RerunViewer) is
+    shown every frame, its mask and the axis estimated at it, and is closed at the end. `deploy --verbose` logs the
+    config used and every frame's estimate.
     """
     recording = _masked_recording(path)
     config = config.for_range(recording.min_range_m)
