@@ -1,4 +1,5 @@
-"""Hand-eye calibration: several closed-form solvers (calibration.solvers), the most consistent one refined.
+"""Hand-eye calibration: several closed-form solvers (calibration.solvers: OpenCV's, ours where they measure
+better), the most consistent one refined.
 
 Both setups share one model. Sample i pairs the tool pose T_base_tool_i (forward kinematics) with the
 board pose C_i = T_camera_board_i (PnP), and C_i = A @ M_i @ B with two fixed unknowns:
@@ -24,13 +25,12 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from calibration.detect import BoardView
-from calibration.solvers import HAND_EYE, ROBOT_WORLD
+from calibration.solvers import HAND_EYE, METHODS, ROBOT_WORLD
 from calibration.transforms import from_rt, inv, mean_pose, rotation_angle_deg, spread
 from drivers.errors import CalibrationError
 
 Setup = Literal["eye-to-hand", "eye-in-hand"]
 SETUPS: tuple[Setup, ...] = ("eye-to-hand", "eye-in-hand")
-METHODS = tuple(HAND_EYE) + tuple(ROBOT_WORLD)
 MIN_POSES = 3
 MIN_ROTATION_DEG = 5.0  # the largest relative rotation between two poses must reach this
 MIN_AXIS_SPREAD = 0.02  # second eigenvalue of the rotation axes' scatter matrix: 0 when all are parallel
@@ -119,7 +119,7 @@ def check_pose_set(setup: Setup, T_base_tool: Sequence[np.ndarray]) -> None:
 
 def solve(samples: Sequence[Sample], setup: Setup, method: str, K: np.ndarray,
           distortion: np.ndarray | None = None) -> HandEyeSolution:
-    """One solver (a name in METHODS: AX = XB or AX = ZB, calibration.solvers) on the samples."""
+    """One solver (a name in calibration.solvers' HAND_EYE or ROBOT_WORLD) on the samples."""
     check_pose_set(setup, [s.T_base_tool for s in samples])
     M = robot_motions(setup, [s.T_base_tool for s in samples])
     C = [s.T_camera_board for s in samples]
@@ -129,7 +129,8 @@ def solve(samples: Sequence[Sample], setup: Setup, method: str, K: np.ndarray,
     elif method in ROBOT_WORLD:
         A, B = ROBOT_WORLD[method](M, C)
     else:
-        raise CalibrationError(f"unknown hand-eye method {method!r}: use one of {', '.join(METHODS)}")
+        raise CalibrationError(f"unknown hand-eye method {method!r}: use one of "
+                               f"{', '.join((*HAND_EYE, *ROBOT_WORLD))}")
     if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
         raise CalibrationError(f"hand-eye method {method} failed (non-finite result): add more varied poses")
     return evaluate(samples, setup, method, A, B, K, distortion)

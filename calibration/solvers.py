@@ -1,160 +1,90 @@
-"""Closed-form hand-eye solvers in numpy, after the methods OpenCV's `calibrateHandEye` (AX = XB) and
-`calibrateRobotWorldHandEye` (AX = ZB) implement. opencv-python 5.0.0.93 does not expose those two
-functions to Python (opencv/opencv#29565, fixed by PR #29584 after that release), so they are here.
+"""Closed-form hand-eye solvers by name: OpenCV's `calibrateHandEye` (AX = XB) and `calibrateRobotWorldHandEye`
+(AX = ZB), and our numpy versions (calibration.solvers_numpy) where those measure better.
 
-Model (see calibration.hand_eye): board pose C_i = A @ M_i @ B, with M_i the known robot transform.
-AX = XB methods take the motions between pairs of samples and return X = A^-1; AX = ZB methods use every
-sample directly and return (A, B). Rotations come first, translations then by linear least squares.
+Model (see calibration.hand_eye): board pose C_i = A @ M_i @ B, with M_i the known robot transform. An AX = XB
+solver returns X = A^-1: OpenCV's "gripper poses" are G_i = M_i^-1 and its "target poses" C_i (for eye-to-hand
+M_i = T_base_tool, so G_i are the inverted robot poses, as OpenCV's documentation says). An AX = ZB solver returns
+(A, B): OpenCV's world-to-camera poses are C_i, its base-to-gripper poses M_i, and it returns A and B^-1.
+
+`HAND_EYE` and `ROBOT_WORLD` hold every solver, OpenCV's under the method's name and ours as NAME-numpy, except
+that `andreff` and `li` are ours and OpenCV's are andreff-opencv and li-opencv: OpenCV's solve rotation and
+translation in one linear system, and their translation errs several times more under pixel noise (`deploy bench
+calibration`). `METHODS` are the ones the routine runs.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
+import cv2
 import numpy as np
-from scipy.spatial.transform import Rotation
 
+from calibration import solvers_numpy
 from calibration.transforms import inv
 
 Poses = Sequence[np.ndarray]
+HandEyeSolver = Callable[[Poses, Poses], np.ndarray]
+RobotWorldSolver = Callable[[Poses, Poses], tuple[np.ndarray, np.ndarray]]
+nearest_rotation = solvers_numpy.nearest_rotation
 
 
-def nearest_rotation(R: np.ndarray) -> np.ndarray:
-    """The rotation matrix closest (Frobenius) to a 3x3 matrix."""
-    U, _, Vt = np.linalg.svd(R)
-    return U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+def _rotations(poses: Poses) -> list[np.ndarray]:
+    return [np.asarray(T, float)[:3, :3] for T in poses]
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+def _translations(poses: Poses) -> list[np.ndarray]:
+    return [np.asarray(T, float)[:3, 3].reshape(3, 1) for T in poses]
 
 
-def _motions(M: Poses, C: Poses) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Motion pairs (P, Q) with P X = X Q and X = A^-1, for every pair of samples i < j: with G_i = M_i^-1,
-    G_i X C_i = B for all i, so P = G_j^-1 G_i and Q = C_j C_i^-1."""
-    G = [inv(m) for m in M]  # G_i X C_i = B is the same for every i
-    out = []
-    for i in range(len(G)):
-        for j in range(i + 1, len(G)):
-            out.append((inv(G[j]) @ G[i], C[j] @ inv(C[i])))
-    return out
+def _pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, np.ravel(t)
+    return T
 
 
-def _translation(pairs: list[tuple[np.ndarray, np.ndarray]], R_X: np.ndarray) -> np.ndarray:
-    """t_X from (R_P - I) t_X = R_X t_Q - t_P, least squares."""
-    lhs = np.vstack([P[:3, :3] - np.eye(3) for P, _ in pairs])
-    rhs = np.concatenate([R_X @ Q[:3, 3] - P[:3, 3] for P, Q in pairs])
-    return np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+def opencv_hand_eye(method: int) -> HandEyeSolver:
+    """An AX = XB solver (X = A^-1) by `cv2.calibrateHandEye` with `method` (a cv2.CALIB_HAND_EYE_* flag)."""
+
+    def solve(M: Poses, C: Poses) -> np.ndarray:
+        G = [inv(m) for m in M]
+        R, t = cv2.calibrateHandEye(_rotations(G), _translations(G), _rotations(C), _translations(C), method=method)
+        return _pose(R, t)
+
+    return solve
 
 
-def _with_translation(pairs: list[tuple[np.ndarray, np.ndarray]], R_X: np.ndarray) -> np.ndarray:
-    X = np.eye(4)
-    X[:3, :3] = R_X
-    X[:3, 3] = _translation(pairs, R_X)
-    return X
+def opencv_robot_world(method: int) -> RobotWorldSolver:
+    """An AX = ZB solver ((A, B)) by `cv2.calibrateRobotWorldHandEye` with `method` (CALIB_ROBOT_WORLD_HAND_EYE_*)."""
+
+    def solve(M: Poses, C: Poses) -> tuple[np.ndarray, np.ndarray]:
+        R_w, t_w, R_a, t_a = cv2.calibrateRobotWorldHandEye(_rotations(C), _translations(C), _rotations(M),
+                                                            _translations(M), method=method)
+        return _pose(R_a, t_a), inv(_pose(R_w, t_w))
+
+    return solve
 
 
-def tsai(M: Poses, C: Poses) -> np.ndarray:
-    """Tsai-Lenz (1989): modified Rodrigues vectors, skew(p_P + p_Q) p' = p_Q - p_P."""
-    pairs = _motions(M, C)
-    lhs, rhs = [], []
-    for P, Q in pairs:
-        p = Rotation.from_matrix(P[:3, :3]).as_rotvec()
-        q = Rotation.from_matrix(Q[:3, :3]).as_rotvec()
-        p = 2 * np.sin(np.linalg.norm(p) / 2) * p / max(np.linalg.norm(p), 1e-12)
-        q = 2 * np.sin(np.linalg.norm(q) / 2) * q / max(np.linalg.norm(q), 1e-12)
-        lhs.append(_skew(p + q))
-        rhs.append(q - p)
-    pc = np.linalg.lstsq(np.vstack(lhs), np.concatenate(rhs), rcond=None)[0]
-    pcg = 2 * pc / np.sqrt(1 + pc @ pc)
-    n2 = pcg @ pcg
-    R = (1 - n2 / 2) * np.eye(3) + 0.5 * (np.outer(pcg, pcg) + np.sqrt(4 - n2) * _skew(pcg))
-    return _with_translation(pairs, nearest_rotation(R))
-
-
-def park(M: Poses, C: Poses) -> np.ndarray:
-    """Park-Martin (1994): R_X = (N^T N)^-1/2 N^T with N = sum beta alpha^T of the motions' log rotations."""
-    pairs = _motions(M, C)
-    N = np.zeros((3, 3))
-    for P, Q in pairs:
-        N += np.outer(Rotation.from_matrix(Q[:3, :3]).as_rotvec(), Rotation.from_matrix(P[:3, :3]).as_rotvec())
-    w, V = np.linalg.eigh(N.T @ N)
-    R = V @ np.diag(1 / np.sqrt(np.maximum(w, 1e-18))) @ V.T @ N.T
-    return _with_translation(pairs, nearest_rotation(R))
-
-
-def horaud(M: Poses, C: Poses) -> np.ndarray:
-    """Horaud-Dornaika (1995), rotation by unit quaternions: q_P q_X = q_X q_Q, smallest singular vector."""
-    pairs = _motions(M, C)
-    rows = []
-    for P, Q in pairs:
-        a = Rotation.from_matrix(P[:3, :3]).as_quat(scalar_first=True)
-        b = Rotation.from_matrix(Q[:3, :3]).as_quat(scalar_first=True)
-        rows.append(_quat_left(a) - _quat_right(b))
-    q = np.linalg.svd(np.vstack(rows))[2][-1]
-    return _with_translation(pairs, Rotation.from_quat(q, scalar_first=True).as_matrix())
-
-
-def andreff(M: Poses, C: Poses) -> np.ndarray:
-    """Andreff et al. (2001), linear Kronecker form: (R_P (x) I - I (x) R_Q^T) vec(R_X) = 0 (row-major vec)."""
-    pairs = _motions(M, C)
-    K = np.vstack([np.kron(P[:3, :3], np.eye(3)) - np.kron(np.eye(3), Q[:3, :3].T) for P, Q in pairs])
-    R = np.linalg.svd(K)[2][-1].reshape(3, 3)
-    R *= np.sign(np.linalg.det(R)) / np.cbrt(abs(np.linalg.det(R)))
-    return _with_translation(pairs, nearest_rotation(R))
-
-
-def shah(M: Poses, C: Poses) -> tuple[np.ndarray, np.ndarray]:
-    """Shah (2013), AX = ZB by Kronecker products: R_C R_Z = R_A R_M (Z = B^-1) from the null space, then
-    translations by least squares. Returns (A, B)."""
-    K = np.vstack([np.hstack([np.kron(c[:3, :3], np.eye(3)), -np.kron(np.eye(3), m[:3, :3].T)])
-                   for m, c in zip(M, C, strict=True)])
-    v = np.linalg.svd(K)[2][-1]
-    Z, A = v[:9].reshape(3, 3), v[9:].reshape(3, 3)
-    scale = np.sign(np.linalg.det(A)) / np.cbrt(abs(np.linalg.det(A)))
-    return _robot_world_translations(M, C, nearest_rotation(A * scale), nearest_rotation(Z * scale).T)
-
-
-def li(M: Poses, C: Poses) -> tuple[np.ndarray, np.ndarray]:
-    """Li et al. (2010), AX = ZB: rotations and translations of C_i Z = A M_i (Z = B^-1) in one linear least
-    squares (the translation rows fix the scale), rotations projected, translations solved again.
-    Returns (A, B)."""
-    rows, rhs = [], []
-    for m, c in zip(M, C, strict=True):
-        Rc, Rm, tc, tm = c[:3, :3], m[:3, :3], c[:3, 3], m[:3, 3]
-        rows.append(np.hstack([np.kron(Rc, np.eye(3)), -np.kron(np.eye(3), Rm.T), np.zeros((9, 6))]))
-        rhs.append(np.zeros(9))
-        rows.append(np.hstack([np.zeros((3, 9)), -np.kron(np.eye(3), tm[None, :]), Rc, -np.eye(3)]))
-        rhs.append(-tc)
-    v = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
-    return _robot_world_translations(M, C, nearest_rotation(v[9:18].reshape(3, 3)),
-                                     nearest_rotation(v[:9].reshape(3, 3)).T)
-
-
-def _robot_world_translations(M: Poses, C: Poses, R_A: np.ndarray, R_B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """t_A, t_B from R_A R_M t_B + t_A = t_C - R_A t_M, least squares."""
-    lhs = np.vstack([np.hstack([R_A @ m[:3, :3], np.eye(3)]) for m in M])
-    rhs = np.concatenate([c[:3, 3] - R_A @ m[:3, 3] for m, c in zip(M, C, strict=True)])
-    t = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
-    A, B = np.eye(4), np.eye(4)
-    A[:3, :3], A[:3, 3] = R_A, t[3:]
-    B[:3, :3], B[:3, 3] = R_B, t[:3]
-    return A, B
-
-
-def _quat_left(q: np.ndarray) -> np.ndarray:
-    """L(q) with q p = L(q) p, scalar first."""
-    w, x, y, z = q
-    return np.array([[w, -x, -y, -z], [x, w, -z, y], [y, z, w, -x], [z, -y, x, w]])
-
-
-def _quat_right(q: np.ndarray) -> np.ndarray:
-    """R(q) with p q = R(q) p, scalar first."""
-    w, x, y, z = q
-    return np.array([[w, -x, -y, -z], [x, w, z, -y], [y, -z, w, x], [z, y, -x, w]])
-
-
-HAND_EYE: dict[str, Callable[[Poses, Poses], np.ndarray]] = {
-    "tsai": tsai, "park": park, "horaud": horaud, "andreff": andreff,
+HAND_EYE: dict[str, HandEyeSolver] = {
+    "tsai": opencv_hand_eye(cv2.CALIB_HAND_EYE_TSAI),
+    "park": opencv_hand_eye(cv2.CALIB_HAND_EYE_PARK),
+    "horaud": opencv_hand_eye(cv2.CALIB_HAND_EYE_HORAUD),
+    "daniilidis": opencv_hand_eye(cv2.CALIB_HAND_EYE_DANIILIDIS),
+    "andreff": solvers_numpy.andreff,
+    "andreff-opencv": opencv_hand_eye(cv2.CALIB_HAND_EYE_ANDREFF),
+    "tsai-numpy": solvers_numpy.tsai,
+    "park-numpy": solvers_numpy.park,
+    "horaud-numpy": solvers_numpy.horaud,
 }
-ROBOT_WORLD: dict[str, Callable[[Poses, Poses], tuple[np.ndarray, np.ndarray]]] = {"shah": shah, "li": li}
+ROBOT_WORLD: dict[str, RobotWorldSolver] = {
+    "shah": opencv_robot_world(cv2.CALIB_ROBOT_WORLD_HAND_EYE_SHAH),
+    "li": solvers_numpy.li,
+    "li-opencv": opencv_robot_world(cv2.CALIB_ROBOT_WORLD_HAND_EYE_LI),
+    "shah-numpy": solvers_numpy.shah,
+}
+METHODS: tuple[str, ...] = ("tsai", "park", "horaud", "daniilidis", "andreff", "shah", "li")
+
+
+def source(method: str) -> str:
+    """Whose implementation `method` is: "opencv" or "numpy" (ours)."""
+    ours = method.endswith("-numpy") or method in ("andreff", "li")
+    return "numpy" if ours else "opencv"

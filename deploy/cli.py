@@ -77,8 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the `deploy` script; returns the exit code (see the module docstring)."""
     args = sys.argv[1:] if argv is None else list(argv)
     _options["verbose"] = False
-    command = typer.main.get_command(app)
-    _finite_numbers(command)
+    command = build_command()
     try:
         with interrupts():
             code = command.main(args=args, prog_name="deploy", standalone_mode=False)
@@ -138,6 +137,33 @@ def _interrupted(exc: Interrupted) -> str:
     if exc.run_dir is not None:
         line += f"; the run folder {exc.run_dir} holds the frames, steps.json and report.png up to here"
     return line
+
+
+def build_command() -> Any:
+    """The click command of `app` as `main()` runs it: numbers refuse nan and inf, flags show no value."""
+    command = typer.main.get_command(app)
+    _finite_numbers(command)
+    _plain_flags(command)
+    return command
+
+
+def _plain_flags(command: Any) -> None:
+    """Show every on/off flag of `command` and its subcommands (--json, --help, ...) without a value type in the
+    help: typer's rich help prints `--json <bool>`, which reads as if `--json true` were accepted."""
+    for param in command.params:
+        if getattr(param, "is_flag", False) and not getattr(param, "count", False):
+            param.metavar = ""
+    get_help_option = command.get_help_option
+
+    def help_option(ctx: Any) -> Any:
+        option = get_help_option(ctx)
+        if option is not None:
+            option.metavar = ""
+        return option
+
+    command.get_help_option = help_option
+    for sub in getattr(command, "commands", {}).values():
+        _plain_flags(sub)
 
 
 def _finite_numbers(command: Any) -> None:

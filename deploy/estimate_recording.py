@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -14,6 +15,7 @@ from deploy.errors import RecordingError
 from deploy.geometry.types import Axis, NoAxis
 from drivers.camera.frames_dir import FramesRecording
 
+log = logging.getLogger(__name__)
 APPROACH = ("the gripper does not hold the handle yet (frames.jsonl grasped false): the approach is left out, "
             "nothing has moved the part")
 
@@ -36,12 +38,15 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
 
     Depth nearer than the recording camera's minimum range (meta.json `min_range_m`) is left out, unless
     `geometry.min_depth_m` says otherwise. Axes are in the base frame when the recording has `T_base_camera`, else
-    in the camera frame. progress(done,
-    total) follows the frames; `viewer` (deploy.report.viewer.RerunViewer) is shown every frame, its mask and
-    the axis estimated at it, and is closed at the end.
+    in the camera frame. progress(done, total) follows the frames; `viewer` (deploy.report.viewer.RerunViewer) is
+    shown every frame, its mask and the axis estimated at it, and is closed at the end. `deploy --verbose` logs the
+    config used and every frame's estimate.
     """
     recording = _masked_recording(path)
     config = config.for_range(recording.min_range_m)
+    e = config.estimator
+    log.info("estimate config: filter %s (%s); estimator %s, joint %s, window %d; %d frames in %s",
+             config.filter.profile, config.filter.resolve(), e.name, e.joint, e.window, len(recording), path)
     pipe = AxisPipeline(config)
     steps, final, last, gripper_frames = [], None, None, 0
     approach = recording.marks_grasp  # until the first frame marked grasped
@@ -58,6 +63,7 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
             else:
                 step = pipe.update_frame(frame, frame.mask, pose)
             last = frame.index, step.result
+            log.info("frame %d (t %.2f s): %s", frame.index, frame.t, _estimate_text(step.result))
             if isinstance(step.result, Axis):
                 final = last
             steps.append({**_entry(frame.index, step), "grasped": recording.records[i].get("grasped")})
@@ -84,6 +90,15 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
     else:
         out["reason"] = result.reason
     return out
+
+
+def _estimate_text(result: Axis | NoAxis) -> str:
+    """One estimate for the log: joint type, direction, origin (m), confidence and sigma; or why there is none."""
+    if isinstance(result, NoAxis):
+        return f"no axis ({result.reason})"
+    d, o = np.round(result.direction, 3).tolist(), np.round(result.origin, 3).tolist()
+    sigma = "" if result.direction_sigma_deg is None else f", direction sigma {result.direction_sigma_deg:.2f} deg"
+    return f"{result.joint_type.value} axis, direction {d}, origin {o} m, confidence {result.confidence:.2f}{sigma}"
 
 
 def _pose(record: dict) -> np.ndarray | None:

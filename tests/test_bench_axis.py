@@ -1,6 +1,7 @@
 """`deploy bench axis`: the scene sets and the tail statistics (median, p90, max) of every estimator."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -35,6 +36,21 @@ def test_summary_says_whether_the_estimator_knew_when_it_was_unsure():
     assert s["drawer_angle_deg_median_low_confidence"] == pytest.approx(4.0)
     assert s["drawer_angle_deg_median_high_confidence"] == pytest.approx(0.15)
     assert s["door_sigma_reported"] == 0 and s["door_within_2_sigma"] is None
+
+
+def test_coverage_is_the_share_within_2_sigma_over_drawers_and_doors():
+    rows = [result("drawer", 0.1, confidence=0.9, sigma=0.1), result("drawer", 0.5, confidence=0.9, sigma=0.2),
+            result("door", 0.3, confidence=0.5, sigma=1.0), result("door", 2.0, confidence=0.5, sigma=None),
+            result("door", None, "no registration")]
+    s = summarise(rows)["screw"]
+    assert s["coverage_estimates"] == 3 and s["coverage_2_sigma"] == pytest.approx(2 / 3)
+    assert summarise([result("drawer", 1.0)])["screw"]["coverage_2_sigma"] is None
+
+
+def test_bench_axis_table_shows_the_coverage(capsys):
+    assert main(["bench", "axis", "--sequences", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "2 sigma cover" in out and re.search(r"\d+ % of \d+", out) and "90-99 %" in out
 
 
 def test_varied_scenes_are_short_eased_openings():

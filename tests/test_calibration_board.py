@@ -7,7 +7,15 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from calibration.board import INCH_M, BoardConfig, render_board, write_board
+from calibration.board import (
+    INCH_M,
+    PRINT_MARGIN_M,
+    BoardConfig,
+    fits_a4_and_letter,
+    render_board,
+    render_page,
+    write_board,
+)
 from calibration.detect import BoardDetector
 from calibration.transforms import from_rt, pose_error
 from drivers.camera.base import Intrinsics
@@ -71,18 +79,64 @@ def test_legacy_pattern_switch():
     assert wrong is None or len(wrong) < len(found) / 2
 
 
-def test_png_and_pdf_are_true_scale(tmp_path):
-    cfg = BoardConfig()
-    png = write_board(cfg, tmp_path / "board.png", dpi=300, margin_m=0.01)
-    with Image.open(png) as im:
-        assert im.info["dpi"] == pytest.approx((300, 300), abs=0.01)
-        width_m = im.size[0] / 300 * INCH_M
-    assert width_m == pytest.approx(cfg.size_m[0] + 0.02, abs=0.0002)
-    pdf = write_board(cfg, tmp_path / "board.pdf", dpi=300, margin_m=0.01)
+def _media_box_mm(pdf) -> tuple[float, float]:
     box = [float(v) for v in re.search(rb"/MediaBox \[\s*([\d.]+) ([\d.]+) ([\d.]+) ([\d.]+)", pdf.read_bytes())
            .groups()]
-    assert box[2] / 72 * INCH_M == pytest.approx(cfg.size_m[0] + 0.02, abs=0.0003)  # points: 1/72 inch
-    assert box[3] / 72 * INCH_M == pytest.approx(cfg.size_m[1] + 0.02, abs=0.0003)
+    return box[2] / 72 * 25.4, box[3] / 72 * 25.4  # points: 1/72 inch
+
+
+def test_default_page_fits_a4_and_letter_and_the_board_is_true_scale(tmp_path):
+    cfg = BoardConfig()
+    width, height = _media_box_mm(write_board(cfg, tmp_path / "board.pdf", dpi=300))
+    assert width <= 210.0 and height <= 279.4  # A4 is 210 x 297 mm, Letter 215.9 x 279.4 mm
+    assert fits_a4_and_letter(cfg)
+    page = render_page(cfg, 300)
+    assert page.shape == (round(height / 25.4 * 300), round(width / 25.4 * 300))
+    dark = np.argwhere(page < 128)  # the board's outer squares are black: its extent is the squares area
+    rows, cols = dark[:, 0], dark[:, 1]
+    dark_rows = np.unique(rows)
+    gap = np.argmax(np.diff(dark_rows))  # the white gap between the board and the parameters' line under it
+    on_board = rows <= dark_rows[gap]
+    printable = PRINT_MARGIN_M / INCH_M * 300
+    assert cols.min() > printable and cols.max() < page.shape[1] - printable
+    assert rows.min() > printable and rows.max() < page.shape[0] - printable
+    board_rows, board_cols = rows[on_board], cols[on_board]
+    assert (board_cols.max() - board_cols.min() + 1) / 300 * INCH_M == pytest.approx(cfg.size_m[0], abs=0.0003)
+    assert (board_rows.max() - board_rows.min() + 1) / 300 * INCH_M == pytest.approx(cfg.size_m[1], abs=0.0003)
+    png = write_board(cfg, tmp_path / "board.png", dpi=300)
+    with Image.open(png) as im:
+        assert im.info["dpi"] == pytest.approx((300, 300), abs=0.01) and im.size == (page.shape[1], page.shape[0])
+
+
+def test_the_page_prints_the_parameters_under_the_board():
+    cfg = BoardConfig((5, 7), 0.034, 0.025, "DICT_5X5_100")
+    assert cfg.describe().startswith("ChArUco 5x7 squares of 34 mm, markers 25 mm, DICT_5X5_100")
+    page = render_page(cfg, 200)
+    text_band = page[int(page.shape[0] * 0.9):]
+    assert (text_band < 128).sum() > 500  # the line is there
+    plain = render_page(cfg, 200)[: int(page.shape[0] * 0.9)]
+    assert (plain < 128).any()
+    other = render_page(BoardConfig((5, 7), 0.034, 0.025, "DICT_4X4_50"), 200)[int(page.shape[0] * 0.9):]
+    assert (other != text_band).any()  # another dictionary prints another line
+
+
+def test_a_board_larger_than_the_sheet_gets_a_page_of_its_own(tmp_path):
+    cfg = BoardConfig(square_m=0.040, marker_m=0.030)
+    assert not fits_a4_and_letter(cfg)
+    width, height = _media_box_mm(write_board(cfg, tmp_path / "board.pdf", dpi=150))
+    assert width > cfg.size_m[0] * 1e3 + 18 and height > cfg.size_m[1] * 1e3 + 18 + 4  # margins, the line
+
+
+def test_an_existing_board_file_is_kept_without_overwrite(tmp_path):
+    path = tmp_path / "board.png"
+    path.write_bytes(b"mine")
+    with pytest.raises(CalibrationError, match="already exists: pass --overwrite"):
+        write_board(BoardConfig(), path, dpi=100)
+    assert path.read_bytes() == b"mine"
+    write_board(BoardConfig(), path, dpi=100, overwrite=True)
+    with Image.open(path) as im:
+        assert im.format == "PNG"
+    assert [p.name for p in tmp_path.iterdir()] == ["board.png"]
 
 
 @pytest.mark.parametrize("kwargs, message", [

@@ -185,9 +185,22 @@ def test_the_fix_for_a_renamed_file_works_when_followed(capsys, tmp_path):
 
 
 @pytest.mark.parametrize(("args", "message"), [
-    (("--square-mm", "1000"), "5020 x 7020 mm, larger than an A0 sheet (841 x 1189 mm): use a smaller --square-mm"),
-    (("--dpi", "3000"), "at --dpi 3000 the board is 33780 px long, more than the 20000 px limit: use --dpi 1776"),
+    (("--square-mm", "1000"), "5006 x 7006 mm, larger than an A0 sheet (841 x 1189 mm): use a smaller --square-mm"),
+    (("--dpi", "3000"), "at --dpi 3000 the board is 32953 px long, more than the 20000 px limit: use --dpi 1821"),
 ])
 def test_an_over_size_board_is_one_line(capsys, tmp_path, args, message):
     code, _, err = run(capsys, "calibrate", "board", "--out", tmp_path / "board.pdf", *args)
     assert code == 2 and message in err and len(error_lines(err)) == 1 and not (tmp_path / "board.pdf").exists()
+
+
+def test_board_refuses_to_overwrite_without_overwrite(capsys, tmp_path):
+    out = tmp_path / "board.pdf"
+    code, text, _ = run(capsys, "calibrate", "board", "--out", out, "--json")
+    assert code == 0 and json.loads(text)["fits_a4_and_letter"] and out.exists()
+    first = out.read_bytes()
+    code, _, err = run(capsys, "calibrate", "board", "--out", out, "--square-mm", "30", "--marker-mm", "22")
+    assert code == 2 and len(error_lines(err)) == 1 and "already exists: pass --overwrite" in err
+    assert out.read_bytes() == first
+    code, _, _ = run(capsys, "calibrate", "board", "--out", out, "--square-mm", "30", "--marker-mm", "22",
+                     "--overwrite")
+    assert code == 0 and out.read_bytes() != first

@@ -1,4 +1,5 @@
-"""Hand-eye solvers on synthetic exact poses (both setups), refinement under pixel noise, degenerate pose sets."""
+"""Hand-eye solvers (OpenCV's and ours) on synthetic exact poses (both setups), refinement under pixel noise,
+degenerate pose sets."""
 
 import cv2
 import numpy as np
@@ -8,7 +9,7 @@ from calibration.board import BoardConfig
 from calibration.detect import BoardView
 from calibration.hand_eye import METHODS, SETUPS, Sample, calibrate, check_pose_set, solve
 from calibration.intrinsics import calibrate_intrinsics
-from calibration.solvers import nearest_rotation
+from calibration.solvers import HAND_EYE, ROBOT_WORLD, nearest_rotation, source
 from calibration.transforms import from_rt, inv, pose_error, spread
 from drivers.camera.base import Intrinsics
 from drivers.errors import CalibrationError
@@ -55,7 +56,7 @@ def samples_for(setup: str, poses: list[np.ndarray], rng: np.random.Generator, p
 
 
 @pytest.mark.parametrize("setup", SETUPS)
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", [*HAND_EYE, *ROBOT_WORLD])
 def test_each_solver_is_exact_on_exact_poses(setup, method):
     rng = np.random.default_rng(1)
     solution = solve(samples_for(setup, tool_poses(setup, 12, rng), rng), setup, method, K)
@@ -64,6 +65,28 @@ def test_each_solver_is_exact_on_exact_poses(setup, method):
     mm, deg = pose_error(solution.T_board, TRUTH[setup][1])
     assert mm < 0.01 and deg < 0.001
     assert solution.reprojection_px < 1e-4 and solution.spread_mm < 0.01
+
+
+def test_the_routine_runs_opencv_where_ours_is_not_measured_better():
+    assert set(METHODS) <= set(HAND_EYE) | set(ROBOT_WORLD)
+    assert {m for m in METHODS if source(m) == "opencv"} == {"tsai", "park", "horaud", "daniilidis", "shah"}
+    assert {m for m in [*HAND_EYE, *ROBOT_WORLD] if source(m) == "opencv"} >= {"andreff-opencv", "li-opencv"}
+
+
+@pytest.mark.parametrize("setup", SETUPS)
+@pytest.mark.parametrize("method", [cv2.CALIB_HAND_EYE_TSAI, cv2.CALIB_HAND_EYE_PARK, cv2.CALIB_HAND_EYE_HORAUD,
+                                    cv2.CALIB_HAND_EYE_ANDREFF, cv2.CALIB_HAND_EYE_DANIILIDIS])
+def test_opencv_calibrate_hand_eye_recovers_the_exact_transform(setup, method):
+    """cv2.calibrateHandEye itself, called as its documentation says: eye-in-hand with the gripper-to-base poses
+    (T_base_tool), eye-to-hand with them inverted (T_tool_base); it returns the camera in the gripper, resp. base."""
+    rng = np.random.default_rng(7)
+    samples = samples_for(setup, tool_poses(setup, 10, rng), rng)
+    gripper = [s.T_base_tool if setup == "eye-in-hand" else inv(s.T_base_tool) for s in samples]
+    target = [s.T_camera_board for s in samples]
+    R, t = cv2.calibrateHandEye([g[:3, :3] for g in gripper], [g[:3, 3:] for g in gripper],
+                                [c[:3, :3] for c in target], [c[:3, 3:] for c in target], method=method)
+    mm, deg = pose_error(from_rt(cv2.Rodrigues(R)[0], t.ravel()), TRUTH[setup][0])
+    assert mm < 0.01 and deg < 0.001
 
 
 @pytest.mark.parametrize("setup", SETUPS)

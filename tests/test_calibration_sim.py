@@ -154,3 +154,23 @@ def test_worst_setup_at_15_poses_is_one_row():
             row("eye-in-hand", 5.0, 1.0, method="tsai"), row("eye-to-hand", 4.0, 1.0, noise="none")]
     assert worst_at_15_poses(rows) == {"setup": "eye-in-hand", "translation_mm": 0.6, "rotation_deg": 0.2}
     assert worst_at_15_poses(rows[2:]) is None
+
+
+def test_bench_compares_opencv_solvers_with_ours():
+    """`bench calibration`'s solver rows: every solver of both sources and "auto", each with median / p90 / max of
+    its error against the truth; OpenCV's and ours agree where they implement the same method on the same data."""
+    from calibration.solvers import HAND_EYE, ROBOT_WORLD
+    from deploy.bench.calibration import bench_solvers
+
+    rows = bench_solvers(setups=("eye-to-hand",), seeds=(0, 1), poses=8)
+    by_method = {r["method"]: r for r in rows}
+    assert set(by_method) == {*HAND_EYE, *ROBOT_WORLD, "auto"}
+    assert {r["source"] for r in rows} == {"opencv", "numpy", "routine"}
+    for r in rows:
+        assert r["seeds"] == 2
+        assert r["translation_mm_median"] <= r["translation_mm_p90"] <= r["translation_mm_max"]
+        assert r["rotation_deg_median"] <= r["rotation_deg_p90"] <= r["rotation_deg_max"]
+    assert by_method["auto"]["translation_mm_max"] < TARGET_MM * 2
+    for method in ("tsai", "park", "horaud"):  # the same method, OpenCV's and ours: the same answer
+        assert by_method[method]["rotation_deg_median"] == pytest.approx(
+            by_method[f"{method}-numpy"]["rotation_deg_median"], abs=0.05)

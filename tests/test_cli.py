@@ -2,6 +2,7 @@
 
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -112,6 +113,18 @@ def test_estimate_recording_json(capsys, drawer_recording):
     assert axis_angle_error_deg(seq.true_axis.direction, data["direction"]) < 3.0
 
 
+def test_verbose_estimate_logs_its_config_and_every_frame(capsys, drawer_recording):
+    """docs/quickstart.md: `deploy --verbose ...` logs the resolved config and every estimate; axis estimate too."""
+    path, seq = drawer_recording
+    code, _, err = run(capsys, "--verbose", "axis", "estimate", str(path), "--json")
+    assert code == 0
+    assert "estimate config: filter sim" in err and "estimator screw-grip" in err
+    frames = [line for line in err.splitlines() if "deploy.estimate_recording: frame " in line]
+    assert len(frames) == len(seq.frames) and "prismatic axis, direction" in frames[-1]
+    code, _, err = run(capsys, "axis", "estimate", str(path), "--json")
+    assert code == 0 and "estimate config" not in err
+
+
 def test_estimate_uses_the_gripper_path_and_views(capsys, drawer_recording, tmp_path):
     path, seq = drawer_recording
     code, out, _ = run(capsys, "axis", "estimate", str(path), "--view", "--rrd", str(tmp_path / "a.rrd"), "--json")
@@ -151,6 +164,10 @@ def test_open_drawer_in_simulation_json(capsys, tmp_path):
     lines = [line for line in err.splitlines() if line.startswith("step ")]
     assert len(lines) == data["steps"] + 1, err  # one line per estimate: after the first pull and every step
     assert re.fullmatch(r"step 0: opened 0\.0\d\d m, axis prismatic from .+, confidence \d\.\d\d", lines[0].strip())
+    quickstart = (Path(__file__).resolve().parents[1] / "docs" / "quickstart.md").read_text()
+    for line in lines:  # every source a step names is one the quickstart explains
+        source = re.search(r" from (.+), confidence", line).group(1)
+        assert f"`{source}`" in quickstart, line
     found = entities(tmp_path / "run" / "episode.rrd")
     assert found["/world/axis/estimated"]["rows"] == len(lines) and found["/world/axis/true"]["rows"] == 1
     assert "Pinhole:image_from_camera" in found["/world/camera/image"]["components"]
@@ -286,3 +303,49 @@ def test_fit_trajectory_without_orientations_hinges_a_gripper_whose_fingers_let_
     kept, without = hinge_error("--no-orientations")
     assert with_turns["orientations"] and not without["orientations"]
     assert kept < 1e-3 < turned, (kept, turned)
+
+
+def _command_paths(command, path=()):
+    """Every command's argument path below `command` (groups included)."""
+    yield path
+    for name, sub in getattr(command, "commands", {}).items():
+        yield from _command_paths(sub, (*path, name))
+
+
+def test_flags_show_no_value_in_any_help(capsys):
+    """`--json` is a flag: the help must not show it as `--json <bool>`, which reads as if `--json true` worked."""
+    from deploy.cli import build_command
+
+    paths = list(_command_paths(build_command()))
+    assert len(paths) > 30
+    for path in paths:
+        code, out, _ = run(capsys, *path, "--help")
+        assert code == 0 and "--help" in out, path
+        assert "<bool>" not in out, f"deploy {' '.join(path)} --help shows a flag's value type"
+
+
+@pytest.mark.parametrize("command", [("arm", "status"), ("arm", "scan"), ("axis", "demo"), ("models", "check"),
+                                     ("calibrate", "hand-eye", "--dry-run")])
+def test_tables_fit_80_columns_without_cutting_a_name(capsys, monkeypatch, command):
+    """As in a terminal of COLUMNS=80: no line is wider and no cell is cut to "…" (`pand…` for panda_joint1)."""
+    from deploy.commands import output
+
+    monkeypatch.setattr(output.console, "width", 80)
+    code, out, _ = run(capsys, *command)
+    assert code in (0, 1) and ("┃" in out or "─" in out), out  # models check: 1 without the weights
+    assert "…" not in out, out
+    assert max(len(line) for line in out.splitlines()) <= 80, out
+    if command == ("arm", "status"):
+        assert "panda_joint1" in out
+
+
+def test_a_wide_table_keeps_every_name_whole(capsys, monkeypatch):
+    from deploy.commands import output
+
+    monkeypatch.setattr(output.console, "width", 80)
+    names = [f"a_rather_long_motor_name_{i}" for i in range(3)]
+    output.print_table("wide", [f"column_{i}" for i in range(9)], [[n, *[f"{i * 1.2345:.4f}"] * 8] for i, n in
+                                                                     enumerate(names)])
+    out = capsys.readouterr().out
+    assert all(n in out for n in names) and "…" not in out, out
+    assert max(len(line) for line in out.splitlines()) <= 80, out

@@ -110,3 +110,15 @@ def test_parsing_quickstart_commands_catches_unknown_options():
         _parse(["open-door", "--angle", "wide"])
     with pytest.raises(typer.TyperException, match="No such command"):
         _parse(["open-window"])
+
+
+def test_readme_names_every_segmenter_track_takes():
+    """README's `deploy track` row lists the --segmenter choices the command takes, no more, no fewer."""
+    import re
+
+    from deploy.perception.registry import SEGMENTERS
+
+    row = next(line for line in (ROOT / "README.md").read_text().splitlines() if line.startswith("| `deploy track"))
+    listed = re.search(r"--segmenter ([\w\\|-]+)", row).group(1).replace("\\", "").split("|")
+    assert sorted(listed) == sorted(SEGMENTERS.names())
+

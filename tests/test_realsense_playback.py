@@ -195,8 +195,10 @@ def test_corrupt_recordings_are_clear_errors(recording, tmp_path, content):
         "text-db3": ("x.db3", b"not a recording\n"),
     }[content]
     (tmp_path / name).write_bytes(payload)
-    with pytest.raises(RecordingError, match=f"cannot play RealSense recording .*{name}.*record it again"):
+    with pytest.raises(RecordingError, match=f"cannot play RealSense recording .*{name}.*record it again") as info:
         RealSenseReplayCamera(tmp_path / name).connect()
+    advice = str(info.value)  # names what does write a .bag, and what `deploy record` writes
+    assert "rs-record" in advice and "frames directory instead (`deploy record" in advice
 
 
 def test_missing_or_misnamed_recording(tmp_path):

@@ -133,6 +133,15 @@ def _says_when_unsure(results: list[SequenceResult], kind: str) -> dict[str, flo
     }
 
 
+def coverage(results: list[SequenceResult]) -> dict[str, float | int | None]:
+    """How honest the reported direction_sigma_deg is: `coverage_2_sigma`, the share of the estimates that
+    report one whose angle error is within 2 sigma (about 95 % for a well-calibrated sigma; 90-99 % is the
+    target), over `coverage_estimates` such estimates (drawers and doors)."""
+    sized = [r for r in results if r.angle_deg is not None and r.sigma_deg is not None]
+    return {"coverage_2_sigma": sum(r.angle_deg <= 2 * r.sigma_deg for r in sized) / len(sized) if sized else None,
+            "coverage_estimates": len(sized)}
+
+
 def summarise(results: list[SequenceResult]) -> dict:
     """Per-estimator statistics in the `deploy bench axis --json` schema: median, p90 and max of every
     error, why estimates failed (reason -> count), and whether the estimator says when it is unsure
@@ -150,6 +159,7 @@ def summarise(results: list[SequenceResult]) -> dict:
             **_spread(_errors(mine, "door", "position_m", 1.0), "door_position_m"),
             **_says_when_unsure(mine, "drawer"),
             **_says_when_unsure(mine, "door"),
+            **coverage(mine),
             "joint_type_accuracy": float(np.mean([r.joint_type_ok for r in mine])),
             "failed_estimates": sum(r.angle_deg is None for r in mine),
             "failures": failures,

@@ -12,6 +12,7 @@ from calibration.board import BoardConfig
 from calibration.hand_eye import METHODS, SETUPS, HandEyeSolution, calibrate, solve
 from calibration.poses import PoseConfig
 from calibration.routine import HandEyeRun, RoutineConfig, Stations, plan_around_start, run_hand_eye
+from calibration.solvers import HAND_EYE, ROBOT_WORLD, source
 from deploy.evaluation import calibration_error
 from deploy.rig import BoardScene, board_scene
 from drivers.arm.robot_config import panda_sim_config
@@ -22,6 +23,8 @@ from sim_fallback.board import CalibrationRig
 SPEED_FRACTION = 0.5
 POSE_COUNTS = (5, 10, 15, 20)
 AUTO = "auto"  # the routine's choice: most consistent method, refined on reprojection error
+SOLVER_SEEDS = 10  # station seeds of the solver comparison
+SOLVER_POSES = 15
 TARGET_AT_15_POSES = (3.0, 0.3)  # mm, deg: docs/benchmarks.md's target for "auto" at 15 poses
 
 
@@ -95,6 +98,37 @@ def bench_calibration(setups: Sequence[str] = SETUPS, pose_counts: Sequence[int]
                     best, _ = calibrate(samples, setup, K)  # type: ignore[arg-type]
                     rows.append(_row(setup, noise, AUTO, n, truth_error(rig, best)))
     return {"resolution": [640, 480], "seed": seed, "results": rows, "worst_at_15_poses": worst_at_15_poses(rows)}
+
+
+def bench_solvers(setups: Sequence[str] = SETUPS, seeds: Sequence[int] = range(SOLVER_SEEDS),
+                  poses: int = SOLVER_POSES, board: BoardConfig | None = None,
+                  progress: Callable[[str], None] | None = None) -> list[dict]:
+    """Every solver, OpenCV's and ours (calibration.solvers), and "auto", on the same `poses` stations of each
+    station seed with the nominal D415 noise: per setup and method its source and the translation (mm) and
+    rotation (deg) error against the truth as median / p90 / max over the seeds."""
+    board = board or BoardConfig()
+    errors: dict[tuple[str, str], list[tuple[float, float]]] = {}
+    for setup in setups:
+        for seed in seeds:
+            if progress is not None:
+                progress(f"solvers, {setup}, seed {seed}")
+            with sim_rig(setup, board, noise=NOMINAL, seed=seed) as rig:
+                stations = Stations(rig.camera, rig.arm, rig.arm.kin, limits(rig), board)
+                samples = stations.collect(plan_around_start(rig.arm.kin, rig.arm,
+                                                             routine_config(rig, poses, board, seed))).samples
+                K = stations.intrinsics.K
+                for method in (*HAND_EYE, *ROBOT_WORLD):
+                    errors.setdefault((setup, method), []).append(truth_error(rig, solve(samples, setup, method, K)))
+                best, _ = calibrate(samples, setup, K)  # type: ignore[arg-type]
+                errors.setdefault((setup, AUTO), []).append(truth_error(rig, best))
+    return [{"setup": setup, "method": method, "source": "routine" if method == AUTO else source(method),
+             "seeds": len(values), **_spread("translation_mm", [v[0] for v in values]),
+             **_spread("rotation_deg", [v[1] for v in values])} for (setup, method), values in errors.items()]
+
+
+def _spread(name: str, values: list[float]) -> dict:
+    stats = {"median": np.median(values), "p90": np.percentile(values, 90), "max": np.max(values)}
+    return {f"{name}_{stat}": round(float(value), 4) for stat, value in stats.items()}
 
 
 def worst_at_15_poses(rows: list[dict]) -> dict | None:

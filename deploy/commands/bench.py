@@ -99,15 +99,22 @@ def bench_axis_cmd(
     print_table(
         f"axis estimators on {data['sequences']} synthetic sequences ({scenes.value} scenes, seed {seed})",
         ("estimator", "drawer deg med/p90/max", "door deg med/p90/max", "door pos cm med/p90/max", "joint acc",
-         "failed", "ms med"),
+         "failed", "2 sigma cover", "ms med"),
         [(name, spread(s, "drawer_angle_deg"), spread(s, "door_angle_deg"), spread(s, "door_position_m", 100),
-          f"{s['joint_type_accuracy']:.2f}", str(s["failed_estimates"]), fmt(s["ms_median"], digits=1))
+          f"{s['joint_type_accuracy']:.2f}", str(s["failed_estimates"]), _coverage(s), fmt(s["ms_median"], digits=1))
          for name, s in data["estimators"].items()],
     )
+    console.print("2 sigma cover: the share of the estimates reporting a direction sigma whose angle error is within "
+                  "2 sigma (of how many); 90-99 % is a well-calibrated sigma")
     console.print(f"full geometry step ({data['step_estimator']}), median: {fmt(data['step_ms_median'], digits=1)} ms")
     for name, s in data["estimators"].items():
         for reason, count in s["failures"].items():
             console.print(f"{name} failed {count}x: {reason}")
+
+
+def _coverage(summary: dict) -> str:
+    share = summary["coverage_2_sigma"]
+    return "-" if share is None else f"{share * 100:.0f} % of {summary['coverage_estimates']}"
 
 
 def _bench_axis_paths(seed: int, json_out: bool) -> None:
@@ -321,15 +328,23 @@ def bench_arm_cmd(
 
 
 @app.command("calibration")
-def bench_calibration_cmd(seed: StationSeedOpt = 0, json_out: JsonOpt = False) -> None:
-    """Hand-eye error against simulated truth vs number of poses, depth/colour noise and method (640x480).
+def bench_calibration_cmd(
+    seed: StationSeedOpt = 0,
+    solver_seeds: Annotated[int, typer.Option("--solver-seeds", min=0, help="Station seeds of the solver comparison "
+                                              "(OpenCV's solvers against ours, 15 poses each; 0: skip it).")] = 10,
+    json_out: JsonOpt = False,
+) -> None:
+    """Hand-eye error against simulated truth vs number of poses, depth/colour noise and method (640x480), and
+    each solver (OpenCV's and ours) over several station seeds: median / p90 / max.
 
-    Example: deploy bench calibration --json
+    Example: deploy bench calibration --solver-seeds 5 --json
     """
-    from deploy.bench.calibration import NOMINAL, TARGET_AT_15_POSES, bench_calibration
+    from deploy.bench.calibration import NOMINAL, TARGET_AT_15_POSES, bench_calibration, bench_solvers
 
     with err_console.status("bench calibration") as status:
-        data = bench_calibration(seed=seed, progress=lambda what: status.update(f"bench calibration: {what}"))
+        update = lambda what: status.update(f"bench calibration: {what}")  # noqa: E731
+        data = bench_calibration(seed=seed, progress=update)
+        data["solvers"] = bench_solvers(seeds=range(solver_seeds), progress=update) if solver_seeds else []
     if json_out:
         print_json(data)
         return
@@ -337,11 +352,21 @@ def bench_calibration_cmd(seed: StationSeedOpt = 0, json_out: JsonOpt = False) -
                 ("setup", "noise", "method", "poses", "mm", "deg"),
                 [(r["setup"], r["noise"], r["method"], str(r["poses"]), f"{r['translation_mm']:.2f}",
                   f"{r['rotation_deg']:.3f}") for r in data["results"]])
+    if data["solvers"]:
+        print_table(f"solvers over {solver_seeds} station seeds, 15 poses, {NOMINAL.name} noise: median / p90 / max",
+                    ("setup", "method", "source", "mm", "deg"),
+                    [(r["setup"], r["method"], r["source"], _three(r, "translation_mm", 2),
+                      _three(r, "rotation_deg", 3)) for r in data["solvers"]])
     if (worst := data["worst_at_15_poses"]) is not None:
         mm, deg = TARGET_AT_15_POSES
         console.print(f"worst setup at 15 poses (auto, {NOMINAL.name} noise): {worst['setup']}, "
                       f"{worst['translation_mm']:.2f} mm / {worst['rotation_deg']:.3f} deg (target <= {mm:g} mm and "
                       f"<= {deg:g} deg)")
+
+
+def _three(row: dict, name: str, digits: int) -> str:
+    """`row`'s median / p90 / max of `name`."""
+    return " / ".join(f"{row[f'{name}_{stat}']:.{digits}f}" for stat in ("median", "p90", "max"))
 
 
 def _bench_target(task: Task, distance: float | None, angle: float | None, target: float | None,

@@ -22,6 +22,7 @@ from deploy.commands.options import (
     can_settings,
     dry_run_option,
     kind_option,
+    overwrite_option,
     robot_option,
     yes_option,
 )
@@ -69,6 +70,7 @@ SquaresOpt = Annotated[str, typer.Option("--squares", help="Board squares, COLSx
 SquareMmOpt = Annotated[float, typer.Option("--square-mm", min=1.0, help="Square side as printed (mm).")]
 MarkerMmOpt = Annotated[float, typer.Option("--marker-mm", min=1.0, help="Marker side as printed (mm).")]
 DictOpt = Annotated[str, typer.Option("--dictionary", help="OpenCV ArUco dictionary.")]
+OverwriteOpt = overwrite_option("board file at --out")
 LegacyOpt = Annotated[bool, typer.Option("--legacy", help="Board printed by OpenCV < 4.6 (legacy ChArUco pattern).")]
 
 
@@ -86,25 +88,31 @@ def _board(squares: str, square_mm: float, marker_mm: float, dictionary: str, le
 @app.command("board")
 def board_cmd(
     out: Annotated[Path, typer.Option("--out", help="PNG or PDF to write (true scale).")] = Path("board.pdf"),
-    squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0, marker_mm: MarkerMmOpt = 28.0,
+    squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 36.0, marker_mm: MarkerMmOpt = 27.0,
     dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False,
     dpi: Annotated[float, typer.Option("--dpi", min=72.0, help="Print resolution.")] = 300.0,
+    overwrite: OverwriteOpt = False,
     json_out: JsonOpt = False,
 ) -> None:
-    """Render a printable ChArUco board at true scale: print at 100 %, then measure one square.
+    """Render a printable ChArUco board at true scale, its parameters printed under it, on a page that A4 and
+    Letter both hold (when the board fits): print at 100 %, then measure one square.
 
-    Example: deploy calibrate board --out board.pdf --squares 5x7 --square-mm 38 --marker-mm 28
+    Example: deploy calibrate board --out board.pdf --squares 5x7 --square-mm 36 --marker-mm 27
     """
-    from calibration.board import write_board
+    from calibration.board import fits_a4_and_letter, page_m, write_board
 
     cfg = _board(squares, square_mm, marker_mm, dictionary, legacy)
-    write_board(cfg, out, dpi)
-    w, h = cfg.size_m
+    write_board(cfg, out, dpi, overwrite=overwrite)
+    (w, h), page = cfg.size_m, page_m(cfg)
+    fits = fits_a4_and_letter(cfg)
     if json_out:
         print_json({"out": str(out), "squares": squares, "square_mm": square_mm, "marker_mm": marker_mm,
-                    "dictionary": dictionary, "width_mm": w * 1e3, "height_mm": h * 1e3, "dpi": dpi})
+                    "dictionary": dictionary, "width_mm": w * 1e3, "height_mm": h * 1e3, "dpi": dpi,
+                    "page_mm": [round(v * 1e3, 1) for v in page], "fits_a4_and_letter": fits})
     else:
-        console.print(f"wrote {out}: {squares} squares of {square_mm:g} mm ({w * 1e3:.0f} x {h * 1e3:.0f} mm)")
+        paper = "fits A4 and Letter" if fits else f"needs a {page[0] * 1e3:.0f} x {page[1] * 1e3:.0f} mm sheet"
+        console.print(f"wrote {out}: {squares} squares of {square_mm:g} mm ({w * 1e3:.0f} x {h * 1e3:.0f} mm; the "
+                      f"page {paper})")
 
 
 def _ask(yes: bool) -> Any:
@@ -176,7 +184,7 @@ def _show(outcome: Any, json_out: bool, keep: tuple[str, ...] = ()) -> None:
 def intrinsics_cmd(
     camera: CameraOpt = "sim", arm: ArmOpt = None, robot: RobotOpt = None, pivot_mm: PivotOpt = None,
     poses: PosesOpt = 12, setup: SetupOpt = SetupChoice.eye_to_hand,
-    squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0, marker_mm: MarkerMmOpt = 28.0,
+    squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 36.0, marker_mm: MarkerMmOpt = 27.0,
     dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False, existing: ExistingOpt = ExistingChoice.ask,
     directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 0,
     interface: InterfaceOpt = None, channel: ChannelOpt = None, bitrate: BitrateOpt = None,
@@ -214,7 +222,7 @@ def intrinsics_cmd(
 @app.command("hand-eye")
 def hand_eye_cmd(
     setup: HandEyeSetupOpt = None, poses: PosesOpt = 15, camera: CameraOpt = "sim", arm: ArmOpt = None,
-    robot: RobotOpt = None, pivot_mm: PivotOpt = None, squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 38.0,
+    robot: RobotOpt = None, pivot_mm: PivotOpt = None, squares: SquaresOpt = "5x7", square_mm: SquareMmOpt = 36.0,
     marker_mm: MarkerMmOpt = 28.0, dictionary: DictOpt = "DICT_4X4_50", legacy: LegacyOpt = False,
     existing: ExistingOpt = ExistingChoice.ask,
     directory: DirOpt = None, yes: YesOpt = False, dry_run: DryRunOpt = False, seed: StationSeedOpt = 0,

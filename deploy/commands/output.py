@@ -13,6 +13,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from rich import box
 from rich.console import Console
 from rich.table import Table
 
@@ -77,9 +78,11 @@ def print_rows(title: str, rows: dict, digits: int | None = 3) -> None:
     not 0.001; None: as they are), None as "-", a dict as "key value, key value" ("none" when empty), a list as
     "[a, b]"."""
     table = Table(title=title, show_header=False)
+    table.add_column(no_wrap=True)  # keys whole; values wrap (never "…") to fit the terminal
+    table.add_column(overflow="fold")
     for key, value in rows.items():
         table.add_row(key, _cell(value, digits))
-    console.print(table)
+    console.print(_compact_if_wide(table))
 
 
 def _cell(value: Any, digits: int | None) -> str:
@@ -100,13 +103,23 @@ def _cell(value: Any, digits: int | None) -> str:
 
 
 def print_table(title: str, columns: Iterable[str], rows: Iterable[Sequence[str]], **column: Any) -> None:
-    """A table with a header row; `column` holds rich column options (e.g. overflow="fold") for every column."""
+    """A table with a header row. Nothing is cut to "…" on a narrow terminal: the first column (names) never
+    wraps, the others wrap (fold) to fit. `column` holds rich column options that override these for every
+    column."""
     table = Table(title=title)
-    for name in columns:
-        table.add_column(name, **column)
+    for i, name in enumerate(columns):
+        table.add_column(name, **({"no_wrap": True} if i == 0 else {"overflow": "fold"}) | column)
     for row in rows:
         table.add_row(*row)
-    console.print(table)
+    console.print(_compact_if_wide(table))
+
+
+def _compact_if_wide(table: Table) -> Table:
+    """`table` without its vertical rules and outer padding when it would not fit the terminal's width otherwise
+    (one space between columns, instead of " │ ")."""
+    if console.measure(table, options=console.options.update(width=10_000)).maximum > console.width:
+        table.box, table.show_edge, table.padding = box.SIMPLE_HEAD, False, (0, 0)
+    return table
 
 
 def fmt(value: float | None, scale: float = 1.0, digits: int = 2) -> str:

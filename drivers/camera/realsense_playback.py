@@ -231,7 +231,8 @@ class RealSenseReplayCamera(Camera):
             self.disconnect()
             raise RecordingError(
                 f"cannot play RealSense recording {self.path}: {exc}; the file is truncated, corrupt or lacks a "
-                "colour and a depth stream: record it again (RealSense Viewer or `deploy record`)"
+                "colour and a depth stream: record it again with both streams (the RealSense Viewer's record button, "
+                "or `rs-record`), or record a frames directory instead (`deploy record --camera d415 --out DIR`)"
             ) from None
         except BaseException:  # whatever it is (Ctrl-C too), no player is left started
             self.disconnect()

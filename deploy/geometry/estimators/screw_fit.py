@@ -14,6 +14,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from deploy.geometry.estimators.screw_config import ScrewConfig
+from deploy.geometry.estimators.trajectory_path import jackknife_sigma_deg
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 
 Track = tuple[np.ndarray, float]
@@ -23,6 +24,7 @@ _FULL_FITNESS = 0.9
 _FULL_TRAVEL_M, _FULL_ROTATION_DEG = 0.05, 10.0
 _HALF_CONFIDENCE_RMS_M = 0.002
 _HALF_CONFIDENCE_SIGMA_DEG = 3.0
+_JACKKNIFE_BLOCKS = 3  # stretches of a window a drawer's direction is refitted without (`direction_sigma_deg`)
 _MAX_HINGE_TILT_DEG = 30.0  # a hinge lies in its door's plane: within this, w is projected into the plate
 _FRONT_CONE_DEG, _FRONT_SLAB_M, _MIN_FRONT_NORMALS = 20.0, 0.01, 50
 _FRONT_POINTS_PER_SAMPLE = 25  # front points that count as one independent sample of the plane
@@ -63,9 +65,9 @@ def fit_screw_joint(
     (`fit_revolute`): origin = the axis point nearest `latest_centre`, radius_m = distance from it to
     the axis. residual_m = the fit's RMS; confidence = fitness (1 from 90 %) x motion (1 from 5 cm or
     10 deg) x 1 / (1 + (residual / 2 mm)^2), and for a drawer whose direction comes from its motion
-    alone (no front face), x 1 / (1 + (sigma / 3 deg)^2) with sigma its standard error
-    (direction_sigma_deg). A drawer's direction_sigma_deg is set for a front's normal too
-    (`fit_prismatic`), without touching the confidence.
+    alone (no front face), x 1 / (1 + (sigma / 3 deg)^2) with sigma its standard deviation
+    (direction_sigma_deg). direction_sigma_deg is set for a front's normal and a hinge too (`fit_prismatic`,
+    `fit_revolute`), without touching the confidence.
 
     Joint type when `joint` is None: BIC = n ln(rms^2 + sigma0^2) + k ln n with n = 6 per pose (what a
     registration measures), k = poses + 2 (prismatic) or poses + 4 (revolute), sigma0 =
@@ -106,13 +108,14 @@ def fit_screw_joint(
     motion = min(1.0, max(travel_m / _FULL_TRAVEL_M, rotation_deg / _FULL_ROTATION_DEG))
     trust = min(fitness, _FULL_FITNESS) / _FULL_FITNESS
     confidence = float(np.clip(trust * motion / (1 + (fit.rms_m / _HALF_CONFIDENCE_RMS_M) ** 2), 0.0, 1.0))
-    if fit.sigma_deg is not None and not fit.from_front:  # a direction the motion alone pins down loosely
-        confidence /= 1 + (fit.sigma_deg / _HALF_CONFIDENCE_SIGMA_DEG) ** 2
     if joint is JointType.PRISMATIC:
+        if fit.sigma_deg is not None and not fit.from_front:  # a direction the motion alone pins down loosely
+            confidence /= 1 + (fit.sigma_deg / _HALF_CONFIDENCE_SIGMA_DEG) ** 2
         return Axis(joint, centroid, fit.direction, confidence=confidence, residual_m=fit.rms_m,
                     direction_sigma_deg=fit.sigma_deg)
     origin = fit.point + ((latest_centre - fit.point) @ fit.direction) * fit.direction
-    return Axis(joint, origin, fit.direction, confidence=confidence, residual_m=fit.rms_m, radius_m=radius_m)
+    return Axis(joint, origin, fit.direction, confidence=confidence, residual_m=fit.rms_m, radius_m=radius_m,
+                direction_sigma_deg=fit.sigma_deg)
 
 
 def part_and_grip_tracks(
@@ -138,19 +141,22 @@ def fit_prismatic(
     explains the tracks better by more than FREE_DIRECTION_EVIDENCE (`free_direction_evidence`):
     registration measures a drawer's motion along its front's normal well and barely across it (a
     plate slides along itself), so a drift across the front is read as motion only when the tracks
-    show it beyond their scatter. sigma_deg: the free direction's standard error, or for the front's
-    normal hypot(the plane fit's standard error, the free direction's standard error): the runners may be
-    slanted from the front's normal by as much as the motion cannot resolve.
+    show it beyond their scatter. sigma_deg: the free direction's standard deviation from what the tracks
+    show (`direction_sigma_deg`), or for the front's normal hypot(the plane fit's standard error, the
+    standard error with which `free_direction_evidence` resolves a free direction): the runners may be
+    slanted from the front's normal by as much as that test cannot tell from the front's normal.
     """
     d = principal_direction(tracks)
     if len(tracks) > 1 and line_miss(tracks[1][0], d) > grip_gate_m:
         tracks = tracks[:1]
         d = principal_direction(tracks)
     face = front_face(*surface, d) if surface is not None and len(tracks) == 1 else None
-    evidence, sigma_deg = free_direction_evidence(tracks, d, d if face is None else face[0])
+    evidence, resolution_deg = free_direction_evidence(tracks, d, d if face is None else face[0])
     from_front = face is not None and evidence <= FREE_DIRECTION_EVIDENCE
     if from_front:
-        d, sigma_deg = face[0], float(np.hypot(face[1], sigma_deg or 0.0))
+        d, sigma_deg = face[0], float(np.hypot(face[1], resolution_deg or 0.0))
+    else:
+        sigma_deg = direction_sigma_deg(tracks, d)
     shifts = moved.mean(axis=1) - sample.mean(axis=0)
     travel = shifts @ d
     if travel[np.argmax(np.abs(travel))] < 0:
@@ -205,7 +211,8 @@ def free_direction_evidence(tracks: list[Track], free: np.ndarray, fixed: np.nda
     1 / its noise relative to the first's) than the line along `fixed`: (RSS_fixed - RSS_free) / s^2,
     s^2 = RSS_free / its degrees of freedom, at least the first track's noise squared (a registration's
     slide across a front is not white: it drifts with the opening, so the track's own scatter
-    understates it). Also the free direction's standard error (deg; None with too few positions)."""
+    understates it). Also the free direction's standard error at that noise (deg; None with too few positions):
+    how finely the test resolves a slant."""
     weight0 = tracks[0][1]
     rss_free = rss_fixed = spread = 0.0
     count = 0
@@ -223,6 +230,56 @@ def free_direction_evidence(tracks: list[Track], free: np.ndarray, fixed: np.nda
     return (rss_fixed - rss_free) / variance, float(np.degrees(np.sqrt(variance / spread)))
 
 
+def direction_sigma_deg(tracks: list[Track], direction: np.ndarray) -> float | None:
+    """RMS angle error (deg, both components across the line) of the line `direction` fitted to the tracks
+    (`principal_direction`), from what they show: the larger of the propagated scatter (each track's own
+    residual variance about the line, through the fit's weights) and a block jackknife, which also sees what
+    is not white (a registration that drifts with the opening, a grasp that shifts). The jackknife's blocks
+    are stretches of equal travel along the line (the first track's; each track cut at the same share of its
+    positions), so that a window whose motion ends early is not refitted from its rest alone. None with too
+    few positions to tell. An RMS sigma: 2 sigma holds 98 % of a Gaussian error's two components."""
+    weights, spreads, residuals = [], [], []
+    for positions, sigma in tracks:
+        centred = positions - positions.mean(axis=0)
+        along = float(np.sum((centred @ direction) ** 2))
+        weights.append((tracks[0][1] / sigma) ** 2)
+        spreads.append(along)
+        residuals.append(max(float(np.sum(centred**2)) - along, 0.0))
+    w, a, r = np.array(weights), np.array(spreads), np.array(residuals)
+    information = float(w @ a)
+    if information <= 0 or sum(len(p) for p, _ in tracks) < 3:
+        return None
+    leverage = w * a / information  # the share of the direction's two degrees of freedom each track takes
+    dof = np.array([2 * (len(p) - 1) for p, _ in tracks]) - 2 * leverage
+    variance = r / np.maximum(dof, 1.0)  # per axis across the line
+    scatter = float(np.degrees(np.sqrt(2 * np.sum(w**2 * variance * a)) / information))
+    n = len(tracks[0][0])
+    replicates = []
+    for block in travel_blocks(tracks[0][0] @ direction):
+        keep = np.ones(n, bool)
+        keep[block] = False
+        kept = [(p[keep[np.arange(len(p)) * n // len(p)]], sigma) for p, sigma in tracks]
+        kept = [(p, sigma) for p, sigma in kept if len(p) >= 2]
+        if kept:
+            d = principal_direction(kept)
+            replicates.append(d if d @ direction >= 0 else -d)
+    if len(replicates) < 2:
+        return scatter
+    rep = np.array(replicates)
+    jackknife = np.sqrt(np.sum((rep - rep.mean(axis=0)) ** 2) * (len(rep) - 1) / len(rep))
+    return max(scatter, float(np.degrees(jackknife)))
+
+
+def travel_blocks(along: np.ndarray, count: int = _JACKKNIFE_BLOCKS) -> list[np.ndarray]:
+    """Contiguous index blocks of the positions `along` a line (in order) that each cover an equal share
+    of the travel (the summed steps), at most `count` and one position or more each."""
+    steps = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(along)))])
+    if len(along) < 2 * count or steps[-1] <= 0:
+        count = len(along) // 2
+    edges = np.unique(np.searchsorted(steps, np.linspace(0.0, steps[-1], count + 1)[1:-1], side="right"))
+    return [block for block in np.split(np.arange(len(along)), edges) if len(block)]
+
+
 def fit_revolute(
     rotations: np.ndarray, sample: np.ndarray, moved: np.ndarray, tracks: list[Track], grip_gate_m: float,
     noise_floor_m: float,
@@ -235,13 +292,12 @@ def fit_revolute(
     the rotations' angles about w (what registration measures best). a: the centre of the circles the
     tracks run through at those turns (`circle_centre`), level with the model points; a second
     (gripper) track missing its circle by more than `grip_gate_m` RMS (the grasp slipped) is left out.
+    sigma_deg: the larger of the misfit's standard error (`hinge_scatter_deg`; for a w projected into the
+    plate, with the plate normal's error in quadrature) and the block jackknife of w over the rotations.
     """
-    m = rotations - np.eye(3)
-    w = np.linalg.eigh(np.einsum("kji,kjl->il", m, m))[1][:, 0]
-    plate = plate_normal(sample)
-    if plate is not None and abs(w @ plate) < np.sin(np.radians(_MAX_HINGE_TILT_DEG)):
-        w = w - (w @ plate) * plate
-        w = w / np.linalg.norm(w)
+    plate_fit = plate_normal(sample)
+    plate = None if plate_fit is None else plate_fit[0]
+    w = hinge_direction(rotations, plate)
     rotvecs = Rotation.from_matrix(rotations).as_rotvec()
     if rotvecs.sum(axis=0) @ w < 0:
         w = -w
@@ -252,7 +308,45 @@ def fit_revolute(
         a, _ = circle_centre(w, turns, tracks[:1], anchor)
     predicted = np.einsum("kij,mj->kmi", turns, sample - a) + a
     rms = float(np.sqrt(np.mean(np.sum((moved - predicted) ** 2, axis=2))))
-    return JointFit(w, a, rms, bic(rms, 6 * len(moved), len(moved) + 4, noise_floor_m))
+    in_plate = plate_fit is not None and abs(w @ plate) < 1e-9  # projected: w turns with the plate's normal
+    scatter = hinge_scatter_deg(rotations, w, plate if in_plate else None)
+    if scatter is not None and in_plate:
+        scatter = float(np.hypot(scatter, plate_fit[1]))
+    jackknife = jackknife_sigma_deg(w, lambda keep: hinge_direction(rotations[keep], plate), len(rotations))
+    sigma = None if scatter is None else max(scatter, 0.0 if np.isnan(jackknife) else jackknife)
+    return JointFit(w, a, rms, bic(rms, 6 * len(moved), len(moved) + 4, noise_floor_m), sigma)
+
+
+def hinge_scatter_deg(rotations: np.ndarray, w: np.ndarray, plate: np.ndarray | None = None) -> float | None:
+    """RMS angle error (deg) of the hinge direction `w` from the rotations' misfit: the residual variance of
+    R_k w = w (each rotation pins w by two equations: 2K - 2 degrees of freedom) over the information across
+    w (the two other eigenvalues of N = sum (R_k - I)^T (R_k - I)). For a w projected into a plate (normal
+    `plate`) only its turn within the plate counts: the misfit along the plate's normal (what a tilt of w
+    within the plate leaves; K - 1 degrees of freedom) over u^T N u, u = w x plate (registration's error
+    about the plate's normal, its worst, shows across w within the plate and is projected away). None from
+    one rotation, whose own axis fits it exactly whatever its error."""
+    if len(rotations) < 2:
+        return None
+    m = rotations - np.eye(3)
+    normal = np.einsum("kji,kjl->il", m, m)
+    if plate is not None:
+        u = np.cross(w, plate)
+        misfit = float(np.sum((m @ w @ plate) ** 2)) / (len(rotations) - 1)
+        return float(np.degrees(np.sqrt(misfit / max(u @ normal @ u / (u @ u), 1e-18))))
+    residual = max(float(w @ normal @ w), 0.0)
+    across = np.linalg.eigvalsh(normal - residual * np.outer(w, w))[1:]
+    return float(np.degrees(np.sqrt(residual / (2 * len(rotations) - 2) * np.sum(1 / np.maximum(across, 1e-18)))))
+
+
+def hinge_direction(rotations: np.ndarray, plate: np.ndarray | None) -> np.ndarray:
+    """The unit w of least squares over R_k w = w, projected into the plate with normal `plate` (a door
+    panel) when within 30 deg of it."""
+    m = rotations - np.eye(3)
+    w = np.linalg.eigh(np.einsum("kji,kjl->il", m, m))[1][:, 0]
+    if plate is not None and abs(w @ plate) < np.sin(np.radians(_MAX_HINGE_TILT_DEG)):
+        w = w - (w @ plate) * plate
+        w = w / np.linalg.norm(w)
+    return w
 
 
 def bic(rms_m: float, n: int, k: int, noise_floor_m: float) -> float:
@@ -306,11 +400,12 @@ def distance_to_line(point: np.ndarray, fit: JointFit) -> float:
     return float(np.linalg.norm(offset - (offset @ fit.direction) * fit.direction))
 
 
-def plate_normal(points: np.ndarray) -> np.ndarray | None:
-    """Normal of the plate the points mostly lie on (`_trimmed_plane`), None when they are not a plate:
-    less than 60 % of them within 3 median distances (at least 2 mm) of the plane, or a thickness
-    spread over 10 % of the width spread."""
+def plate_normal(points: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Normal of the plate the points mostly lie on (`_trimmed_plane`) and its standard error (deg, as
+    `front_face`'s), None when they are not a plate: less than 60 % of them within 3 median distances (at
+    least 2 mm) of the plane, or a thickness spread over 10 % of the width spread."""
     normal, spread, kept = _trimmed_plane(points)
     if kept < 0.6 * len(points) or spread[2] > 0.1 * spread[1]:
         return None
-    return normal
+    samples = max(kept / _FRONT_POINTS_PER_SAMPLE, 1.0)
+    return normal, float(np.degrees(spread[2] / max(spread[1], 1e-12) / np.sqrt(samples)))
