@@ -87,12 +87,9 @@ def bench_calibration(setups: Sequence[str] = SETUPS, pose_counts: Sequence[int]
             if progress is not None:
                 progress(f"{setup}, noise {noise.name}")
             with sim_rig(setup, board, noise=noise, seed=seed) as rig:
-                stations = Stations(rig.camera, rig.arm, rig.arm.kin, limits(rig), board)
-                config = routine_config(rig, max(pose_counts), board, seed)
-                collection = stations.collect(plan_around_start(rig.arm.kin, rig.arm, config))
-                K = stations.intrinsics.K
+                collected, K = _collect(rig, board, max(pose_counts), seed)
                 for n in pose_counts:
-                    samples = collection.samples[:n]
+                    samples = collected[:n]
                     for method in METHODS:
                         rows.append(_row(setup, noise, method, n, truth_error(rig, solve(samples, setup, method, K))))
                     best, _ = calibrate(samples, setup, K)  # type: ignore[arg-type]
@@ -113,10 +110,7 @@ def bench_solvers(setups: Sequence[str] = SETUPS, seeds: Sequence[int] = range(S
             if progress is not None:
                 progress(f"solvers, {setup}, seed {seed}")
             with sim_rig(setup, board, noise=NOMINAL, seed=seed) as rig:
-                stations = Stations(rig.camera, rig.arm, rig.arm.kin, limits(rig), board)
-                samples = stations.collect(plan_around_start(rig.arm.kin, rig.arm,
-                                                             routine_config(rig, poses, board, seed))).samples
-                K = stations.intrinsics.K
+                samples, K = _collect(rig, board, poses, seed)
                 for method in (*HAND_EYE, *ROBOT_WORLD):
                     errors.setdefault((setup, method), []).append(truth_error(rig, solve(samples, setup, method, K)))
                 best, _ = calibrate(samples, setup, K)  # type: ignore[arg-type]
@@ -124,6 +118,14 @@ def bench_solvers(setups: Sequence[str] = SETUPS, seeds: Sequence[int] = range(S
     return [{"setup": setup, "method": method, "source": "routine" if method == AUTO else source(method),
              "seeds": len(values), **_spread("translation_mm", [v[0] for v in values]),
              **_spread("rotation_deg", [v[1] for v in values])} for (setup, method), values in errors.items()]
+
+
+def _collect(rig, board: BoardConfig, poses: int, seed: int) -> tuple[list, np.ndarray]:
+    """The routine's `poses` stations around the arm's start in the simulated `rig`: their samples and the camera's
+    intrinsic matrix."""
+    stations = Stations(rig.camera, rig.arm, rig.arm.kin, limits(rig), board)
+    collection = stations.collect(plan_around_start(rig.arm.kin, rig.arm, routine_config(rig, poses, board, seed)))
+    return collection.samples, stations.intrinsics.K
 
 
 def _spread(name: str, values: list[float]) -> dict:
