@@ -61,3 +61,21 @@ def sim_episode(scenario: Scenario | None = None, arm: str = "sim", robot: Robot
             world.clock.step(120)
             still = float(np.abs(device.state().q - q0).max()) < STILL_RAD
         return SimEpisode(result, still, world.joint_value())
+
+
+def episode_running(monkeypatch) -> list[bool]:
+    """A list that is non-empty exactly while a session's episode runs (deploy.control.session.run_episode)."""
+    from deploy.control import session
+
+    running: list[bool] = []
+    real = session.run_episode
+
+    def run(*args, **kwargs):
+        running.append(True)
+        try:
+            return real(*args, **kwargs)
+        finally:
+            running.pop()
+
+    monkeypatch.setattr(session, "run_episode", run)
+    return running

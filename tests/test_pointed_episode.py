@@ -13,10 +13,11 @@ import cv2
 import numpy as np
 import pytest
 from cli_run import run
+from episodes import episode_running
 from test_pointer import inside_pixel, kitchen_scene
 
 from deploy.bench.open import simulate_episode
-from deploy.control import session, stages
+from deploy.control import stages
 from deploy.control.session import OpenRequest, open_object
 from deploy.control.state import StopReason
 from sim_fallback.camera import SimCamera
@@ -33,15 +34,8 @@ THREE_DRAWERS = 3  # a kitchen test seed whose "middle drawer" is in a stack of 
 def blind(monkeypatch):
     """While an episode runs, reading the world's truth fails the test, and the simulator's labels are noise. Yields
     the handles the episode's perception found."""
-    running, found = [], []
-    real_run, real_perceive = session.run_episode, stages.perceive
-
-    def run_episode(*args, **kwargs):
-        running.append(True)
-        try:
-            return real_run(*args, **kwargs)
-        finally:
-            running.pop()
+    running, found = episode_running(monkeypatch), []
+    real_perceive = stages.perceive
 
     def perceive(*args, **kwargs):
         found.append(real_perceive(*args, **kwargs))
@@ -55,7 +49,6 @@ def blind(monkeypatch):
 
     rng = np.random.default_rng(0)
     monkeypatch.setattr(SimCamera, "_labels", lambda self, seg: rng.integers(0, 4, seg.shape, dtype=np.uint8))
-    monkeypatch.setattr(session, "run_episode", run_episode)
     monkeypatch.setattr(stages, "perceive", perceive)
     for name in TRUTH:
         monkeypatch.setattr(SimWorld, name, guarded(name, getattr(SimWorld, name)))

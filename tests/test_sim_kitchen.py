@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pybullet as pb
 import pytest
+from episodes import episode_running
 from sim_scenes import showroom
 
 from drivers.arm.robots import PANDA_REACH
@@ -296,26 +297,19 @@ def test_no_world_truth_reaches_the_controller_in_a_kitchen(monkeypatch):
     """In a kitchen (the default world) garbage labels change nothing, nothing reads the world's truth while the
     episode runs, and the pointed part is found from colour, depth, a calibrated pose and one pixel on the part."""
     from deploy.bench.open import simulate_episode
-    from deploy.control import observer, session
+    from deploy.control import observer
     from deploy.perception.base import Pointer
     from sim_fallback.camera import SimCamera
 
     first = simulate_episode("drawer", 2, "test", target=0.1, max_steps=1)
     rng = np.random.default_rng(0)
     monkeypatch.setattr(SimCamera, "_labels", lambda self, seg: rng.integers(0, 4, seg.shape, dtype=np.uint8))
-    seen, running, reads = [], [], []
-    real_point_at, real_run = observer.point_at, session.run_episode
+    seen, running, reads = [], episode_running(monkeypatch), []
+    real_point_at = observer.point_at
 
     def point_at(frame, robot, pointer, **kwargs):
         seen.append((frame.segmentation, frame.mask, frame.T_base_camera, pointer))
         return real_point_at(frame, robot, pointer, **kwargs)
-
-    def run_episode(*args, **kwargs):
-        running.append(True)
-        try:
-            return real_run(*args, **kwargs)
-        finally:
-            running.pop()
 
     def spy(name, real):
         def read(*args, **kwargs):
@@ -325,7 +319,6 @@ def test_no_world_truth_reaches_the_controller_in_a_kitchen(monkeypatch):
         return read
 
     monkeypatch.setattr(observer, "point_at", point_at)
-    monkeypatch.setattr(session, "run_episode", run_episode)
     for name in TRUTH:
         monkeypatch.setattr(SimWorld, name, spy(name, getattr(SimWorld, name)))
     monkeypatch.setattr(SimCamera, "link_image", spy("link_image", SimCamera.link_image))
