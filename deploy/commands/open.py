@@ -89,6 +89,17 @@ def _overrides(filter_profile: FilterChoice | None, prompt: str | None,
             "perception.object_prompt": prompt, "perception.box": box}
 
 
+def _request_fields(o: dict) -> dict:
+    """The OpenRequest fields every open command shares, from the command's options `o` (its `locals()`)."""
+    return dict(camera=o["camera"], arm=o["arm"], robot=o["robot"],
+                can=can_settings(o["interface"], o["channel"], o["bitrate"], o["data_bitrate"]),
+                calibration=o["calibration"], segmenter=o["segmenter"], seed=o["seed"], split=o["split"].value,
+                policy=_value(o["policy"]), run_dir=o["run_dir"], dry_run=o["dry_run"], yes=o["yes"], view=o["view"],
+                calibration_error=o["calibration_error"], condition=o["condition"].value, config_file=o["config"],
+                overrides=_overrides(o["filter_profile"], o["prompt"], o["box"]),
+                **_scene(o["world"], o["part"], o["assets"], o["object_id"], o["scale"], o["point"]))
+
+
 def _scene(world: WorldChoice | None, part: str | None, assets: Path | None, object_id: str | None,
            scale: ScaleChoice, point: tuple[float, float] | None) -> dict:
     """The simulated scene's options and --point as OpenRequest fields (world None: not given)."""
@@ -212,13 +223,8 @@ def open_drawer(
     Example: deploy open-drawer --camera d415 --arm can --robot my_arm.toml --dry-run
     Example: deploy open-drawer --camera d415 --arm can --robot my_arm.toml --config run.toml --prompt drawer
     """
-    _open(dict(task="drawer", scene="drawer", distance_m=distance, camera=camera, arm=arm, robot=robot,
-               can=can_settings(interface, channel, bitrate, data_bitrate),
-               calibration=calibration, segmenter=segmenter, seed=seed, split=split.value, policy=_value(policy),
-               run_dir=run_dir, dry_run=dry_run, yes=yes, view=view, calibration_error=calibration_error,
-               condition=condition.value, config_file=config, overrides=_overrides(filter_profile, prompt, box),
-               **_scene(world, part, assets, object_id, scale, point)),
-          json_out, sim_fault, overwrite)
+    _open(dict(task="drawer", scene="drawer", distance_m=distance, **_request_fields(locals())), json_out, sim_fault,
+          overwrite)
 
 
 @top_level.command("open-door")
@@ -260,13 +266,7 @@ def open_door(
 
     Example: deploy open-door --angle 45 --seed 2 --json
     """
-    _open(dict(task="door", scene="door", angle_deg=angle, camera=camera, arm=arm, robot=robot,
-               can=can_settings(interface, channel, bitrate, data_bitrate),
-               calibration=calibration, segmenter=segmenter, seed=seed, split=split.value, policy=_value(policy),
-               run_dir=run_dir, dry_run=dry_run, yes=yes, view=view, calibration_error=calibration_error,
-               condition=condition.value, config_file=config, overrides=_overrides(filter_profile, prompt, box),
-               **_scene(world, part, assets, object_id, scale, point)),
-          json_out, sim_fault, overwrite)
+    _open(dict(task="door", scene="door", angle_deg=angle, **_request_fields(locals())), json_out, sim_fault, overwrite)
 
 
 @top_level.command("open")
@@ -314,10 +314,5 @@ def open_any(
     Example: deploy open --joint auto --task door --seed 4 --json
     """
     told = {"auto": "auto", "prismatic": "drawer", "revolute": "door"}[joint.value]
-    _open(dict(task=told, scene=(scene or task).value, distance_m=distance, angle_deg=angle, camera=camera,
-               arm=arm, robot=robot, can=can_settings(interface, channel, bitrate, data_bitrate),
-               calibration=calibration, segmenter=segmenter, seed=seed, split=split.value,
-               policy=_value(policy), run_dir=run_dir, dry_run=dry_run, yes=yes, view=view,
-               calibration_error=calibration_error, condition=condition.value, config_file=config,
-               overrides=_overrides(filter_profile, prompt, box),
-               **_scene(world, part, assets, object_id, scale, point)), json_out, sim_fault, overwrite)
+    _open(dict(task=told, scene=(scene or task).value, distance_m=distance, angle_deg=angle,
+               **_request_fields(locals())), json_out, sim_fault, overwrite)
