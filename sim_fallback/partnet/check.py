@@ -11,6 +11,7 @@ import pybullet as pb
 from scipy.spatial.transform import Rotation
 
 from sim_fallback.furniture import Furniture, Part, PartKind
+from sim_fallback.furniture_body import link_pose
 from sim_fallback.partnet.errors import PartNetError
 
 PHYSICS_HZ = 240
@@ -57,7 +58,7 @@ def check_part(furniture: Furniture, part: Part) -> PartCheck:
         pb.setGravity(0, 0, -9.81, physicsClientId=client)
         body, links = _load(furniture, client)
         index = links[part.link]
-        closed = _link_pose(body, index, client)
+        closed = link_pose(client, body, index)
         grip, on_front, free = _handle_checks(body, index, part, closed, links, client)
         target = DRIVE_FRACTION * part.upper
         for j in range(pb.getNumJoints(body, physicsClientId=client)):
@@ -69,7 +70,7 @@ def check_part(furniture: Furniture, part: Part) -> PartCheck:
         info = pb.getJointInfo(body, index, physicsClientId=client)
         axis = closed[:3, :3] @ np.asarray(info[13])
         expected = _moved(closed, info[2], axis / np.linalg.norm(axis), reached)  # a joint value is m or rad
-        actual = _link_pose(body, index, client)
+        actual = link_pose(client, body, index)
     finally:
         pb.disconnect(client)
     turn = Rotation.from_matrix(actual[:3, :3] @ expected[:3, :3].T).magnitude()
@@ -105,7 +106,7 @@ def grip_points(furniture: Furniture) -> dict[str, np.ndarray]:
         for part in furniture.parts:
             index = links[part.link]
             if part.handle is not None:
-                T = _link_pose(body, index, client)
+                T = link_pose(client, body, index)
                 points[part.name] = T[:3, :3] @ np.asarray(part.handle.centre) + T[:3, 3]
             else:
                 lo, hi = (np.asarray(c) for c in pb.getAABB(body, index, physicsClientId=client))
@@ -199,12 +200,4 @@ def _moved(closed: np.ndarray, joint_type: int, axis: np.ndarray, value: float) 
         T[:3, 3] += value * axis
     else:
         T[:3, :3] = Rotation.from_rotvec(value * axis).as_matrix() @ closed[:3, :3]
-    return T
-
-
-def _link_pose(body: int, index: int, client: int) -> np.ndarray:
-    state = pb.getLinkState(body, index, computeForwardKinematics=True, physicsClientId=client)
-    T = np.eye(4)
-    T[:3, :3] = np.reshape(pb.getMatrixFromQuaternion(state[5]), (3, 3))
-    T[:3, 3] = state[4]
     return T
