@@ -230,15 +230,20 @@ def test_the_d415_model_loses_depth_where_stereo_would(client):
     assert on_bar.sum() > 50 and np.mean(depth[on_bar] > 0) < 0.1  # the thin bar's depth is lost
 
 
-def test_active_stereo_measures_a_wall_like_a_d415(client):
-    wall(client, 1.0)
+def _stereo(client):
+    """The D415's intrinsics, the active stereo model, its left (colour-side) render and the depth it measures."""
     intrinsics = d415_intrinsics()
     stereo = ActiveStereo()
     renderer = RayRenderer(client, intrinsics)
     projector = stereo.projector(T)
     left = renderer.render(T, _rng(), (projector,))
     right = renderer.see("right", stereo.right(T), (projector,))
-    depth = stereo.measure(left.seen, right, T, intrinsics, _rng())
+    return intrinsics, stereo, left, stereo.measure(left.seen, right, T, intrinsics, _rng())
+
+
+def test_active_stereo_measures_a_wall_like_a_d415(client):
+    wall(client, 1.0)
+    intrinsics, stereo, left, depth = _stereo(client)
     h, w = depth.shape
     central = depth[h // 10: -h // 10, w // 10: -w // 10]
     assert np.mean(central > 0) > 0.97
@@ -249,13 +254,7 @@ def test_active_stereo_measures_a_wall_like_a_d415(client):
 
 def test_stereo_and_the_model_shadow_the_same_pixels(client):
     _box_wall_bar(client)
-    intrinsics = d415_intrinsics()
-    stereo = ActiveStereo()
-    renderer = RayRenderer(client, intrinsics)
-    projector = stereo.projector(T)
-    left = renderer.render(T, _rng(), (projector,))
-    right = renderer.see("right", stereo.right(T), (projector,))
-    measured = stereo.measure(left.seen, right, T, intrinsics, _rng())
+    intrinsics, stereo, left, measured = _stereo(client)
     model = DepthNoise(stereo_shadows=True, stereo_margin_px=1).apply(left.depth_m, intrinsics.fx, _rng())
     rows = slice(intrinsics.height // 2 - 30, intrinsics.height // 2 + 30)
     lost_stereo, lost_model = measured[rows] == 0, model[rows] == 0
