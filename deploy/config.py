@@ -131,6 +131,16 @@ class GeometryConfig(_Section):
         return NEAR_M if self.min_depth_m is None else self.min_depth_m
 
 
+def _registered(registry, name: str, error_type: str) -> str:
+    """`name` when `registry` holds it, else a validation error in the registry's words ("unknown policy 'x': choose
+    one of ...")."""
+    try:
+        registry.entry(name)
+    except ConfigError as exc:
+        raise PydanticCustomError(error_type, "{message}", {"message": str(exc)}) from None
+    return name
+
+
 class EstimatorConfig(_Section):
     """Which axis estimator runs, over how many frames, for which joint type; the screw estimators' settings.
 
@@ -146,11 +156,7 @@ class EstimatorConfig(_Section):
     @field_validator("name")
     @classmethod
     def _registered(cls, name: str) -> str:
-        try:
-            ESTIMATORS.entry(name)
-        except ConfigError as exc:  # "unknown estimator 'x': choose one of ...", the registry's words
-            raise PydanticCustomError("unknown_estimator", "{message}", {"message": str(exc)}) from None
-        return name
+        return _registered(ESTIMATORS, name, "unknown_estimator")
 
 
 class OpeningConfig(_Section):
@@ -202,11 +208,7 @@ class OpeningConfig(_Section):
     @field_validator("policy")
     @classmethod
     def _registered(cls, name: str) -> str:
-        try:
-            POLICIES.entry(name)
-        except ConfigError as exc:  # "unknown policy 'x': choose one of ...", the registry's words
-            raise PydanticCustomError("unknown_policy", "{message}", {"message": str(exc)}) from None
-        return name
+        return _registered(POLICIES, name, "unknown_policy")
 
     def strategy(self) -> OpeningPolicy:
         """The policy object `policy` names: what the episode acts with and how it steps."""
