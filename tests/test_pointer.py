@@ -265,3 +265,21 @@ def test_no_truth_reaches_the_pointer(three_drawers, monkeypatch):
 
 def iou(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.count_nonzero(a & b) / max(np.count_nonzero(a | b), 1))
+
+
+def test_a_bar_on_the_doors_very_edge_is_its_handle():
+    """A door whose vertical bar stands at its free edge (refrigerators, wardrobes): past the bar the surface is too
+    narrow to be crossed, so the front's rectangle stops at the bar; the bar just beyond it is still the handle. Here
+    the bar overhangs the edge by 12 mm, as PartNet-Mobility's wardrobe and refrigerator bars do."""
+    rng = np.random.default_rng(3)
+    look = random_look("test", rng, "bar")
+    unit = random_unit("base", "door", random_width("test", "door", rng), random_carcass("test", "base", rng), look,
+                       "test", rng, "edge bar")
+    door = unit.fronts[0]
+    along, across = door.handle.footprint()
+    width = door.y[1] - door.y[0]
+    edge = replace(door, handle_at=(-door.hinge * (width / 2 - across / 2 + 0.012), door.handle_at[1]))
+    scene = kitchen_scene("door", 4, target=replace(unit, fronts=(edge,)).furniture(), part="door")
+    u, v = inside_pixel(scene.front_truth())
+    pointed = point_at(scene.frame, scene.robot, Pointer(u, v))
+    assert np.linalg.norm(pointed.handle.centre - scene.grip()) < GRIP_TOLERANCE_M
