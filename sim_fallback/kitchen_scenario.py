@@ -169,7 +169,7 @@ def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, r
     grip = (T_room @ [*part.grip, 1.0])[:3]
     normal = T_room[:3, :3] @ part.normal
     others = [p.footprint() for k, p in enumerate(room.furniture) if k != room.target]
-    others += [s.footprint() for s in room.statics if s.name not in ("floor", "wall")]
+    others += [s.footprint() for s in room.statics if s.name != "floor"]  # walls too: a corner's side wall
     try:
         T = park_robot(grip, normal, task, others, rng, reach)
     except ValueError as exc:
