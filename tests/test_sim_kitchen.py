@@ -125,6 +125,21 @@ def test_the_robot_stands_clear_of_every_wall():
             assert not any(overlap(stand, w.footprint()) for w in walls), (task, seed)
 
 
+def test_no_part_of_the_target_starts_inside_the_room():
+    """A side wall stands beyond a tall unit at the run's end, and the countertop ends at its side: neither passes
+    through the target (these seeds had a drawer in a wall, or a door kicked open by it at the first step)."""
+    for task, seeds in (("drawer", (3, 11)), ("door", (8, 13))):
+        for seed in seeds:
+            with SimWorld(make_scenario("kitchen", task, seed, "test")) as world:
+                c, body = world.client, world.cabinet_id
+                others = [o for o in range(pb.getNumBodies(physicsClientId=c)) if o not in (body, world.robot_id)]
+                deepest = min((p[8] for o in others for p in pb.getClosestPoints(body, o, 0.0, physicsClientId=c)
+                               if p[3] >= 0), default=0.0)
+                assert deepest > -0.004, (task, seed, deepest)
+                world.clock.step(24)
+                assert abs(world.joint_value()) < 0.005, (task, seed)
+
+
 def test_the_run_touches_the_target_under_an_overhanging_countertop_against_the_wall():
     sc = next(s for s in (make_scenario("kitchen", "drawer", seed, "train") for seed in range(20))
               if " base " in s.kitchen.target_furniture.furniture.source)
