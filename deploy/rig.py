@@ -61,8 +61,9 @@ class SimScene:
     """The simulated opening scenario (sim_fallback.scenes.scene_scenario): a drawer or a door in `world` ("kitchen",
     or "box": one cabinet in empty space), the `part` a user names (None: the seed picks a reachable one), in a
     kitchen a PartNet-Mobility object `object_id` of the folder `assets` (None: the seed's) loaded at `scale`
-    ("real" or "native"); its joint in `condition` ("normal", "locked" or "stiff": 3x the friction). The controller
-    is never told any of it."""
+    ("real" or "native"); its joint in `condition` ("normal", "locked" or "stiff": 3x the friction); without `part`,
+    the seed's part is one that opens at least `opening` (m or rad: the task's target). The controller is never told
+    any of it."""
 
     task: Literal["drawer", "door"] = "drawer"
     seed: int = 0
@@ -73,6 +74,7 @@ class SimScene:
     assets: Path | None = None
     object_id: str | None = None
     scale: str = "real"
+    opening: float = 0.0
 
     def scenario(self, reach: Reach = PANDA_REACH):
         """The scenario it names, the target's grip in the arm's `reach` (SceneError or PartNetError, one line, when
@@ -80,7 +82,7 @@ class SimScene:
         from sim_fallback.scenes import scene_scenario
 
         return scene_scenario(self.world, self.task, self.seed, self.split, self.part, self.assets, self.object_id,
-                              self.scale, self.condition, reach)
+                              self.scale, self.condition, reach, self.opening)
 
 
 @dataclass(frozen=True)

@@ -49,6 +49,8 @@ FLOOR_BEYOND_M = 1.5  # the floor and back wall reach this far beyond the furnit
 ROOM_DEPTH_M = 3.0
 FLOOR_OBJECT_AWAY_M = 1.1  # floor objects stand at least this far along the wall from the target's centre
 SHELL_M = 0.1  # wall thickness
+FILLER_M = 0.03  # a side wall stands this far beyond the run's end: the filler strip fitters leave so that the doors
+# and handles beside a wall open (models' doors may also reach a little past their body's box)
 
 
 @dataclass
@@ -124,9 +126,10 @@ def random_room(target: Furniture, role: Role, split: Split, look: Look, rng: np
         width, depth, _ = tall.size_m
         y = ends[1] + width / 2 if tall_end > 0 else ends[0] - width / 2
         room.add(tall, depth / 2, y, target=role == "tall")
+    all_ends = room.y_range()
+    closed = all_ends[1] if tall_end > 0 else all_ends[0]  # the end (past a tall unit) a side wall may stand beyond
     if role == "wall" or rng.random() < 0.7:
         _wall_run(room, target if role == "wall" else None, ends, counter_top, tall_end, split, look, rng, source)
-    closed = ends[1] if tall_end > 0 else ends[0]  # the run's end beyond which a side wall may stand
     all_ends = room.y_range()
     side_wall = rng.random() < 0.5
     if role == "free" or rng.random() < 0.5:
@@ -162,7 +165,8 @@ def _base_run(room: Room, target: Furniture | None, run: Carcass, look: Look, sp
     thickness, overhang = float(rng.uniform(*COUNTER_M)), float(rng.uniform(*OVERHANG_M))
     finish = random_finish("laminate" if rng.random() < 0.6 else "wood", rng)
     depth = max(f.size_m[1] for f, _ in units) + overhang
-    room.shape("countertop", (depth, y + 2 * 0.01, thickness), (depth / 2, y / 2, run.height_m + thickness / 2), finish)
+    # the counter ends with the run: it butts against a tall unit's side rather than entering it
+    room.shape("countertop", (depth, y, thickness), (depth / 2, y / 2, run.height_m + thickness / 2), finish)
     return run.height_m + thickness
 
 
@@ -260,5 +264,5 @@ def _shell(room: Room, tall_end: float, side_wall_at: float | None, rng: np.rand
                                        ((ROOM_DEPTH_M - SHELL_M) / 2, (y0 + y1) / 2, -0.01, 0.0), floor))
     room.shape("wall", (SHELL_M, y1 - y0, height), (-SHELL_M / 2, (y0 + y1) / 2, height / 2), wall)
     if side_wall_at is not None:
-        y = side_wall_at + tall_end * SHELL_M / 2
+        y = side_wall_at + tall_end * (FILLER_M + SHELL_M / 2)
         room.shape("wall", (ROOM_DEPTH_M, SHELL_M, height), (ROOM_DEPTH_M / 2, y, height / 2), wall)

@@ -69,9 +69,10 @@ class KitchenScenario:
     @classmethod
     def make(cls, task: PartKind, seed: int, split: Split = "train", part: str | None = None,
              target: Furniture | None = None, condition: Condition = "normal", style: str | None = None,
-             reach: Reach = PANDA_REACH) -> KitchenScenario:
+             reach: Reach = PANDA_REACH, opening: float = 0.0) -> KitchenScenario:
         """A kitchen scenario, deterministic from (task, seed, split) and the arguments. `part`: the `--part` text
-        (default: the seed picks a reachable part of the task's kind); `target`: the furniture to open (default: a
+        (default: the seed picks a reachable part of the task's kind that opens at least `opening`, m or rad: the
+        task's target); `target`: the furniture to open (default: a
         procedural unit of the split's family, drawn again until it has that part within reach); `style`: every
         procedural unit's handle style (default: drawn); `reach`: the arm's (default: the Panda's). SceneError when
         the part is not there or out of reach."""
@@ -87,7 +88,7 @@ class KitchenScenario:
                 (role_of(target), target)
             room = random_room(furniture, role, split, look, rng, source)
             try:
-                chosen = _choose_part(room, task, part, rng, reach)
+                chosen = _choose_part(room, task, part, rng, reach, opening)
                 return _park(cls, task, seed, split, room, chosen, condition, reach)
             except PartError as exc:
                 if target is not None:  # another kitchen would not change its parts nor their heights
@@ -99,8 +100,9 @@ class KitchenScenario:
 
 
 def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Generator,
-                 reach: Reach) -> PartGeometry:
-    """The target part: the one `text` names, else one of the task's kind within `reach`, drawn from `rng`."""
+                 reach: Reach, opening: float) -> PartGeometry:
+    """The target part: the one `text` names, else one of the task's kind within `reach` that opens at least
+    `opening`, drawn from `rng`."""
     placed = room.furniture[room.target]
     geometry = measure_parts(placed.furniture)
     if text is not None:
@@ -109,26 +111,39 @@ def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Ge
             raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} is out of the robot's "
                              f"reach: {_reach(placed, [chosen], task, reach)}")
         return chosen
-    reachable = reachable_parts(placed, geometry, task, reach)
+    reachable = reachable_parts(placed, geometry, task, reach, opening)
     if not reachable:
-        raise PartError(_no_reach(placed, geometry, task, reach))
+        raise PartError(_no_part(placed, geometry, task, reach, opening))
     return reachable[int(rng.integers(len(reachable)))]
 
 
-def reach_problem(furniture: Furniture, task: PartKind, reach: Reach = PANDA_REACH) -> str | None:
+def reach_problem(furniture: Furniture, task: PartKind, reach: Reach = PANDA_REACH, opening: float = 0.0) -> str | None:
     """Why `furniture`, standing where a given target does at the lowest (the floor, or a countertop:
-    `standing_height`), has no part of the task's kind an arm of `reach` can reach (one line); None when it has
-    one."""
+    `standing_height`), has no part of the task's kind that opens at least `opening` (m or rad) and an arm of
+    `reach` can reach (one line); None when it has one."""
     placed, geometry = Placed(furniture, (0.0, 0.0, standing_height(furniture), 0.0)), measure_parts(furniture)
-    return None if reachable_parts(placed, geometry, task, reach) else _no_reach(placed, geometry, task, reach)
+    if reachable_parts(placed, geometry, task, reach, opening):
+        return None
+    return _no_part(placed, geometry, task, reach, opening)
 
 
-def reachable_parts(placed: Placed, geometry: list[PartGeometry], task: PartKind, reach: Reach) -> list[PartGeometry]:
-    """The parts of the task's kind (in a user's order) whose grip some robot base height brings into `reach`."""
-    return [g for g in ordered(geometry, task) if base_heights(_grip_height(placed, g), task, reach) is not None]
+def reachable_parts(placed: Placed, geometry: list[PartGeometry], task: PartKind, reach: Reach,
+                    opening: float = 0.0) -> list[PartGeometry]:
+    """The parts of the task's kind (in a user's order) that open at least `opening` (m or rad) and whose grip some
+    robot base height brings into `reach`."""
+    return [g for g in ordered(geometry, task) if placed.furniture.part(g.name).upper >= opening
+            and base_heights(_grip_height(placed, g), task, reach) is not None]
 
 
-def _no_reach(placed: Placed, geometry: list[PartGeometry], task: PartKind, reach: Reach) -> str:
+def _no_part(placed: Placed, geometry: list[PartGeometry], task: PartKind, reach: Reach, opening: float) -> str:
+    """Why no part serves: none opens as far as asked, else none is within reach."""
+    parts = [placed.furniture.part(g.name) for g in ordered(geometry, task)]
+    if parts and all(p.upper < opening for p in parts):
+        most = max(p.upper for p in parts)
+        far, asked = (f"{most:.2f} m", f"{opening:.2f} m") if task == "drawer" else \
+            (f"{np.degrees(most):.0f} deg", f"{np.degrees(opening):.0f} deg")
+        return (f"{placed.furniture.source}: its {task}s open at most {far}, less than the {asked} asked: ask for "
+                f"less, or choose another object")
     return (f"{placed.furniture.source} has no {task} within the robot's reach: "
             f"{_reach(placed, ordered(geometry, task), task, reach)}")
 
@@ -154,7 +169,7 @@ def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, r
     grip = (T_room @ [*part.grip, 1.0])[:3]
     normal = T_room[:3, :3] @ part.normal
     others = [p.footprint() for k, p in enumerate(room.furniture) if k != room.target]
-    others += [s.footprint() for s in room.statics if s.name not in ("floor", "wall")]
+    others += [s.footprint() for s in room.statics if s.name != "floor"]  # walls too: a corner's side wall
     try:
         T = park_robot(grip, normal, task, others, rng, reach)
     except ValueError as exc:

@@ -128,10 +128,11 @@ class Scenario:
 
 def make_scenario(world: str, task: Task, seed: int, split: Split = "train", part: str | None = None,
                   target=None, condition: Condition = "normal",
-                  reach: Reach = PANDA_REACH) -> Scenario | KitchenScenario:
+                  reach: Reach = PANDA_REACH, opening: float = 0.0) -> Scenario | KitchenScenario:
     """The scenario of `world` ("kitchen" or "box"), deterministic from its arguments, the target's grip in the arm's
-    `reach`. `part` (the user's `--part` text) and `target` (a `Furniture` to open) apply to kitchens; the box world
-    has its one cabinet. SceneError for an unknown world, or a part the box world's cabinet does not have."""
+    `reach`. `part` (the user's `--part` text), `target` (a `Furniture` to open) and `opening` (the seed's part opens
+    at least this far, m or rad) apply to kitchens; the box world has its one cabinet, which opens farther than any
+    task asks. SceneError for an unknown world, or a part the box world's cabinet does not have."""
     if world == "box":
         scenario = Scenario.make(task, seed, split, condition=condition, reach=reach)
         if part not in (None, task, "0"):
@@ -139,6 +140,7 @@ def make_scenario(world: str, task: Task, seed: int, split: Split = "train", par
                              "use --world kitchen")
         return scenario
     if world == "kitchen":
-        return KitchenScenario.make(task, seed, split, part=part, target=target, condition=condition, reach=reach)
+        return KitchenScenario.make(task, seed, split, part=part, target=target, condition=condition, reach=reach,
+                                    opening=opening)
     raise SceneError(f"--world {world!r} is not a world: use one of {', '.join(WORLDS)}")
 

@@ -32,9 +32,11 @@ class TaskObjects:
         return self.usable[seed % len(self.usable)]
 
 
-def task_objects(assets: Path, task: str, scale: str = "real", reach: Reach = PANDA_REACH) -> TaskObjects:
+def task_objects(assets: Path, task: str, scale: str = "real", reach: Reach = PANDA_REACH,
+                 opening: float = 0.0) -> TaskObjects:
     """Which objects of `assets` can serve `task` ("drawer" or "door") at `scale`: loaded, with a part of the task's
-    kind within an arm's `reach`. PartNetError when none can (naming each object's problem)."""
+    kind that opens at least `opening` (m or rad) within an arm's `reach`. PartNetError when none can (naming each
+    object's problem)."""
     from sim_fallback.kitchen_scenario import reach_problem
     from sim_fallback.partnet import PartNetError, list_objects
 
@@ -44,7 +46,7 @@ def task_objects(assets: Path, task: str, scale: str = "real", reach: Reach = PA
         if problem is None and not any(p.kind == task for p in entry.furniture.parts):
             problem = (f"{entry.furniture.source}: no {task} (it has "
                        f"{', '.join(p.name for p in entry.furniture.parts)}); fix: choose another task or object")
-        problem = problem or reach_problem(entry.furniture, task, reach)  # type: ignore[arg-type]
+        problem = problem or reach_problem(entry.furniture, task, reach, opening)  # type: ignore[arg-type]
         if problem is None:
             usable.append(entry.object_id)
         else:
@@ -86,21 +88,23 @@ def check_scene(world: str, assets: Path | None = None, object_id: str | None = 
 
 def scene_scenario(world: str, task: str | None, seed: int, split: str = "train", part: str | None = None,
                    assets: Path | None = None, object_id: str | None = None, scale: str = "real",
-                   condition: Condition = "normal", reach: Reach = PANDA_REACH) -> Scenario | KitchenScenario:
+                   condition: Condition = "normal", reach: Reach = PANDA_REACH,
+                   opening: float = 0.0) -> Scenario | KitchenScenario:
     """The scenario of `world` for `task` (None: the object's task, `object_task`; drawer without an object),
     deterministic from the arguments; with `assets` the target is the PartNet-Mobility object `object_id` (default:
-    the seed's, `task_objects`) loaded at `scale`; the target's grip in the arm's `reach`. SceneError /
+    the seed's, `task_objects`) loaded at `scale`; the target's grip in the arm's `reach`; without `part`, the seed's
+    part opens at least `opening` (m or rad: the task's target). SceneError /
     PartNetError (one line each) for what cannot be built: an unknown world, --object or --assets with the box world
     or without a folder, a part the furniture does not have or cannot reach."""
     check_scene(world, assets, object_id)
     if assets is None:
         return make_scenario(world, task or "drawer", seed, split, part=part, condition=condition,  # type: ignore
-                             reach=reach)
+                             reach=reach, opening=opening)
     if object_id is None:
-        object_id = task_objects(assets, task or "drawer", scale, reach).for_seed(seed)
+        object_id = task_objects(assets, task or "drawer", scale, reach, opening).for_seed(seed)
     furniture = load_object(assets, object_id, scale)
     return make_scenario("kitchen", task or object_task(furniture, part), seed, split, part=part,  # type: ignore
-                         target=furniture, condition=condition, reach=reach)
+                         target=furniture, condition=condition, reach=reach, opening=opening)
 
 
 def scenario_object(scenario: Scenario | KitchenScenario) -> str:

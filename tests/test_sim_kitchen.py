@@ -18,6 +18,7 @@ from sim_fallback.furniture_body import grip_frame, measure_parts, part_links
 from sim_fallback.handles import STYLES
 from sim_fallback.kitchen_scenario import KitchenScenario
 from sim_fallback.parts import ordered, resolve
+from sim_fallback.placement import STAND_HALF_M, overlap
 from sim_fallback.scenario import Scenario, make_scenario
 from sim_fallback.unit_families import LAYOUTS, random_carcass, random_look, random_unit, random_width
 from sim_fallback.world import SimWorld
@@ -112,6 +113,31 @@ def test_kitchen_scenes_build_with_their_run_counter_walls_floor_and_objects():
                 assert low - 1e-6 <= grip[2] <= high + 1e-6  # the reach rule: the grip where the box world's are
                 assert world.truth().part == sc.part and world.truth().body_id == world.cabinet_id
     assert make_scenario("kitchen", "drawer", 0, "test") != make_scenario("kitchen", "drawer", 1, "test")
+
+
+def test_the_robot_stands_clear_of_every_wall():
+    """In a corner the side wall runs past the robot: its stand keeps clear of it as of furniture (these seeds
+    parked it inside the wall before)."""
+    stand = np.array([[1, 1], [1, -1], [-1, -1], [-1, 1]]) * STAND_HALF_M
+    for task, seeds in (("drawer", (3, 11)), ("door", (13, 16))):
+        for seed in seeds:
+            walls = [s for s in make_scenario("kitchen", task, seed, "test").kitchen.statics if s.name == "wall"]
+            assert not any(overlap(stand, w.footprint()) for w in walls), (task, seed)
+
+
+def test_no_part_of_the_target_starts_inside_the_room():
+    """A side wall stands beyond a tall unit at the run's end, and the countertop ends at its side: neither passes
+    through the target (these seeds had a drawer in a wall, or a door kicked open by it at the first step)."""
+    for task, seeds in (("drawer", (3, 11)), ("door", (8, 13))):
+        for seed in seeds:
+            with SimWorld(make_scenario("kitchen", task, seed, "test")) as world:
+                c, body = world.client, world.cabinet_id
+                others = [o for o in range(pb.getNumBodies(physicsClientId=c)) if o not in (body, world.robot_id)]
+                deepest = min((p[8] for o in others for p in pb.getClosestPoints(body, o, 0.0, physicsClientId=c)
+                               if p[3] >= 0), default=0.0)
+                assert deepest > -0.004, (task, seed, deepest)
+                world.clock.step(24)
+                assert abs(world.joint_value()) < 0.005, (task, seed)
 
 
 def test_the_run_touches_the_target_under_an_overhanging_countertop_against_the_wall():

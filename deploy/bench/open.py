@@ -128,7 +128,8 @@ def bench_open(
         _warn_above_cores(min(workers, episodes))
     policy = policy or OpeningConfig().policy
     reach = load_robot("sim", robot).reach.reach()
-    objects, unusable = _objects(task, range(seed, seed + episodes), world, assets, object_id, scale, reach)
+    opening = target if task == "drawer" else float(np.radians(target))
+    objects, unusable = _objects(task, range(seed, seed + episodes), world, assets, object_id, scale, reach, opening)
     scene = dict(world=world, part=part, assets=assets, scale=scale)
     jobs = [dict(task=task, seed=s, split=split, target=target, policy=policy, segmenter=segmenter,
                  calibration_error=tuple(calibration_error), condition=condition, robot=robot, object_id=objects[s],
@@ -169,13 +170,14 @@ def bench_episode(**job: Any) -> dict:
 
 
 def _objects(task: str, seeds: range, world: str, assets: Path | None, object_id: str | None,
-             scale: str, reach: Reach) -> tuple[dict[int, str | None], dict[str, str]]:
+             scale: str, reach: Reach, opening: float) -> tuple[dict[int, str | None], dict[str, str]]:
     """The PartNet-Mobility object of each seed (None without `assets`) and why each other object of the folder
-    cannot be used by an arm of `reach`; one-line errors before any episode for a bad folder, object or world."""
+    cannot be used by an arm of `reach` to open a part `opening` (m or rad); one-line errors before any episode for
+    a bad folder, object or world."""
     check_scene(world, assets, object_id)
     if assets is None:
         return dict.fromkeys(seeds), {}
-    choice = task_objects(assets, task, scale, reach)
+    choice = task_objects(assets, task, scale, reach, opening)
     if object_id is not None:
         load_object(assets, object_id, scale)  # one line when it is not there or does not load
         if object_id in choice.problems:

@@ -9,6 +9,7 @@ before its first motion unless --yes or --dry-run. The JSON names units in its k
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -81,9 +82,10 @@ class OpenRequest:
             "opening.task": self.task, "opening.policy": self.policy, "opening.target_distance_m": self.distance_m,
             "opening.target_angle_deg": self.angle_deg, **point, **self.overrides}, OPTIONS).for_camera(self.camera)
 
-    def sim_scene(self) -> SimScene:
+    def sim_scene(self, config: Config) -> SimScene:
+        """The simulated scene, its part one that opens as far as the opening asks (`SimScene.opening`)."""
         return SimScene(self.scene, self.seed, self.split, self.condition, self.world, self.part, self.assets,
-                        self.object_id, self.scale)
+                        self.object_id, self.scale, scene_opening(self.scene, config))
 
     def rig_spec(self, config: Config) -> RigSpec:
         simulated = CAMERAS.entry(self.camera)[0].simulated
@@ -91,7 +93,7 @@ class OpenRequest:
         return RigSpec(camera=self.camera, arm=self.arm, robot=self.robot, can=self.can, calibration=self.calibration,
                        segmenter=self.segmenter or default_segmenter(config.perception),
                        perception=config.perception,
-                       scene=self.sim_scene(),
+                       scene=self.sim_scene(config),
                        calibration_error=self.calibration_error,
                        camera_options={"width": width, "height": height, "fps": config.opening.camera_hz}
                        if simulated else {})
@@ -130,8 +132,8 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
     changes a simulated world before the episode; keep_run_dir False: no run folder (benchmarks)."""
     wall = time.perf_counter()
     check_request(request)
-    request = _with_object(request)
     config = request.config()
+    request = _with_object(request, config)
     run_dir = request.folder() if keep_run_dir else None
     with open_rig(request.rig_spec(config)) as rig:
         if setup is not None:
@@ -173,15 +175,21 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
     return data
 
 
-def _with_object(request: OpenRequest) -> OpenRequest:
+def scene_opening(scene: str, config: Config) -> float:
+    """How far the opening asks the simulated `scene` ("drawer" or "door") to open: m or rad."""
+    o = config.opening
+    return o.target_distance_m if scene == "drawer" else math.radians(o.target_angle_deg)
+
+
+def _with_object(request: OpenRequest, config: Config) -> OpenRequest:
     """`request` with the PartNet-Mobility object its seed opens, when it gives --assets without --object."""
     if request.assets is None or request.object_id is not None or not CAMERAS.entry(request.camera)[0].simulated:
         return request
     from sim_fallback.scenes import task_objects
 
     reach = load_robot(request.arm, request.robot).reach.reach()
-    return replace(request, object_id=task_objects(request.assets, request.scene, request.scale,
-                                                   reach).for_seed(request.seed))
+    objects = task_objects(request.assets, request.scene, request.scale, reach, scene_opening(request.scene, config))
+    return replace(request, object_id=objects.for_seed(request.seed))
 
 
 def _pointed(config: Config, rig: Rig, evaluation: Any, seed: int) -> tuple[Config, dict | None]:

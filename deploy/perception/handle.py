@@ -12,6 +12,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from deploy.perception.front_extent import Extent
 from deploy.perception.handle_blobs import Blob, segment_distance
 from deploy.perception.plane_view import PlaneView
 
@@ -60,22 +61,30 @@ class Handle:
     open_m: float
 
 
-def own_blob(blobs: list[Blob], view: PlaneView, rows: tuple[int, int], cols: tuple[int, int]) -> Blob | None:
-    """The front's handle among the candidates: a firm one whose centre lies on the front (rows and cols of its
-    rectangle, inclusive), else just beyond its top or bottom edge (an edge pull's tab). Among several: an edge pull
-    on the top edge (where a hand reaches for it on a drawer or a base door; the tab on the bottom edge is then the
-    next front's), else the one nearest the user's pixel (the view's origin)."""
+def own_blob(blobs: list[Blob], view: PlaneView, extent: Extent) -> Blob | None:
+    """The front's handle among the candidates: a firm one whose centre lies on the front (its rectangle `extent`,
+    inclusive), else just beyond its top or bottom edge (an edge pull's tab), else just beyond a side where the
+    front's surface stopped rather than at a gap (a bar on a door's very edge, as refrigerators and wardrobes have:
+    the surface past it is too narrow to be crossed). Among several: an edge pull on the top edge (where a hand
+    reaches for it on a drawer or a base door; the tab on the bottom edge is then the next front's), else the one
+    nearest the user's pixel (the view's origin)."""
+    rows, cols = (extent.top, extent.bottom), (extent.left, extent.right)
     band = EDGE_BAND_M / view.res_m
-    on, near = [], []
+    lo = cols[0] - (band if extent.ended.get("left") == "surface" else 0)
+    hi = cols[1] + (band if extent.ended.get("right") == "surface" else 0)
+    on, near, beside = [], [], []
     for b in blobs:
         r, c = float(view.row(b.centre[1])), float(view.col(b.centre[0]))
-        if not b.firm or not cols[0] <= c <= cols[1]:
+        if not b.firm or not rows[0] - band <= r <= rows[1] + band or not lo <= c <= hi:
             continue
-        if rows[0] <= r <= rows[1]:
+        if not cols[0] <= c <= cols[1]:
+            if rows[0] <= r <= rows[1]:
+                beside.append(b)
+        elif rows[0] <= r <= rows[1]:
             on.append(b)
-        elif rows[0] - band <= r <= rows[1] + band:
+        else:
             near.append(b)
-    found = on or near
+    found = on or near or beside
     if not found:
         return None
     on_top = [b for b in found if _kind(b, view, rows) == "edge pull" and

@@ -149,7 +149,7 @@ def find_handle(front: Front, frame: Frame, gripper: GripperSize, pointer: Point
     """The front's handle and its grip; PointerError when the front shows none (one line saying what was seen)."""
     e = front.extent
     blobs = handle_blobs(front.view, e, frame.T_base_camera, frame.intrinsics.K)
-    blob = own_blob(blobs, front.view, (e.top, e.bottom), (e.left, e.right))
+    blob = own_blob(blobs, front.view, e)
     if blob is None:
         seen = front.view.seen[e.top:e.bottom + 1, e.left:e.right + 1].mean()
         size = f"{front.width_m:.2f} x {front.height_m:.2f} m"
