@@ -26,6 +26,9 @@ from deploy.geometry.static_scene import StaticScene, moving_pixels, opening_rea
 from deploy.geometry.types import AxisResult, Box, JointType, NoAxis
 from drivers.camera.base import Frame
 
+PAUSE_M = 0.002  # the gripper moved less than this since the last frame in the window: a pause (twice the 1 mm its
+# position from forward kinematics is good to, `[estimator.screw] grip_noise_m`)
+
 
 @dataclass(frozen=True)
 class StepResult:
@@ -65,10 +68,13 @@ class AxisPipeline:
 
     `region`: where the target part can be while it opens (`static_scene.opening_region` of its front), for the
     static-scene moving part; None: the first frame's body box's front face, reaching `perception.opening_reach_m`
-    (or the front's width, if larger) out of it.
+    (or the front's width, if larger) out of it. `toward`: a point in front of the target's front (the base of
+    the robot that opens it): the body box's front is its face the ray from its centre toward that point leaves
+    through; None: toward the camera.
     """
 
-    def __init__(self, config: Config, estimator: AxisEstimator | None = None, region: Box | None = None):
+    def __init__(self, config: Config, estimator: AxisEstimator | None = None, region: Box | None = None,
+                 toward: np.ndarray | None = None):
         self.config = config
         self.filter = config.filter.resolve()
         self.estimator = estimator or make_estimator(config.estimator.name, config.estimator)
@@ -81,7 +87,16 @@ class AxisPipeline:
         mode = config.geometry.moving_part
         self.static = mode == "static-scene" or (mode == "auto" and not self.estimator.box_moving_part)
         self.region = region
+        self.toward = None if toward is None else np.asarray(toward, float)
         self.scene: StaticScene | None = None
+        self._joined: np.ndarray | None = None  # the gripper pose of the frame that last joined the window
+
+    def _paused(self, gripper_pose: np.ndarray | None) -> bool:
+        """Whether the gripper, at `gripper_pose`, is within PAUSE_M of where it was at the frame that last joined
+        the window (False without both poses)."""
+        if gripper_pose is None or self._joined is None or not self.window:
+            return False
+        return bool(np.linalg.norm(np.asarray(gripper_pose)[:3, 3] - self._joined[:3, 3]) < PAUSE_M)
 
     def cut_box(self) -> Box:
         """The box the moving part is cut out of: the body box, reaching geometry.inside_depth_m behind the
@@ -126,8 +141,15 @@ class AxisPipeline:
 
     def _estimate(self, moving: np.ndarray, index: int, t: float, object_points: int,
                   gripper_pose: np.ndarray | None, timings: dict) -> StepResult:
-        """The moving part joins the window; the estimator's answer on it."""
-        self.window.append(Observation(index, t, moving, self.body_box, gripper_pose))
+        """The moving part joins the window; the estimator's answer on it. A frame in which the held handle has not
+        moved by PAUSE_M since the last frame that joined takes the newest frame's place instead (`_paused`): a
+        pause repeats a view without adding motion, and would push the motion out of the window."""
+        observation = Observation(index, t, moving, self.body_box, gripper_pose)
+        if self._paused(gripper_pose):
+            self.window[-1] = observation
+        else:
+            self.window.append(observation)
+            self._joined = gripper_pose
         clock = time.perf_counter()
         result = self.estimator.estimate(list(self.window), self.joint)
         timings["estimate"] = (time.perf_counter() - clock) * 1e3
@@ -138,6 +160,8 @@ class AxisPipeline:
             return StepResult(index, t, NoAxis("no object points on the first frame: check the mask"),
                               len(kept), 0, timings)
         clock = time.perf_counter()
+        if self.toward is not None:
+            view = self.toward
         if self.config.geometry.remove_handle:
             self.body_box, _, self.handle_points = remove_handle(kept, view, box_fn=lambda p: self._box(p, view))
         else:

@@ -36,6 +36,9 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
     reads as a turn). Their steps give the reason `APPROACH`; each step's `grasped` is its frame's mark (null
     without one).
 
+    The body box's front is its face toward the robot's base when an arm made the recording (`ee_pose`) and it
+    has the camera's pose, else its face toward the camera (a camera beside the part may see a side best).
+
     Depth nearer than the recording camera's minimum range (meta.json `min_range_m`) is left out, unless
     `geometry.min_depth_m` says otherwise. Axes are in the base frame when the recording has `T_base_camera`, else
     in the camera frame. progress(done, total) follows the frames; `viewer` (deploy.report.viewer.RerunViewer) is
@@ -47,7 +50,8 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
     e = config.estimator
     log.info("estimate config: filter %s (%s); estimator %s, joint %s, window %d; %d frames in %s",
              config.filter.profile, config.filter.resolve(), e.name, e.joint, e.window, len(recording), path)
-    pipe = AxisPipeline(config)
+    toward = _robot_base(recording)
+    pipe = AxisPipeline(config, toward=toward)
     steps, final, last, gripper_frames = [], None, None, 0
     approach = recording.marks_grasp  # until the first frame marked grasped
     try:
@@ -57,7 +61,7 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
             gripper_frames += pose is not None
             approach = approach and recording.records[i].get("grasped") is not True
             if i > 0 and recording.records[i].get("first"):
-                pipe = AxisPipeline(config)
+                pipe = AxisPipeline(config, toward=toward)
             if approach and pipe.body_box is not None:
                 step = StepResult(frame.index, frame.t, NoAxis(APPROACH), 0, 0)
             else:
@@ -90,6 +94,14 @@ def estimate_recording(path: Path, config: Config, progress: Callable[[float, fl
     else:
         out["reason"] = result.reason
     return out
+
+
+def _robot_base(recording: FramesRecording) -> np.ndarray | None:
+    """The robot's base (the base frame's origin) when an arm made the recording (its poses recorded) and the
+    camera's pose is known (the points are then in the base frame); else None. The part a robot opens faces it."""
+    if recording.T_base_camera is None or not any(r.get("ee_pose") is not None for r in recording.records):
+        return None
+    return np.zeros(3)
 
 
 def _estimate_text(result: Axis | NoAxis) -> str:

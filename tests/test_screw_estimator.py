@@ -14,7 +14,10 @@ from deploy.geometry.estimators.screw_config import ScrewConfig
 from deploy.geometry.estimators.screw_fit import (
     FREE_DIRECTION_EVIDENCE,
     circle_centre,
+    circle_miss,
     direction_sigma_deg,
+    fit_revolute,
+    fit_screw_joint,
     free_direction_evidence,
     front_face,
     principal_direction,
@@ -343,6 +346,73 @@ def test_circle_centre_is_exact_on_noise_free_tracks():
     centre, misses = circle_centre(w, turns, tracks, anchor=float(w @ a))
     np.testing.assert_allclose(centre, a, atol=1e-9)
     np.testing.assert_allclose(misses, 0.0, atol=1e-9)
+
+
+def hinged(angles_deg, axis, tilt_toward=None, tilt_deg=0.0):
+    """Rotations by `angles_deg` about `axis` (through the origin), about an axis tilted by `tilt_deg` toward
+    `tilt_toward` when given (a registration's shared bias), and a handle's path 0.3 m out along x about the true
+    axis (the start, then after each turn)."""
+    axis = np.asarray(axis, float)
+    turned = axis if tilt_toward is None else Rotation.from_rotvec(
+        np.radians(tilt_deg) * np.cross(axis, tilt_toward)).apply(axis)
+    rotations = Rotation.from_rotvec(np.outer(np.radians(angles_deg), turned)).as_matrix()
+    path = Rotation.from_rotvec(np.outer(np.radians(np.concatenate([[0.0], angles_deg])), axis)).apply([0.3, 0, 0])
+    return rotations, path
+
+
+def test_a_held_handles_arc_sets_the_hinge_that_biased_registrations_tilt():
+    """Registrations that share a tilt of 8 deg give w 8 deg off; the handle's arc in its plane (1 mm noise) pins
+    w: the fused w is within 1.5 deg; a path that misses every circle (a slipped grasp) is left out."""
+    angles = np.linspace(3.0, 30.0, 10)
+    chord = np.array([-np.sin(np.radians(16.5)), np.cos(np.radians(16.5)), 0.0])  # the arc's mid tangent
+    rotations, path = hinged(angles, [0, 0, 1.0], chord, 8.0)
+    sample = np.random.default_rng(0).uniform([0.05, -0.1, 0.0], [0.35, 0.1, 0.3], (200, 3))  # not a plate
+    moved = np.einsum("kij,mj->kmi", rotations, sample)
+    path = path + np.random.default_rng(1).normal(0, 1e-3, path.shape)
+    tracks = [(np.vstack([sample.mean(axis=0), moved.mean(axis=1)]), 0.003)]
+    alone = fit_revolute(rotations, sample, moved, tracks, 0.005, 0.001)
+    fused = fit_revolute(rotations, sample, moved, tracks, 0.005, 0.001, 0.003, (path, 0.001))
+    slipped = path + np.where(np.arange(len(path))[:, None] >= 5, [0.0, 0.0, 0.03], 0.0)
+    ignored = fit_revolute(rotations, sample, moved, tracks, 0.005, 0.001, 0.003, (slipped, 0.001))
+    assert angle_deg(alone.direction, [0, 0, 1]) > 7.0
+    assert angle_deg(fused.direction, [0, 0, 1]) < 1.5
+    assert angle_deg(fused.direction, [0, 0, 1]) < 2 * fused.sigma_deg  # its sigma covers what it cannot see
+    np.testing.assert_allclose(ignored.direction, alone.direction, atol=1e-9)
+
+
+def test_a_door_with_poor_registrations_is_a_hinge_when_the_gripper_held_its_handle():
+    """Registrations 6 deg and 3 cm off at random over a 30 deg opening: alone they read the door as a slide in
+    several of 10 draws; with the handle's arc (0.5 mm noise) in the joint-type choice it is a hinge within 2.5 deg
+    every time, and a straight handle path with the same registrations is a drawer (prismatic)."""
+    angles = np.linspace(3.0, 30.0, 10)
+    rotations, arc = hinged(angles, [0, 0, 1.0])
+    slide = np.outer(np.concatenate([[0.0], angles]) / 100, [-1.0, 0, 0]) + [0.3, 0, 0]
+    config, alone = ScrewConfig(), []
+    for seed in range(10):
+        rng = np.random.default_rng(seed)
+        sample = np.column_stack([rng.uniform(0.05, 0.35, 300), np.zeros(300), rng.uniform(0.0, 0.5, 300)])
+        noise = Rotation.from_rotvec(rng.normal(0, np.radians(6.0) / np.sqrt(3), (len(angles), 3))).as_matrix()
+        poses = np.tile(np.eye(4), (len(angles), 1, 1))
+        poses[:, :3, :3] = noise @ rotations
+        poses[:, :3, 3] = rng.normal(0, 0.03 / np.sqrt(3), (len(angles), 3))
+        path = arc + rng.normal(0, 5e-4, arc.shape)
+        centre = rotations[-1] @ sample.mean(axis=0)
+        alone.append(fit_screw_joint(poses, sample, centre, 0.9, None, config).joint_type)
+        door = fit_screw_joint(poses, sample, centre, 0.9, None, config, path, path)
+        assert door.joint_type is JointType.REVOLUTE and angle_deg(door.direction, [0, 0, 1]) < 2.5, seed
+        poses[:, :3, :3] = noise
+        poses[:, :3, 3] += slide[1:] - slide[0]
+        drawer = fit_screw_joint(poses, sample, sample.mean(axis=0), 0.9, None, config, slide, slide)
+        assert drawer.joint_type is JointType.PRISMATIC, seed
+    assert alone.count(JointType.PRISMATIC) >= 3
+
+
+def test_circle_miss_is_zero_on_a_circle_about_the_direction_and_not_on_a_line_or_a_tilt():
+    _, arc = hinged(np.linspace(5.0, 40.0, 8), [0, 0, 1.0])
+    assert circle_miss(arc, np.array([0, 0, 1.0])) < 1e-9
+    assert circle_miss(arc, Rotation.from_rotvec([np.radians(5.0), 0, 0]).apply([0, 0, 1.0])) > 1e-3
+    line = np.outer(np.linspace(0, 0.2, 8), [1.0, 0, 0])
+    assert circle_miss(line + [[0, 0.001 * (-1) ** k, 0] for k in range(8)], np.array([0, 0, 1.0])) > 1e-4
 
 
 def test_a_held_drawer_handle_straightens_the_direction_and_a_wobbling_one_is_ignored():

@@ -30,8 +30,7 @@ def test_in_a_kitchen_no_neighbour_counter_wall_or_arm_ever_counts_as_moving(tas
     opened = [f for f, moved in zip(frames, result["moved"][1:], strict=True) if moved]
     assert np.median([f["part"] / f["points"] for f in opened if f["points"]]) > 0.97
     assert np.median([f["part"] / f["visible_part"] for f in opened]) > 0.45  # a door's edge-on pixels hold no depth
-    if task == "drawer":  # the door's hinge from these scripted frames is 8.7 deg off: docs/benchmarks.md, motion
-        assert result["methods"]["static"]["axes"]["screw-grip"]["angle_deg"] < 3.0
+    assert result["methods"]["static"]["axes"]["screw-grip"]["angle_deg"] < 3.0
 
 
 def test_axis_estimate_on_a_scripted_kitchen_recording_with_the_static_scene(tmp_path):

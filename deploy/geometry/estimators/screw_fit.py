@@ -14,6 +14,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from deploy.geometry.estimators.screw_config import ScrewConfig
+from deploy.geometry.estimators.trajectory_fit import plane_basis
 from deploy.geometry.estimators.trajectory_path import jackknife_sigma_deg
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 
@@ -71,8 +72,9 @@ def fit_screw_joint(
 
     Joint type when `joint` is None: BIC = n ln(rms^2 + sigma0^2) + k ln n with n = 6 per pose (what a
     registration measures), k = poses + 2 (prismatic) or poses + 4 (revolute), sigma0 =
-    config.noise_floor_m; the lower wins, except that a revolute axis farther than config.max_radius_m
-    from the part means prismatic.
+    config.noise_floor_m, plus with the gripper's path the same for its miss of the joint's line or circle
+    (`grip_bic`); the lower wins, except that a revolute axis farther than config.max_radius_m from the part
+    means prismatic.
     """
     sample = start[np.linspace(0, len(start) - 1, min(len(start), _MODEL_POINTS)).astype(int)]
     moved = np.einsum("kij,mj->kmi", poses[:, :3, :3], sample) + poses[:, None, :3, 3]
@@ -92,12 +94,15 @@ def fit_screw_joint(
                                                   surface)
     if joint is not JointType.PRISMATIC:
         tracks = part_and_grip_tracks(sample, moved, grip_at_poses, config.part_noise_m, config.grip_noise_m)
+        path = None if grip_path is None else (grip_path, config.grip_noise_m)
         fits[JointType.REVOLUTE] = fit_revolute(
-            poses[:, :3, :3], sample, moved, tracks, config.grip_gate_m, config.noise_floor_m)
+            poses[:, :3, :3], sample, moved, tracks, config.grip_gate_m, config.noise_floor_m,
+            config.part_noise_m, path)
     radius_m = distance_to_line(latest_centre, fits[JointType.REVOLUTE]) if JointType.REVOLUTE in fits else 0.0
     far = radius_m > config.max_radius_m
     if joint is None:
-        joint = JointType.PRISMATIC if far else min(fits, key=lambda j: fits[j].bic)
+        grip = {j: grip_bic(grip_path, fits[j], j, config.grip_noise_m) for j in fits}
+        joint = JointType.PRISMATIC if far else min(fits, key=lambda j: fits[j].bic + grip[j])
     elif joint is JointType.REVOLUTE and far:
         return NoAxis(
             f"the motion is too straight to locate a hinge: the fitted axis is more than "
@@ -282,39 +287,101 @@ def travel_blocks(along: np.ndarray, count: int = _JACKKNIFE_BLOCKS) -> list[np.
 
 def fit_revolute(
     rotations: np.ndarray, sample: np.ndarray, moved: np.ndarray, tracks: list[Track], grip_gate_m: float,
-    noise_floor_m: float,
+    noise_floor_m: float, part_noise_m: float = 0.003, path: Track | None = None,
 ) -> JointFit:
-    """Rotation about the line (w, a), from the registered `rotations` (K,3,3).
+    """Rotation about the line (w, a), from the registered `rotations` (K,3,3) and the gripper's `path`.
 
-    w: least squares over R_k w = w; projected into the plane of a plate-shaped part (a door panel)
-    when within 30 deg of it, since a hinge lies in its door's plane and the rotation about a plate's
-    normal is what registration measures worst; signed so the motion turns positively. The turns are
-    the rotations' angles about w (what registration measures best). a: the centre of the circles the
-    tracks run through at those turns (`circle_centre`), level with the model points; a second
-    (gripper) track missing its circle by more than `grip_gate_m` RMS (the grasp slipped) is left out.
+    w: least squares over R_k w = w and, with the gripper's path (positions (N,3), noise), over (p_n - mean) . w
+    = 0 (the held handle runs in a plane normal to the hinge), each weighted by its noise (`hinge_direction`);
+    without the path, projected into the plane of a plate-shaped part (a door panel) when within 30 deg of it,
+    since a hinge lies in its door's plane and the rotation about a plate's normal is what registration
+    measures worst. Signed so the motion turns positively. The turns are the rotations' angles about w (what
+    registration measures best). a: the centre of the circles the tracks run through at those turns
+    (`circle_centre`), level with the model points. A gripper path missing every circle about w by more than
+    `grip_gate_m` RMS (`circle_miss`: the grasp slipped) is left out of w, and a second (gripper) track missing
+    its circle at the turns by more than that is left out of a.
     sigma_deg: the larger of the misfit's standard error (`hinge_scatter_deg`; for a w projected into the
-    plate, with the plate normal's error in quadrature) and the block jackknife of w over the rotations.
+    plate, with the plate normal's error in quadrature; with the path, from both) and the block jackknife of w
+    over the rotations.
     """
     plate_fit = plate_normal(sample)
     plate = None if plate_fit is None else plate_fit[0]
-    w = hinge_direction(rotations, plate)
+    rotation_var = rotation_variance(rotations, sample, part_noise_m)
+    if path is not None and circle_miss(path[0], hinge_direction(rotations, plate, rotation_var, path)) > grip_gate_m:
+        path = None
+    w, a, misses, turns = _hinge(rotations, sample, tracks, plate, rotation_var, path)
+    if len(tracks) > 1 and misses[1] > grip_gate_m:
+        w, a, _, turns = _hinge(rotations, sample, tracks[:1], plate, rotation_var, path)
+    predicted = np.einsum("kij,mj->kmi", turns, sample - a) + a
+    rms = float(np.sqrt(np.mean(np.sum((moved - predicted) ** 2, axis=2))))
+    in_plate = plate_fit is not None and abs(w @ plate) < 1e-9  # in the plate: w turns with the plate's normal
+    kept_in = plate if in_plate else None
+    if path is not None:
+        scatter = _information_sigma_deg(hinge_information(rotations, rotation_var, path), w, kept_in)
+    else:
+        scatter = hinge_scatter_deg(rotations, w, kept_in)
+    if scatter is not None and in_plate:
+        scatter = float(np.hypot(scatter, plate_fit[1]))
+    jackknife = jackknife_sigma_deg(
+        w, lambda keep: hinge_direction(rotations[keep], plate, rotation_var, path), len(rotations))
+    sigma = None if scatter is None else max(scatter, 0.0 if np.isnan(jackknife) else jackknife)
+    return JointFit(w, a, rms, bic(rms, 6 * len(moved), len(moved) + 4, noise_floor_m), sigma)
+
+
+def _hinge(
+    rotations: np.ndarray, sample: np.ndarray, tracks: list[Track], plate: np.ndarray | None, rotation_var: float,
+    path: Track | None,
+) -> tuple[np.ndarray, np.ndarray, list[float], np.ndarray]:
+    """(w signed to turn positively, a, each track's circle miss, the turns about w) of `fit_revolute`."""
+    w = hinge_direction(rotations, plate, rotation_var, path)
     rotvecs = Rotation.from_matrix(rotations).as_rotvec()
     if rotvecs.sum(axis=0) @ w < 0:
         w = -w
     turns = Rotation.from_rotvec(np.outer(rotvecs @ w, w)).as_matrix()
-    anchor = w @ sample.mean(axis=0)
-    a, misses = circle_centre(w, turns, tracks, anchor)
-    if len(tracks) > 1 and misses[1] > grip_gate_m:
-        a, _ = circle_centre(w, turns, tracks[:1], anchor)
-    predicted = np.einsum("kij,mj->kmi", turns, sample - a) + a
-    rms = float(np.sqrt(np.mean(np.sum((moved - predicted) ** 2, axis=2))))
-    in_plate = plate_fit is not None and abs(w @ plate) < 1e-9  # projected: w turns with the plate's normal
-    scatter = hinge_scatter_deg(rotations, w, plate if in_plate else None)
-    if scatter is not None and in_plate:
-        scatter = float(np.hypot(scatter, plate_fit[1]))
-    jackknife = jackknife_sigma_deg(w, lambda keep: hinge_direction(rotations[keep], plate), len(rotations))
-    sigma = None if scatter is None else max(scatter, 0.0 if np.isnan(jackknife) else jackknife)
-    return JointFit(w, a, rms, bic(rms, 6 * len(moved), len(moved) + 4, noise_floor_m), sigma)
+    a, misses = circle_centre(w, turns, tracks, w @ sample.mean(axis=0))
+    return w, a, misses, turns
+
+
+def rotation_variance(rotations: np.ndarray, sample: np.ndarray, part_noise_m: float) -> float:
+    """Variance of one component of (R_k - I) w at the true w: the rotations' own misfit (2K - 2 degrees of
+    freedom), at least what `part_noise_m` on the model points gives over their RMS distance from their centroid
+    (a rigid registration's turn error)."""
+    lever = float(np.sqrt(np.mean(np.sum((sample - sample.mean(axis=0)) ** 2, axis=1))))
+    floor = (part_noise_m / max(lever, part_noise_m)) ** 2
+    if len(rotations) < 2:
+        return floor
+    m = rotations - np.eye(3)
+    misfit = float(np.linalg.eigvalsh(np.einsum("kji,kjl->il", m, m))[0]) / (2 * len(rotations) - 2)
+    return max(misfit, floor)
+
+
+def hinge_information(rotations: np.ndarray, rotation_var: float, path: Track | None) -> np.ndarray:
+    """The (3,3) matrix whose quadratic form in a unit w is the noise-weighted misfit of w: sum |(R_k - I) w|^2
+    over `rotation_var`, plus with the gripper's `path` sum ((p_n - mean) . w)^2 over its variance (its own
+    out-of-plane misfit, N - 3 degrees of freedom, at least its noise squared)."""
+    m = rotations - np.eye(3)
+    information = np.einsum("kji,kjl->il", m, m) / rotation_var
+    if path is not None:
+        positions, noise_m = path
+        centred = np.asarray(positions, float) - np.mean(positions, axis=0)
+        scatter = centred.T @ centred
+        dof = len(centred) - 3
+        variance = max(float(np.linalg.eigvalsh(scatter)[0]) / dof if dof > 0 else 0.0, noise_m**2)
+        information = information + scatter / variance
+    return information
+
+
+def _information_sigma_deg(information: np.ndarray, w: np.ndarray, plate: np.ndarray | None = None) -> float:
+    """RMS angle error (deg) of the w that minimises the quadratic form `information`: over the rise of the form
+    as w tips toward each of the two other directions (its other eigenvalues less w's own); for a w kept in a plate
+    (normal `plate`), toward the one direction within it."""
+    own = float(w @ information @ w)
+    if plate is not None:
+        u = np.cross(w, plate)
+        u = u / np.linalg.norm(u)
+        return float(np.degrees(1 / np.sqrt(max(float(u @ information @ u) - own, 1e-18))))
+    rise = np.maximum(np.linalg.eigvalsh(information)[1:] - own, 1e-18)
+    return float(np.degrees(np.sqrt(np.sum(1 / rise))))
 
 
 def hinge_scatter_deg(rotations: np.ndarray, w: np.ndarray, plate: np.ndarray | None = None) -> float | None:
@@ -338,21 +405,50 @@ def hinge_scatter_deg(rotations: np.ndarray, w: np.ndarray, plate: np.ndarray | 
     return float(np.degrees(np.sqrt(residual / (2 * len(rotations) - 2) * np.sum(1 / np.maximum(across, 1e-18)))))
 
 
-def hinge_direction(rotations: np.ndarray, plate: np.ndarray | None) -> np.ndarray:
-    """The unit w of least squares over R_k w = w, projected into the plate with normal `plate` (a door
-    panel) when within 30 deg of it."""
-    m = rotations - np.eye(3)
-    w = np.linalg.eigh(np.einsum("kji,kjl->il", m, m))[1][:, 0]
-    if plate is not None and abs(w @ plate) < np.sin(np.radians(_MAX_HINGE_TILT_DEG)):
+def hinge_direction(
+    rotations: np.ndarray, plate: np.ndarray | None, rotation_var: float = 1.0, path: Track | None = None
+) -> np.ndarray:
+    """The unit w that minimises `hinge_information` (least squares over R_k w = w, and with the gripper's
+    `path` over its plane), in the plate with normal `plate` (a door panel) when within 30 deg of it: without
+    a path projected into it, with one the least squares within it."""
+    information = hinge_information(rotations, rotation_var, path)
+    w = np.linalg.eigh(information)[1][:, 0]
+    if plate is None or abs(w @ plate) >= np.sin(np.radians(_MAX_HINGE_TILT_DEG)):
+        return w
+    if path is None:
         w = w - (w @ plate) * plate
-        w = w / np.linalg.norm(w)
-    return w
+        return w / np.linalg.norm(w)
+    basis = np.column_stack(plane_basis(plate))
+    return basis @ np.linalg.eigh(basis.T @ information @ basis)[1][:, 0]
 
 
 def bic(rms_m: float, n: int, k: int, noise_floor_m: float) -> float:
     """Bayesian information criterion of a fit with RMS residual `rms_m` over n measurements and k
     parameters; residuals below `noise_floor_m` count as noise."""
     return float(n * np.log(rms_m**2 + noise_floor_m**2) + k * np.log(n))
+
+
+def grip_bic(path: np.ndarray | None, fit: JointFit, joint: JointType, noise_m: float) -> float:
+    """The gripper path's share of the BIC of a joint fit: 3 N ln(miss^2 + noise_m^2) over its N positions, the
+    miss its RMS distance from the fit's line (`line_miss`) or from the circle about the fit's axis
+    (`circle_miss`); 0 without a path."""
+    if path is None or len(path) < 3:
+        return 0.0
+    miss = line_miss(path, fit.direction) if joint is JointType.PRISMATIC else circle_miss(path, fit.direction)
+    return float(3 * len(path) * np.log(miss**2 + noise_m**2))
+
+
+def circle_miss(positions: np.ndarray, direction: np.ndarray) -> float:
+    """RMS distance (m) of positions from the circle about an axis along `direction` (unit) that fits
+    them best (centre and radius free: an algebraic circle fit in the plane normal to it, then the spread of the
+    distances from its centre and of the heights along the axis)."""
+    offsets = np.asarray(positions, float) - np.mean(positions, axis=0)
+    u, v = plane_basis(direction)
+    x, y = offsets @ u, offsets @ v
+    design = np.column_stack([x, y, np.ones_like(x)])
+    cx, cy, c = np.linalg.lstsq(design, x**2 + y**2, rcond=None)[0]
+    radius = np.hypot(x - cx / 2, y - cy / 2)
+    return float(np.sqrt(np.var(radius) + np.var(offsets @ direction)))
 
 
 def circle_centre(
