@@ -101,9 +101,6 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     candidate = _without_structure((out | pocket | other) & view.seen[sl], view.seen[sl])
     join = max(int(round(JOIN_M / view.res_m)), 1)
     joined = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
-    for col in (extent.left - 1 - c0, extent.right + 1 - c0):  # what lies on the front is labelled apart from what
-        if 0 <= col < joined.shape[1]:  # lies beside it (the IR shadow along a side edge, a neighbour's handle)
-            joined[:, col] = 0
     count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
     surface, measured = view.on_plane[sl], view.seen[sl] & ~view.no_depth[sl]
     ring_kernel = np.ones((2 * join + 1, 2 * join + 1), np.uint8)
