@@ -105,6 +105,13 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     surface, measured = view.on_plane[sl], view.seen[sl] & ~view.no_depth[sl]
     ring_kernel = np.ones((2 * join + 1, 2 * join + 1), np.uint8)
     smallest = MIN_SIZE_M / view.res_m
+
+    def blob_of(member: np.ndarray, box: tuple[slice, slice]) -> Blob | None:
+        rows, cols = np.nonzero(member & candidate[box])
+        ring = cv2.dilate(member.astype(np.uint8), ring_kernel).astype(bool) & ~member & measured[box]
+        rim = float(np.count_nonzero(ring & surface[box])) / np.count_nonzero(ring) if ring.any() else 0.0
+        return _blob(view, rows + r0 + box[0].start, cols + c0 + box[1].start, extent, camera_to_base, K, rim)
+
     blobs = []
     for label in range(1, count):
         x, y, bw, bh, _ = stats[label]
@@ -112,12 +119,14 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
             continue
         box = (slice(max(y - join, 0), y + bh + join), slice(max(x - join, 0), x + bw + join))
         member = labels[box] == label
-        rows, cols = np.nonzero(member & candidate[box])
-        ring = cv2.dilate(member.astype(np.uint8), ring_kernel).astype(bool) & ~member & measured[box]
-        rim = float(np.count_nonzero(ring & surface[box])) / np.count_nonzero(ring) if ring.any() else 0.0
-        blob = _blob(view, rows + r0 + box[0].start, cols + c0 + box[1].start, extent, camera_to_base, K, rim)
-        if blob is not None:
-            blobs.append(blob)
+        found = [blob_of(member, box)]
+        if found[0] is None:  # too large for a handle: taken apart where it crosses the front's sides (a handle
+            # joined to what lies beside the front, such as the IR shadow along a side edge)
+            col = np.arange(box[1].start, box[1].start + member.shape[1])[None, :] + c0
+            parts = [member & side for side in (col < extent.left, (col >= extent.left) & (col <= extent.right),
+                                                col > extent.right)]
+            found = [blob_of(part, box) for part in parts if part.any() and part.sum() < member.sum()]
+        blobs += [b for b in found if b is not None]
     return blobs
 
 

@@ -1,0 +1,48 @@
+"""Handle candidates on a front's rectified view, on a synthetic D415 frame: a long thin bar the D415 lost (seen in
+colour only) whose end nearly touches the depth hole along the front's side edge (the IR shadow a D415 leaves beside
+a depth edge) is still one handle, not part of a shape too large for one."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from deploy.perception.front_extent import Extent
+from deploy.perception.handle_blobs import handle_blobs
+from deploy.perception.plane_view import PlaneFrame, rectify
+from drivers.camera.base import Frame, Intrinsics
+
+K = Intrinsics(640, 480, 600.0, 600.0, 320.0, 240.0)
+FRONT_U, FRONT_V = (170, 470), (140, 340)  # the front's pixels, 1 m straight ahead: 0.5 x 0.33 m
+
+
+def _frame(bar_u: tuple[int, int]) -> Frame:
+    """A brown front 1 m ahead before a wall 1.3 m away; a grey bar without depth 4 cm under its top at columns
+    `bar_u`; no depth and dark along its left edge, just outside it (the IR shadow)."""
+    depth = np.full((480, 640), 1.3, np.float32)
+    color = np.full((480, 640, 3), 200, np.uint8)
+    front = (slice(*FRONT_V), slice(*FRONT_U))
+    depth[front], color[front] = 1.0, (150, 100, 60)
+    bar = (slice(FRONT_V[0] + 24, FRONT_V[0] + 30), slice(*bar_u))
+    depth[bar], color[bar] = 0.0, (128, 128, 128)
+    shadow = (slice(*FRONT_V), slice(FRONT_U[0] - 12, FRONT_U[0]))
+    depth[shadow], color[shadow] = 0.0, (30, 30, 30)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])  # optical z along base x
+    return Frame(0, 0.0, color, depth, K, T)
+
+
+def _bars(bar_u: tuple[int, int]) -> list:
+    frame = _frame(bar_u)
+    plane = PlaneFrame.facing(np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]), np.zeros(3))
+    view = rectify(frame, np.zeros((480, 640), bool), plane, (-0.35, 0.35), (-0.25, 0.25), 1.0 / K.fx)
+    s = (np.array(FRONT_U) - K.cx) / K.fx
+    z = (K.cy - np.array(FRONT_V)) / K.fy
+    extent = Extent(int(view.row(z[0])) + 1, int(view.row(z[1])) - 1, int(view.col(s[0])) + 1, int(view.col(s[1])) - 1,
+                    dict.fromkeys(("top", "bottom", "left", "right"), "gap"))
+    blobs = handle_blobs(view, extent, frame.T_base_camera, K.K)
+    return [b for b in blobs if b.firm and b.inside and b.length_m > 0.35]
+
+
+def test_a_long_bar_beside_the_side_edges_shadow_is_one_handle():
+    assert len(_bars((FRONT_U[0] + 20, FRONT_U[1] - 40))) == 1  # clear of the shadow
+    assert len(_bars((FRONT_U[0] + 4, FRONT_U[1] - 40))) == 1  # its end 4 px (7 mm) from the shadow
