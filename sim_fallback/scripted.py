@@ -51,6 +51,7 @@ PREGRASP_MARGIN_M = 0.015  # the open fingers clear the handle by this much each
 CLOSE_TIME_S = 0.5
 DEFAULT_TARGET = {"drawer": 0.20, "door": float(np.radians(30.0))}  # m, rad
 APPROACH_LIMITS = MotionLimits(0.10, 0.5, 5.0)  # m/s, m/s^2, m/s^3 along the approach line
+OPENED_SHARE = 0.5  # a recording whose part opened less than this share of the target is refused (kept on disk)
 OPEN_LIMITS = {"drawer": MotionLimits(0.10, 0.3, 3.0), "door": MotionLimits(0.25, 0.6, 6.0)}  # m or rad
 
 
@@ -240,4 +241,7 @@ def record_scripted(
         summary = RecordingSummary(out, task, seed, split, world, truth.part, len(joint_values), joint_values[0],
                                    joint_values[-1], target, sim.time, time.perf_counter() - wall0)
     log.info("recorded %s: %s", out, summary)
+    if abs(summary.joint_end - summary.joint_start) < OPENED_SHARE * target:
+        raise ArmError(f"scripted opening: {summary}: the hand followed the true path but the part stayed (its catch, "
+                       f"friction or spring outheld the grip); the frames are kept in {out}: try another seed or part")
     return summary

@@ -8,7 +8,7 @@ import pytest
 
 from drivers.arm.kinematics import Kinematics
 from drivers.camera.frames_dir import FramesReplayCamera
-from drivers.errors import RecordingError
+from drivers.errors import ArmError, RecordingError
 from sim_fallback.scenario import Scenario
 from sim_fallback.scripted import record_scripted
 from sim_fallback.show import render_scene_png
@@ -68,3 +68,12 @@ def test_scene_png_has_three_panels(world, tmp_path):
     assert colour.std() > 10 and depth.std() > 10 and len(np.unique(seg.reshape(-1, 3), axis=0)) >= 3
     with pytest.raises(ValueError, match=".png"):
         render_scene_png("door", 2, tmp_path / "scene.jpg", world="box")
+
+
+def test_a_scripted_opening_whose_part_stays_shut_is_refused_and_kept(tmp_path):
+    """Kitchen train seed 2's right door outholds the scripted grip (the hand follows the true arc alone): one line
+    saying so, and the frames stay on disk to look at."""
+    out = tmp_path / "rec"
+    with pytest.raises(ArmError, match=r"opened -?0\.0 of 30\.0 deg .* the part stayed .* frames are kept in"):
+        record_scripted("door", 2, out, split="train")
+    assert (out / "truth.json").exists() and any((out / "color").iterdir())
