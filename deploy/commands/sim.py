@@ -122,7 +122,8 @@ def sim_record(
 ) -> None:
     """Record a scripted opening (a data generator that uses ground truth, not the policy).
 
-    Writes the frames-directory format with masks, poses and truth.json.
+    Writes the frames-directory format with masks, poses and truth.json. A part that stays shut (its catch or
+    friction outholds the scripted grip) is an error naming it; the frames are kept.
     Example: deploy sim record --task drawer --seed 1 --out runs/drawer1 && deploy axis estimate runs/drawer1
     Example: deploy sim record --assets partnet-mobility-dataset/ --object 45213 --part door --out runs/45213-door
     """
