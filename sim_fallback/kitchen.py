@@ -183,11 +183,15 @@ def _wall_run(room: Room, target: Furniture | None, ends: tuple[float, float], c
         units.insert(int(rng.integers(0, len(units) + 1)), (target, True))
     z = counter_top + float(rng.uniform(*WALL_UNIT_GAP_M))
     y = ends[0] if tall_end > 0 else ends[1] - sum(f.size_m[0] for f, _ in units)
+    pending = target is not None  # the target is still to hang: a unit that does not fit before it is left out
     for furniture, is_target in units:
         width, depth, _ = furniture.size_m
         if y + width > ends[1] + 1e-9 and not is_target:
+            if pending:
+                continue
             break
         room.add(furniture, depth / 2, y + width / 2, z, target=is_target)
+        pending = pending and not is_target
         y += width
 
 

@@ -140,6 +140,16 @@ def test_no_part_of_the_target_starts_inside_the_room():
                 assert abs(world.joint_value()) < 0.005, (task, seed)
 
 
+def test_a_wall_unit_target_hangs_even_when_a_unit_before_it_does_not_fit():
+    """Door test seed 69 draws a wall-unit target after a wall unit too wide for the run: that one is left out, the
+    target hangs (the run used to stop there, leaving no target and a world that could not be built)."""
+    scenario = make_scenario("kitchen", "door", 69, "test")
+    layout = scenario.kitchen
+    assert layout.target >= 0 and " wall " in layout.target_furniture.furniture.source
+    with SimWorld(scenario) as world:
+        assert world.truth().part == scenario.part and world.truth().body_id == world.cabinet_id
+
+
 def test_the_run_touches_the_target_under_an_overhanging_countertop_against_the_wall():
     sc = next(s for s in (make_scenario("kitchen", "drawer", seed, "train") for seed in range(20))
               if " base " in s.kitchen.target_furniture.furniture.source)
