@@ -68,23 +68,31 @@ def pixel_ray(frame: Frame, u: float, v: float) -> tuple[np.ndarray, np.ndarray]
 
 def seed_plane(frame: Frame, robot: np.ndarray, u: int, v: int) -> tuple[np.ndarray, np.ndarray, float]:
     """(point, unit normal, depth at the pixel) of the surface at pixel (u, v): RANSAC over the depth close to it,
-    within the D415's noise. Raises PointerError when there is no depth around the pixel."""
+    within the D415's noise, in the nearest window (SEED_RADII_PX) with enough depth whose plane stands within
+    FRONT_TILT_DEG of vertical, else in the nearest window with enough depth (at a metre and more, the noise over a
+    window a few centimetres wide tilts its plane by as much). Raises PointerError when there is no depth around the
+    pixel."""
     h, w = frame.depth_m.shape
+    nearest = None
     for radius in SEED_RADII_PX:
         window = np.zeros((h, w), bool)
         window[max(v - radius, 0):v + radius + 1, max(u - radius, 0):u + radius + 1] = True
         window &= ~robot & (frame.depth_m > 0)
-        if np.count_nonzero(window) >= MIN_SEED_POINTS:
-            break
-    else:
+        if np.count_nonzero(window) < MIN_SEED_POINTS:
+            continue
+        points = depth_to_points(frame.depth_m, frame.intrinsics.K, window, frame.T_base_camera)
+        depth = float(np.median(frame.depth_m[window]))
+        tolerance = NOISE_SIGMAS * float(D415.sigma_m(depth, frame.intrinsics.fx)) + QUANTUM_M / 2
+        inside = points[dominant_plane(points, tolerance)]
+        centre = inside.mean(axis=0)
+        fit = centre, np.linalg.svd(inside - centre, full_matrices=False)[2][2], depth
+        if tilt_deg(fit[1]) <= FRONT_TILT_DEG:
+            return fit
+        nearest = nearest or fit
+    if nearest is None:
         raise PointerError(f"pixel ({u}, {v}) has no depth within {SEED_RADII_PX[-1]} px (too close, too far, or a "
                            "dark or shiny surface): point at the front's panel where the depth image shows it")
-    points = depth_to_points(frame.depth_m, frame.intrinsics.K, window, frame.T_base_camera)
-    depth = float(np.median(frame.depth_m[window]))
-    tolerance = NOISE_SIGMAS * float(D415.sigma_m(depth, frame.intrinsics.fx)) + QUANTUM_M / 2
-    inside = points[dominant_plane(points, tolerance)]
-    centre = inside.mean(axis=0)
-    return centre, np.linalg.svd(inside - centre, full_matrices=False)[2][2], depth
+    return nearest
 
 
 def box_seed(frame: Frame, robot: np.ndarray, box: tuple[float, float, float, float]) -> tuple[int, int]:
