@@ -32,6 +32,7 @@ from sim_fallback.unit_families import Split, random_look
 
 ATTEMPTS = 30  # kitchens drawn for one seed until the target has a reachable part as asked
 OPENED = {"drawer": 0.3, "door": float(np.radians(45.0))}  # the grip stays in view opened this far
+GRIP_BAND_M = 0.4  # a front no mount sees whole (a tall door) need only be seen this far above and below its grip
 STAND = Finish("painted", (0.25, 0.25, 0.27), 0.3, 0)
 SPLITS, KINDS = ("train", "test"), ("drawer", "door")
 
@@ -188,21 +189,25 @@ def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, r
 
 def _camera(layout: Layout, part: PartGeometry, T_base_furniture: np.ndarray, floor_z: float, task: PartKind,
             rng: np.random.Generator, arm: Obstacle) -> CameraMount:
-    """A camera that sees the part's front closed and its grip opened by OPENED[task], past the `arm` at its start."""
+    """A camera that sees the part's front closed and its grip opened by OPENED[task], past the `arm` at its start; for
+    a front no mount sees whole, its band within GRIP_BAND_M of the grip."""
     def base(points: np.ndarray) -> np.ndarray:
         return np.asarray(points) @ T_base_furniture[:3, :3].T + T_base_furniture[:3, 3]
 
     opened = part.grip + OPENED[task] * part.normal if task == "drawer" else _swung(part, OPENED[task])
     corners = part.corners()
     front = corners[corners @ part.normal >= part.front_centre @ part.normal - 1e-6]
-    must_see = base(np.vstack([front, opened]))
+    near_grip = front.copy()  # a front too tall to see whole: the band of it around its grip
+    near_grip[:, 2] = np.clip(front[:, 2], part.grip[2] - GRIP_BAND_M, part.grip[2] + GRIP_BAND_M)
     obstacles = [(p.footprint(), *p.heights) for k, p in enumerate(layout.furniture) if k != layout.target]
     obstacles += [(s.footprint(), *s.heights) for s in layout.statics if s.name != "floor"]
-    try:
-        return place_camera(base(part.front_centre), base(part.grip), T_base_furniture[:3, :3] @ part.normal, must_see,
-                            floor_z, obstacles, rng, arm)
-    except ValueError as exc:
-        raise SceneError(f"{layout.target_furniture.furniture.source}, {part.name}: {exc}") from None
+    for seen in (front, near_grip):
+        try:
+            return place_camera(base(part.front_centre), base(part.grip), T_base_furniture[:3, :3] @ part.normal,
+                                base(np.vstack([seen, opened])), floor_z, obstacles, rng, arm)
+        except ValueError as exc:
+            error = exc
+    raise SceneError(f"{layout.target_furniture.furniture.source}, {part.name}: {error}") from None
 
 
 def _swung(part: PartGeometry, angle: float) -> np.ndarray:

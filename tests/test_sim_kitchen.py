@@ -16,9 +16,9 @@ from sim_fallback.cabinet_urdf import cabinet_urdf
 from sim_fallback.errors import PartError, SceneError
 from sim_fallback.furniture_body import grip_frame, measure_parts, part_links
 from sim_fallback.handles import STYLES
-from sim_fallback.kitchen_scenario import KitchenScenario
+from sim_fallback.kitchen_scenario import GRIP_BAND_M, KitchenScenario
 from sim_fallback.parts import ordered, resolve
-from sim_fallback.placement import STAND_HALF_M, overlap
+from sim_fallback.placement import STAND_HALF_M, in_view, overlap
 from sim_fallback.scenario import Scenario, make_scenario
 from sim_fallback.unit_families import LAYOUTS, random_carcass, random_look, random_unit, random_width
 from sim_fallback.world import SimWorld
@@ -368,3 +368,16 @@ def test_no_world_truth_reaches_the_controller_in_a_kitchen(monkeypatch):
     assert point["source"] == "simulated user" and seen[0][3] == Pointer(point["u"], point["v"])
     for key in ("stop_reason", "opened_m", "true_opened_m", "steps", "axis", "pointer"):
         assert again[key] == first[key], key
+
+
+def test_a_door_no_camera_sees_whole_is_seen_around_its_handle():
+    """Test kitchen door 27's target is a tall unit's door: no mount sees it whole, so the camera sees the band of it
+    within GRIP_BAND_M of its handle (and the handle swung open) rather than the seed drawing another kitchen."""
+    scenario = make_scenario("kitchen", "door", 27, "test")
+    assert " tall " in scenario.kitchen.target_furniture.furniture.source
+    with SimWorld(scenario) as world:
+        grip = world.target_handle()[0]
+        lo, hi = (np.array(c) for c in pb.getAABB(world.cabinet_id, world.cabinet_joint, physicsClientId=world.client))
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    assert hi[2] - lo[2] > 2 * GRIP_BAND_M
+    assert in_view(scenario.T_base_camera, grip[None]) and not in_view(scenario.T_base_camera, corners)
