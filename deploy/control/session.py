@@ -9,7 +9,6 @@ before its first motion unless --yes or --dry-run. The JSON names units in its k
 from __future__ import annotations
 
 import logging
-import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -21,6 +20,7 @@ from deploy.config import CALIBRATION_ERROR, Config, load_config
 from deploy.control.episode import run_episode
 from deploy.control.view import EpisodeView, step_log
 from deploy.errors import ConfigError
+from deploy.geometry.types import JointType
 from deploy.perception.base import Pointer
 from deploy.perception.registry import default_segmenter
 from deploy.report.run_folder import RunFolder
@@ -85,7 +85,11 @@ class OpenRequest:
     def sim_scene(self, config: Config) -> SimScene:
         """The simulated scene, its part one that opens as far as the opening asks (`SimScene.opening`)."""
         return SimScene(self.scene, self.seed, self.split, self.condition, self.world, self.part, self.assets,
-                        self.object_id, self.scale, scene_opening(self.scene, config))
+                        self.object_id, self.scale, self.scene_opening(config))
+
+    def scene_opening(self, config: Config) -> float:
+        """How far the opening asks the simulated part (of kind `scene`) to open: m or rad."""
+        return config.opening.target_for(JointType.PRISMATIC if self.scene == "drawer" else JointType.REVOLUTE)
 
     def rig_spec(self, config: Config) -> RigSpec:
         simulated = CAMERAS.entry(self.camera)[0].simulated
@@ -175,12 +179,6 @@ def open_object(request: OpenRequest, confirm: Callable[[str], None] | None = No
     return data
 
 
-def scene_opening(scene: str, config: Config) -> float:
-    """How far the opening asks the simulated `scene` ("drawer" or "door") to open: m or rad."""
-    o = config.opening
-    return o.target_distance_m if scene == "drawer" else math.radians(o.target_angle_deg)
-
-
 def _with_object(request: OpenRequest, config: Config) -> OpenRequest:
     """`request` with the PartNet-Mobility object its seed opens, when it gives --assets without --object."""
     if request.assets is None or request.object_id is not None or not CAMERAS.entry(request.camera)[0].simulated:
@@ -188,7 +186,7 @@ def _with_object(request: OpenRequest, config: Config) -> OpenRequest:
     from sim_fallback.scenes import task_objects
 
     reach = load_robot(request.arm, request.robot).reach.reach()
-    objects = task_objects(request.assets, request.scene, request.scale, reach, scene_opening(request.scene, config))
+    objects = task_objects(request.assets, request.scene, request.scale, reach, request.scene_opening(config))
     return replace(request, object_id=objects.for_seed(request.seed))
 
 
