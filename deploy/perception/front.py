@@ -16,6 +16,7 @@ from deploy.errors import PointerError
 from deploy.geometry.cloud import depth_to_points
 from deploy.geometry.planes import dominant_plane
 from deploy.perception.front_extent import Extent, front_extent, gap_line_shares
+from deploy.perception.handle import spills_over_edge
 from deploy.perception.handle_blobs import MAX_POCKET_M, Blob, bounds, handle_blobs, segment_distance
 from deploy.perception.plane_view import D415, NOISE_SIGMAS, QUANTUM_M, UP, PlaneFrame, PlaneView, rectify
 from drivers.camera.base import Frame
@@ -285,11 +286,13 @@ def front_pixels(frame: Frame, robot: np.ndarray, plane: PlaneFrame, s_range: tu
 
 
 def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Extent:
-    """The rectangle cut between the seed's handle and every other handle inside it: each front carries one, so a
-    rectangle holding several spans more than one front (the gaps between them were not seen). Each cut runs across
-    the direction that separates two handles, along the faint gap between them if one shows, else midway; the seed's
-    handle is the nearest one on the seed's (the view's origin's) side of every cut."""
-    inside = [b for b in blobs if b.inside and b.firm and b.length_m < 0.95 * _span(view, extent, b.axis)]
+    """The rectangle cut between the seed's handle and every other handle on it (or spilling over its top or bottom
+    edge: `spills_over_edge`): each front carries one, so a rectangle holding several spans more than one front (the
+    gaps between them were not seen). Each cut runs across the direction that separates two handles, along the faint
+    gap between them if one shows, else midway; the seed's handle is the nearest one on the seed's (the view's
+    origin's) side of every cut."""
+    inside = [b for b in blobs if (b.inside or spills_over_edge(b, view, extent)) and b.firm
+              and b.length_m < 0.95 * _span(view, extent, b.axis)]
     if len(inside) < 2:
         return extent
     seed = np.zeros(2)

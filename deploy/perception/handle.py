@@ -75,7 +75,7 @@ def own_blob(blobs: list[Blob], view: PlaneView, extent: Extent) -> Blob | None:
     on, near, beside = [], [], []
     for b in blobs:
         r, c = float(view.row(b.centre[1])), float(view.col(b.centre[0]))
-        if not b.firm or not rows[0] - band <= r <= rows[1] + band or not lo <= c <= hi:
+        if not b.firm or rows_apart(b, extent) > band or not lo <= c <= hi:
             continue
         if not cols[0] <= c <= cols[1]:
             if rows[0] <= r <= rows[1]:
@@ -90,6 +90,22 @@ def own_blob(blobs: list[Blob], view: PlaneView, extent: Extent) -> Blob | None:
     on_top = [b for b in found if _kind(b, view, rows) == "edge pull" and
               abs(b.centre[1] - view.z(rows[0])) <= EDGE_BAND_M]
     return min(on_top or found, key=lambda b: segment_distance(b, np.zeros(2)))
+
+
+def spills_over_edge(blob: Blob, view: PlaneView, extent: Extent) -> bool:
+    """Whether a candidate stands beyond the rectangle `extent`'s top or bottom edge, farther than an edge pull's
+    tab (EDGE_BAND_M), with its cells on that edge: a bar along the edge seen from above or below."""
+    band = EDGE_BAND_M / view.res_m
+    r = float(view.row(blob.centre[1]))
+    return extent.left <= view.col(blob.centre[0]) <= extent.right and rows_apart(blob, extent) <= band and \
+        not extent.top - band <= r <= extent.bottom + band
+
+
+def rows_apart(blob: Blob, extent: Extent) -> int:
+    """The rows of the view between the candidate's cells and the rectangle's (0 where they meet). A bar seen from
+    above covers the front below it in the view (the rays past it meet the plane there), so a bar along a front's top
+    edge, whose surface above it is too narrow to resume, ends the rectangle at its cells, not at its centre."""
+    return max(extent.top - int(blob.rows.max()), int(blob.rows.min()) - extent.bottom, 0)
 
 
 def describe(blob: Blob, view: PlaneView, rows: tuple[int, int], gripper: GripperSize,
