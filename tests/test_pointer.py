@@ -306,3 +306,16 @@ def test_a_bar_along_the_doors_top_edge_seen_from_above_is_its_handle():
     found = point_at(scene.frame, scene.robot, Pointer(377, 170))
     assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle
     assert found.front.width_m < 0.6
+
+
+@pytest.mark.parametrize("seed, pixel", [(31, (275, 301)), (49, (270, 270)), (88, (454, 288))])
+def test_a_handles_shadow_or_end_on_a_thin_drawer_is_not_its_gap(seed, pixel):
+    """Test kitchens 31 and 49 (a knob lit from above) and 88 (a long bar seen from above): a 9-13 cm drawer under
+    the counter whose handle and its shadow hide most of its height. The edge of the knob's shadow, or the bar's end
+    post, shows a thin line over the one 3 cm stretch of the drawer's height judged there: a gap runs along a front's
+    whole side, so the rectangle goes on past it to the handle (before: it stopped there, and the drawer was refused
+    as a front without a handle)."""
+    scene = kitchen_scene("drawer", seed, "test")
+    assert scene.front_truth()[pixel[1], pixel[0]]
+    found = point_at(scene.frame, scene.robot, Pointer(*pixel))
+    assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle

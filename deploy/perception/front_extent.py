@@ -26,6 +26,8 @@ GAP_CONTRAST = 0.02  # a gap line differs from the surface on both sides by at l
 # along it): a slit in shadow, or a lit carcass edge behind it; 2 % is five 8-bit levels, above the sensor's noise
 GAP_SEGMENT_M = 0.03  # the line is judged per stretch of this length along it ...
 GAP_SHARE = 0.5  # ... and must show in at least this share of the stretches the band sees (a handle may hide it)
+GAP_MIN_STRETCHES = 2  # ... and in at least this many (or all the band has): a gap runs along a front's whole side,
+# 10 cm and more, while a handle's end, a knob's shadow or a post's edge beside the surface make a line one stretch long
 HANDLE_BAND_M = 0.10  # the widest stretch across a front that is not its surface: a handle, its shadow, a pocket
 RESUME_M = 0.04  # past a handle the front's surface goes on for at least this, or up to a gap (a surface crossing
 # the plane, such as the floor at a plinth's foot, lies on it within the D415's noise for a narrower band)
@@ -166,12 +168,19 @@ def _walk(share: np.ndarray, lines: np.ndarray, start: int, step: int, res_m: fl
 def gap_lines(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
     """Bool per line (row of `grey`): a gap line runs along it (see GAP_*). `surface`: the cells of the front's
     surface, the only ones judged."""
-    return gap_line_shares(grey, surface, res_m) >= GAP_SHARE
+    shares, shown, stretches = _gap_stretches(grey, surface, res_m)
+    return (shares >= GAP_SHARE) & (shown >= min(GAP_MIN_STRETCHES, stretches))
 
 
 def gap_line_shares(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
     """Per line (row of `grey`): the share of its judged stretches (GAP_SEGMENT_M long) along which a thin line of
     GAP_CONTRAST runs (0 where none is judged). `surface`: the cells of the front's surface, the only ones judged."""
+    return _gap_stretches(grey, surface, res_m)[0]
+
+
+def _gap_stretches(grey: np.ndarray, surface: np.ndarray, res_m: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """(per line: the best share of judged stretches showing a gap line, how many stretches show it at that share;
+    the number of stretches along a line): see `gap_line_shares`."""
     n_lines, length = grey.shape
     widest = max(int(round(GAP_LINE_M / res_m)), 1)
     segment = max(int(round(GAP_SEGMENT_M / res_m)), 4)
@@ -181,7 +190,7 @@ def gap_line_shares(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.n
     judged = cv2.erode(surface.astype(np.uint8), np.ones((2 * reach + 1, 1), np.uint8)).astype(bool)
     g = np.where(surface, grey, np.nan)[:, :usable]
     g_judged = judged[:, :usable]
-    best = np.zeros(n_lines)
+    best, best_shown = np.zeros(n_lines), np.zeros(n_lines, int)
     for k in range(1, widest + 1):  # the line's half-width plus one: its sides are k lines away
         before, after = np.full_like(g, np.nan), np.full_like(g, np.nan)
         before[k:], after[:-k] = g[:-k], g[k:]
@@ -191,8 +200,10 @@ def gap_line_shares(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.n
                 per_segment = _segment_means(response, n_seg)
                 shown = np.sum(per_segment >= GAP_CONTRAST, axis=1)
                 judged_segments = np.sum(~np.isnan(per_segment), axis=1)
-            best = np.maximum(best, shown / np.maximum(judged_segments, 1))
-    return best
+            share = shown / np.maximum(judged_segments, 1)
+            better = share > best
+            best, best_shown = np.where(better, share, best), np.where(better, shown, best_shown)
+    return best, best_shown, n_seg
 
 
 def _segment_means(response: np.ndarray, n_seg: int) -> np.ndarray:
