@@ -319,3 +319,12 @@ def test_a_handles_shadow_or_end_on_a_thin_drawer_is_not_its_gap(seed, pixel):
     assert scene.front_truth()[pixel[1], pixel[0]]
     found = point_at(scene.frame, scene.robot, Pointer(*pixel))
     assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle
+
+
+def test_the_recess_over_a_plinth_is_no_pull():
+    """Test kitchen 11 (door): under the door the plinth is set back, so the door's lowest band shows a long dark
+    recess, in depth a pocket. It runs on to the front's edge (no panel below it), unlike a pull cut into the panel:
+    the door's bar at the top is its handle (before: the recess, 0.7 m below the grip, taken for a recessed pull)."""
+    scene = kitchen_scene("door", 11, "test")
+    found = point_at(scene.frame, scene.robot, Pointer(*scene.pixel(scene.target)))
+    assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle

@@ -24,6 +24,8 @@ STRUCTURE_SHARE = 0.8  # a row or column standing out along this share of the se
 # either side) is the structure around the front (a counter's edge, the floor), not a handle, which is shorter
 JOIN_M = 0.01  # pieces of one handle closer than this are one (a bar, its posts and its depth holes)
 POCKET_INSET_M = 0.02  # a pocket is cut into the panel, with material around it: at least this far inside its edges
+PLINTH_SHARE = 0.8  # a pocket low on the front, running on to its edges along this share of its width, is the
+# plinth's recess under the front (a pull is cut into the panel, with material around it)
 EDGE_REACH_M = 0.05  # an edge pull stands out of its front's edge: blobs this close outside the rectangle count
 
 
@@ -98,6 +100,8 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
         pocket = inside & (offset < -tolerance) & (offset >= -MAX_POCKET_M)
     other = view.no_depth[sl] & (colour_distance(view.lab[sl], front_colour(view, extent)) > COLOUR_DELTA_E)  # a
     # hole of another colour than the front's: a handle the D415 lost (shadows keep their depth on the plane)
+    rim = inside & ~cv2.erode(inside.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    plinth_cells, middle = PLINTH_SHARE * (extent.right - extent.left + 1 - 2 * inner), (extent.top + extent.bottom) / 2
     candidate = _without_structure((out | pocket | other) & view.seen[sl], view.seen[sl])
     join = max(int(round(JOIN_M / view.res_m)), 1)
     joined = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
@@ -119,6 +123,10 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
             continue
         box = (slice(max(y - join, 0), y + bh + join), slice(max(x - join, 0), x + bw + join))
         member = labels[box] == label
+        sunk = member & pocket[box]
+        if sunk.sum() > (member & out[box]).sum() and (sunk & rim[box]).any() and bw >= plinth_cells \
+                and y + bh / 2 + r0 > middle:  # a recess across the front's whole lower edge, on to its sides: the
+            continue  # plinth set back under it, not a pull cut into the panel
         found = [blob_of(member, box)]
         if found[0] is None:  # too large for a handle: taken apart where it crosses the front's sides (a handle
             # joined to what lies beside the front, such as the IR shadow along a side edge)
