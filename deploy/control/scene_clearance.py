@@ -60,7 +60,9 @@ def clear_grasps(handle: Handle, scene: cKDTree, pulls: Pulls, approach_m: float
         openings.append(closed + 2 * GRIP_MARGIN_M)
     turned = replace(handle, bar=np.cross(handle.normal, handle.bar))  # a knob is held either way round
     clear, contact, during = [], None, ""
-    for held, pitch in itertools.product([handle, turned] if handle.found == "knob" else [handle], PITCHES_RAD):
+    pitches = PITCHES_RAD[::-1] if handle.found == "recessed pull" else PITCHES_RAD  # into a pocket, level first:
+    # tilted, the fingers' outer faces climb toward its walls as they go in
+    for held, pitch in itertools.product([handle, turned] if handle.found == "knob" else [handle], pitches):
         T = grasp_pose(held, pitch_rad=pitch)
         pull = first_contact(scene, pulls(T)[0], parallel_gripper(closed, max_opening_m), CLEARANCE_M)
         path = line_poses(pregrasp_pose(T, approach_m), T, APPROACH_STEP_M)

@@ -27,6 +27,7 @@ POCKET_LIP_M = 0.01  # a recessed pull is held at its lip, this far inside the p
 HIDDEN_REACH_M = 0.02  # the arm's pixels this close beyond a handle's end may hide more of it
 FINGER_REACH_M = 0.01  # the fingertips must pass this far behind the grip centre to hold it (half a pad)
 FINGER_SPAN_M = 0.025  # two fingertips across a handle add this to its thickness (their own thickness, a margin)
+MIN_POCKET_OPENING_M = 0.025  # in a pocket the fingers open at least this: a pull's bar (8-11 mm) and the grip's error
 
 
 @dataclass(frozen=True)
@@ -146,8 +147,10 @@ def describe(blob: Blob, view: PlaneView, rows: tuple[int, int], gripper: Grippe
     hidden = _hidden_share(blob, view, axis)
     score, reason = _graspability(kind, thickness, clearance, hidden, gripper)
     style = {"bar": "bar", "knob": "knob"}.get(kind, "pull")
-    opening = gripper.max_opening_m if kind != "recessed pull" else min(thickness / 2, gripper.max_opening_m)
-    # in a pocket the fingers open to half its width: a quarter of it each side for a finger and the grip's error
+    opening = gripper.max_opening_m if kind != "recessed pull" else \
+        min(max((thickness - FINGER_SPAN_M) / 2, MIN_POCKET_OPENING_M), gripper.max_opening_m)
+    # in a pocket the fingers open to half the room their own thickness leaves (the other half keeps their outer faces
+    # off its walls: the grip's error, the approach's tilt), but wide enough around its bar for the grip's error
     return Handle(style, kind, centre, bar, close, plane.normal.copy(), blob.length_m, thickness, relief, clearance,
                   score, hidden, reason, opening)
 
