@@ -100,6 +100,16 @@ def test_arc_turns_the_tool_with_the_door():
     assert np.allclose(T_end[:3, 2], [np.cos(angle), np.sin(angle), 0.0], atol=1e-4)  # approach axis turned
 
 
+def test_an_arc_that_does_not_turn_the_tool_keeps_its_orientation():
+    T0 = np.eye(4)
+    T0[:3, 3] = [0.6, 0.0, 0.5]
+    hinge, up = T0[:3, 3] + [0.0, -0.4, 0.0], np.array([0.0, 0.0, 1.0])
+    angle = np.radians(45)
+    T = arc_path(T0, hinge, up, turn=False)(angle)
+    assert np.allclose(T[:3, :3], T0[:3, :3])
+    assert np.allclose(T[:3, 3], arc_path(T0, hinge, up)(angle)[:3, 3])  # the same path
+
+
 def test_on_tick_false_brakes_along_the_path():
     arm = IdealArm.panda()
     kin = arm.kin

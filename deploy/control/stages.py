@@ -63,6 +63,8 @@ ARM_TOUCH_PX = 100  # the arm's pixels touching the object's on the first frame:
 CLEAR_VIEW_TURNS_RAD = (0.7, -0.7, 1.2, -1.2)  # first-joint swings tried to take the arm out of the view
 MIN_DOOR_RADIUS_M = 0.1  # the first arc's radius is taken as at least this
 PLANNED_DOOR_ARCS_DEG = (45.0, 30.0, 15.0)  # a door's pre-grasp is planned for the longest of these arcs it carries
+HINGE_ALIGNED_COS = 0.7  # fingers closing within 45 deg of the hinge's direction close "along" it
+TURNING_HANDLES = ("edge pull", "cup", "bar")  # handles that may turn between the pads about the fingers' closing
 PLANNED_DOOR_REACH_M = 0.1  # ... or else for this much straight pull
 MIN_PLANNED_PULL_M = 0.05  # straight pulls planned are halved down to this
 PLANNED_LINE_STEP_M, PLANNED_ARC_STEP_RAD = 0.05, float(np.radians(5.0))  # planned pulls are checked this finely
@@ -245,7 +247,7 @@ def first_pull(episode: Episode, handle: Handle) -> None:
         return
     if revolute and not episode.policy.straight_door(state.joint):
         axis = state.axis
-        _pull(episode, arc_path(episode.tool(), axis.origin, axis.direction), length / radius, "first pull",
+        _pull(episode, door_arc(episode.tool(), axis, handle.found), length / radius, "first pull",
               episode.arc_limits())
     else:
         _pull(episode, line_path(episode.tool(), handle.normal), length, "first pull")
@@ -467,7 +469,7 @@ def _planned_pulls(episode: Episode, handle: Handle, T_grasp: np.ndarray) -> lis
     revolute = episode.state.joint is JointType.REVOLUTE
     if revolute and not episode.policy.straight_door(episode.state.joint):
         prior = _prior(episode, handle)
-        pulls += [pull_poses(arc_path(T_grasp, prior.origin, prior.direction), np.radians(arc), PLANNED_ARC_STEP_RAD)
+        pulls += [pull_poses(door_arc(T_grasp, prior, handle.found), np.radians(arc), PLANNED_ARC_STEP_RAD)
                   for arc in PLANNED_DOOR_ARCS_DEG]
     length = PLANNED_DOOR_REACH_M if revolute else \
         episode.config.opening.target_distance_m + OVERSHOOT[JointType.PRISMATIC]
@@ -544,7 +546,18 @@ def _step_path(episode: Episode, axis: Axis) -> tuple[PathFn, float, MotionLimit
         tangent = np.cross(axis.direction, T[:3, 3] - axis.origin)
         radius = max(float(np.linalg.norm(tangent)), 0.05)
         return line_path(T, tangent), min(size, remaining * radius), episode.line_limits()
-    return arc_path(T, axis.origin, axis.direction), min(size, remaining), episode.arc_limits()
+    kind = "" if state.handle is None else state.handle.found
+    return door_arc(T, axis, kind), min(size, remaining), episode.arc_limits()
+
+
+def door_arc(T: np.ndarray, axis: Axis, kind: str) -> PathFn:
+    """The tool's arc about a door's axis from pose T, holding a handle of `kind` (`Handle.found`). Fingers closing
+    along the hinge across a horizontal handle that lies along their pads (TURNING_HANDLES: a tab, a cup, a bar) let
+    it turn between the pads as the door swings: the tool keeps its orientation, sparing the wrist the door's turn.
+    Otherwise the tool turns with the door: a vertical bar (the hand's width lies in the swing), a knob (its stem
+    would swing into the fingers), a pocket (its walls would)."""
+    along_hinge = abs(float(T[:3, 1] @ axis.direction)) >= HINGE_ALIGNED_COS
+    return arc_path(T, axis.origin, axis.direction, turn=not (along_hinge and kind in TURNING_HANDLES))
 
 
 def _goal(episode: Episode, axis: Axis) -> float:

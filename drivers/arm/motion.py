@@ -123,9 +123,10 @@ def line_path(T_start: np.ndarray, direction: np.ndarray) -> PathFn:
     return pose
 
 
-def arc_path(T_start: np.ndarray, axis_origin: np.ndarray, axis_direction: np.ndarray) -> PathFn:
-    """Tool poses rotated by s radians (right-handed) about an axis: position and orientation turn
-    together, as a gripper holding a door handle does."""
+def arc_path(T_start: np.ndarray, axis_origin: np.ndarray, axis_direction: np.ndarray, turn: bool = True) -> PathFn:
+    """Tool poses rotated by s radians (right-handed) about an axis: position and orientation turn together, as a
+    gripper holding a door handle does; with `turn=False` the orientation stays (a handle that turns between the
+    fingers)."""
     T_start = _pose(T_start)
     c = np.asarray(axis_origin, float)
     u = _unit(axis_direction, "arc axis direction")
@@ -133,7 +134,7 @@ def arc_path(T_start: np.ndarray, axis_origin: np.ndarray, axis_direction: np.nd
     def pose(s: float) -> np.ndarray:
         R = pin.exp3(s * u)
         T = np.eye(4)
-        T[:3, :3] = R @ T_start[:3, :3]
+        T[:3, :3] = R @ T_start[:3, :3] if turn else T_start[:3, :3]
         T[:3, 3] = c + R @ (T_start[:3, 3] - c)
         return T
 
