@@ -111,3 +111,21 @@ def test_a_pointed_part_the_arm_hides_is_seen_after_swinging_the_arm_aside(caplo
     assert planned["message"].startswith(f"--point {u} {v}: pixel ({u}, {v}) is on the arm")
     opened = open_object(request, keep_run_dir=False)
     assert opened["stop_reason"] == StopReason.TARGET_REACHED and opened["true_opened_m"] >= 0.1, opened["message"]
+
+
+def test_a_recessed_pull_is_reached_into_and_opened(blind):
+    """Test kitchen 53: a top drawer whose pull is a bar in a pocket. The fingers go in level, opened to half the room
+    the pocket leaves them (before: tilted and opened to half its width, the upper finger met the pocket's rim, the
+    tool eased back out and the fingers closed on nothing)."""
+    result = simulate_episode("drawer", 53, "test", target=0.1)
+    assert blind and blind[0].found == "recessed pull"
+    assert result["success"] and result["true_opened_m"] >= 0.1, result["message"]
+
+
+def test_a_door_held_by_a_horizontal_handle_opens_with_the_tool_keeping_its_orientation(blind):
+    """Test kitchen 7: a door with a cup handle (seen as a horizontal bar) near the Panda's reach. Turning the tool
+    with the door, the first arc met a wrist singularity at 1 deg (ik infeasible); the handle turns between the pads
+    instead."""
+    result = simulate_episode("door", 7, "test", target=30.0)
+    assert blind and abs(blind[0].bar[2]) < 0.5  # a horizontal handle
+    assert result["success"] and result["true_opened_deg"] >= 30.0, result["message"]
