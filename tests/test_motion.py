@@ -329,3 +329,28 @@ def test_paths_near_a_singularity_pass_or_stop_before_moving():
     with pytest.raises(ArmError, match=r"^ik: lost the Cartesian path at s = 0\.0000 of 0\.1000"):
         follow_cartesian_path(arm, kin, line_path(kin.fk(Q_SINGULAR), lost), 0.1, LINE_LIMITS)
     assert arm.state().t == 0.0 and np.array_equal(arm.state().q, Q_SINGULAR)  # never moved
+
+
+def _plan_accelerations(qs: np.ndarray, q0: np.ndarray, dt: float) -> np.ndarray:
+    velocity = np.diff(np.vstack([q0, q0, qs]), axis=0) / dt
+    return np.abs(np.diff(velocity, axis=0)) / dt
+
+
+def test_a_cartesian_plan_whose_joints_would_accelerate_past_the_limits_is_slowed_down():
+    from drivers.arm.motion import ACCELERATION_SHARE, POSTURE_GAIN_PER_S, Tracker, _plan_within_acceleration
+    from drivers.arm.trajectory import PathProfile
+
+    arm = IdealArm.panda()
+    kin, q0, dt = arm.kin, arm.state().q, arm.control_period_s
+    T0 = kin.fk(q0)
+    path = line_path(T0, [0.0, 0.0, -1.0])
+    profile = PathProfile(0.1, 0.2, 2.0, 20.0)
+    track = Tracker(kin, path, 0.1, q0, kin.v_max * dt, POSTURE_GAIN_PER_S * dt, 0.2 * dt)
+    _, qs = track.plan(profile, dt, q0)
+    needed = _plan_accelerations(qs, q0, dt).max(axis=0)
+    a_max = np.maximum(needed / 2.0, 1e-3)  # the full-speed plan needs twice what this arm may do
+    slowed, s, qs = _plan_within_acceleration(track, profile, dt, q0, a_max)
+    assert slowed.duration > profile.duration and s[-1] == pytest.approx(0.1)
+    assert np.all(_plan_accelerations(qs, q0, dt) <= ACCELERATION_SHARE * a_max + 1e-9)
+    with pytest.raises(ArmError, match=r"^ik: the path needs joint panda_joint\d to accelerate at"):
+        _plan_within_acceleration(track, profile, dt, q0, needed / 1000.0)

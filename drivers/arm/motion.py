@@ -28,6 +28,8 @@ PathFn = Callable[[float], np.ndarray]
 
 START_TOLERANCE_M = 0.01  # a Cartesian path must start this close to the measured tool position
 TRACKING_TOL_POS_M, TRACKING_TOL_ROT_RAD = 1e-6, 1e-5  # per-tick IK: tight, so commands stay smooth
+RETIME_TRIES, ACCELERATION_SHARE = 3, 0.9  # a Cartesian plan is slowed by half up to this often while its joints
+# would accelerate past this share of the arm's limits
 POSTURE_GAIN_PER_S = 1.0  # per-tick IK: null-space pull toward the rest posture, 1/s at the path's top speed
 TANGENT_STEP = 1e-4  # compliant pulls: the path's tangent from poses this far (m or rad) either side of s
 STALL_SCALE = 0.02  # compliant pulls: a path slowed below this share of its speed is held still (braking
@@ -177,12 +179,34 @@ def follow_cartesian_path(
     q_rest = q.copy() if q_rest is None else np.asarray(q_rest, float)
     track = Tracker(kin, path_fn, length, q_rest, kin.v_max * dt, POSTURE_GAIN_PER_S * dt,
                      float(profile.limits.v_max) * dt)
-    plan_s, plan_q = track.plan(profile, dt, q)
+    profile, plan_s, plan_q = _plan_within_acceleration(track, profile, dt, q, arm.limits.a_max)
     if compliance is not None and arm.state().tau is not None:
         motion: PathMotion = CompliantPull(arm, kin, track, profile, compliance)
     else:
         motion = PlannedPath(track, profile, plan_s, plan_q, dt)
     return run_ticks(arm, kin, motion, on_tick, max_tracking_error_m, sample_every)
+
+
+def _plan_within_acceleration(track: Tracker, profile: PathProfile, dt: float, q: np.ndarray, a_max: np.ndarray
+                              ) -> tuple[PathProfile, np.ndarray, np.ndarray]:
+    """(profile, s, joints) of the path's ticks from joints q at rest: the profile as given, or slowed by half up to
+    RETIME_TRIES times while the per-tick IK's joints would accelerate past ACCELERATION_SHARE of `a_max` (near a
+    singularity they do, though the path's own profile is smooth: the arm's safety layer would stop the motion).
+    IKError naming the joint when even the slowest exceeds it."""
+    for attempt in range(RETIME_TRIES + 1):
+        s, qs = track.plan(profile, dt, q)
+        velocity = np.diff(np.vstack([q, q, qs]), axis=0) / dt  # from rest
+        ratio = np.abs(np.diff(velocity, axis=0)) / (dt * ACCELERATION_SHARE * np.asarray(a_max, float))
+        if len(qs) == 0 or ratio.max() <= 1.0:
+            return profile, s, qs
+        if attempt < RETIME_TRIES:
+            v, a, j = (float(x) for x in (profile.limits.v_max, profile.limits.a_max, profile.limits.j_max))
+            profile = PathProfile(profile.length, v / 2, a / 4, j / 8)
+    k, j = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
+    needed = ratio[k, j] * ACCELERATION_SHARE * a_max[j]
+    raise IKError(f"ik: the path needs joint {track.kin.joint_names[j]} to accelerate at {needed:.1f} rad/s^2 "
+                  f"(limit {a_max[j]:.1f}) at s = {s[k]:.4f} of {track.length:.4f}, even at 1/{2 ** RETIME_TRIES} of "
+                  "its speed: it passes near a singularity; start from another arm configuration or shorten the path")
 
 
 class PathMotion(Protocol):
