@@ -27,7 +27,8 @@ POCKET_LIP_M = 0.01  # a recessed pull is held at its lip, this far inside the p
 HIDDEN_REACH_M = 0.02  # the arm's pixels this close beyond a handle's end may hide more of it
 FINGER_REACH_M = 0.01  # the fingertips must pass this far behind the grip centre to hold it (half a pad)
 FINGER_SPAN_M = 0.025  # two fingertips across a handle add this to its thickness (their own thickness, a margin)
-MIN_POCKET_OPENING_M = 0.025  # in a pocket the fingers open at least this: a pull's bar (8-11 mm) and the grip's error
+MIN_POCKET_OPENING_M = 0.025  # in a pocket the fingers open at least this: a pull's bar or lip (about 1 cm) and the
+# grip's error either side
 
 
 @dataclass(frozen=True)

@@ -100,7 +100,7 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
         pocket = inside & (offset < -tolerance) & (offset >= -MAX_POCKET_M)
     other = view.no_depth[sl] & (colour_distance(view.lab[sl], front_colour(view, extent)) > COLOUR_DELTA_E)  # a
     # hole of another colour than the front's: a handle the D415 lost (shadows keep their depth on the plane)
-    rim = inside & ~cv2.erode(inside.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    inner_edge = inside & ~cv2.erode(inside.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     plinth_cells, middle = PLINTH_SHARE * (extent.right - extent.left + 1 - 2 * inner), (extent.top + extent.bottom) / 2
     candidate = _without_structure((out | pocket | other) & view.seen[sl], view.seen[sl])
     join = max(int(round(JOIN_M / view.res_m)), 1)
@@ -124,7 +124,7 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
         box = (slice(max(y - join, 0), y + bh + join), slice(max(x - join, 0), x + bw + join))
         member = labels[box] == label
         sunk = member & pocket[box]
-        if sunk.sum() > (member & out[box]).sum() and (sunk & rim[box]).any() and bw >= plinth_cells \
+        if sunk.sum() > (member & out[box]).sum() and (sunk & inner_edge[box]).any() and bw >= plinth_cells \
                 and y + bh / 2 + r0 > middle:  # a recess across the front's whole lower edge, on to its sides: the
             continue  # plinth set back under it, not a pull cut into the panel
         found = [blob_of(member, box)]
