@@ -5,7 +5,9 @@ Every executor has the same `map(fn, jobs)`: `fn(**job)` for each job dict, resu
 advances steadily while later jobs are still running. A job that raises stops the map with a `JobError` naming
 the job (`fn(**job)`, ready to rerun alone), chained to the original exception, or with the job's own
 `ModelError` / `ConfigError` as it is (one line naming the thing, the cause and the fix); jobs not yet started are
-cancelled. Use an executor as a context manager so a Ray connection is always shut down:
+not started (local processes cancel them; on Ray only a few jobs per CPU are ever submitted ahead, since cancelling
+a Ray task as it completes can crash the driver, and the few running on finish unused).
+Use an executor as a context manager so a Ray connection is always shut down:
 
     with make_executor(workers=4, ray_address=None) as executor:
         for result in executor.map(simulate_episode, jobs): ...
@@ -28,6 +30,7 @@ R = TypeVar("R")
 RAY_INSTALL = "pip install 'axisloop[cluster]'"
 RAY_CLIENT_PORT = 10001
 CONNECT_TIMEOUT_S = 5.0
+IN_FLIGHT_PER_CPU = 2  # Ray tasks submitted ahead per cluster CPU: enough to keep every CPU busy
 
 
 class Executor(Protocol):
@@ -111,20 +114,18 @@ class RayExecutor:
         ray = self._connect()
         jobs = list(jobs)
         task = ray.remote(num_cpus=1)(_call)
-        refs = [task.remote(fn, job) for job in jobs]
-        done = 0
-        try:
-            for index, (job, ref) in enumerate(zip(jobs, refs, strict=True)):
-                try:
-                    result = ray.get(ref)
-                except ray.exceptions.RayTaskError as exc:
-                    _raise_job_error(fn, index, len(jobs), job, exc.cause or exc, exc)
-                except ray.exceptions.RayError as exc:  # worker or node died, task cancelled, object lost
-                    _raise_job_error(fn, index, len(jobs), job, exc, exc)
-                done = index + 1
-                yield result
-        finally:
-            _cancel_unfinished(ray, refs[done:])
+        window = IN_FLIGHT_PER_CPU * max(1, int(ray.cluster_resources().get("CPU", 1)))
+        refs = [task.remote(fn, job) for job in jobs[:window]]
+        for index, job in enumerate(jobs):
+            try:
+                result = ray.get(refs[index])
+            except ray.exceptions.RayTaskError as exc:
+                _raise_job_error(fn, index, len(jobs), job, exc.cause or exc, exc)
+            except ray.exceptions.RayError as exc:  # worker or node died, object lost
+                _raise_job_error(fn, index, len(jobs), job, exc, exc)
+            if index + window < len(jobs):
+                refs.append(task.remote(fn, jobs[index + window]))
+            yield result
 
     def _connect(self) -> Any:
         if self._ray is not None:
@@ -158,15 +159,6 @@ class RayExecutor:
                               f"install it with {RAY_INSTALL}") from exc
         self._ray, self._owns_ray = ray, True
         return ray
-
-
-def _cancel_unfinished(ray: Any, refs: list[Any]) -> None:
-    """Cancel the Ray jobs not finished yet. Finished ones are left alone: cancelling a task while its completion
-    is in flight can crash the driver (Ray's "Tried to complete task that was not pending")."""
-    if refs:
-        _, unfinished = ray.wait(refs, num_returns=len(refs), timeout=0, fetch_local=False)
-        for ref in unfinished:
-            ray.cancel(ref)
 
 
 def make_executor(workers: int = 1, ray_address: str | None = None) -> Executor:
