@@ -425,8 +425,10 @@ class CompliantPull:
             self.done = self.clock >= self.active.duration
             self.T = self.path_fn(self.s)
             self.T[:3, 3] += self.offset
-            q_next = self.track(q, s_prev, self.s, self.T)
-            dq = (q_next - q) / dt
+            dq = (self.track(q, s_prev, self.s, self.T) - q) / dt
+            most = ACCELERATION_SHARE * self.arm.limits.a_max * dt  # the re-solved ticks are not the checked plan:
+            dq = np.clip(dq, self.dq_cmd - most, self.dq_cmd + most)  # their joints speed up within the limits
+            q_next = q + dq * dt
         else:
             q_next, dq, _ = self.release.step(self.q_hold)
             self.done = self.release.finished
