@@ -68,6 +68,10 @@ MIN_PLANNED_PULL_M = 0.05  # straight pulls planned are halved down to this
 HINGE_ALIGNED_COS = 0.7  # fingers closing within 45 deg of the hinge's direction close "along" it
 TURNING_HANDLES = ("edge pull", "cup", "bar")  # handles that may turn between the pads about the fingers' closing
 PLANNED_LINE_STEP_M, PLANNED_ARC_STEP_RAD = 0.05, float(np.radians(5.0))  # planned pulls are checked this finely
+ONE_FINGER_SHARE = 0.5  # closed, the arm feels more than this share of the grip force across the fingers: one finger
+# alone presses the handle
+CENTRING_STEP_M = 0.002  # such a handle is centred between the fingers in steps of this
+REST_READING_S = 0.1  # a force at rest is the mean of the readings over this long
 PRESS_N = 10.0  # the approach ended with the tool pushing the handle this hard: ease back before closing
 EASE_STEP_M, MAX_EASE_M = 0.004, 0.02  # easing back: step, and at most this far
 
@@ -432,12 +436,53 @@ def _ease_off_press(episode: Episode) -> None:
 
 
 def _close_and_check(episode: Episode, open_width: float, failure: StopReason, context: str = "") -> None:
+    """Close on the handle; when one finger alone pressed it, centre it (`_centre_on_handle`), open and close again
+    so that both fingers squeeze it. EpisodeStop(`failure`) when the gripper closed on nothing."""
+    width = _close(episode, open_width, failure, context)
+    moved = _centre_on_handle(episode, width)
+    if moved:
+        log.info("one finger alone pressed the handle (closed to %.1f mm): the tool moved %.1f mm toward it and "
+                 "closed again", width * 1e3, moved * 1e3)
+        episode.arm.set_gripper(open_width)
+        episode.wait(CLOSE_TIME_S)
+        _close(episode, open_width, failure, context)
+
+
+def _close(episode: Episode, open_width: float, failure: StopReason, context: str) -> float:
+    """Close the gripper; the width it stopped at. EpisodeStop(`failure`) when it closed on nothing."""
     episode.arm.set_gripper(0.0, episode.grip_force_n)
     episode.wait(CLOSE_TIME_S)
     width = episode.arm.state().gripper_width_m
     if not MIN_GRASP_WIDTH_M < width < open_width - OPEN_MARGIN_M:
         raise EpisodeStop(failure, f"{context}gripper closed to {width * 1e3:.1f} mm (open {open_width * 1e3:.1f} "
                           "mm): it missed the handle; check the handle detection and the camera calibration")
+    return width
+
+
+def _centre_on_handle(episode: Episode, width: float) -> float:
+    """How far (m) the tool moved to centre the handle between the closed fingers. Each finger closes to the
+    gripper's middle: a handle lying off it by more than half its thickness stops one finger while the other closes
+    short of it, and the arm then feels that finger's squeeze across the fingers (the tool pushes the handle toward
+    the middle). Still squeezing, the tool moves toward the touching finger in CENTRING_STEP_M steps until the other
+    finger presses too (the force across them drops), at most the closed `width` (the touching finger is no farther
+    from the middle). Arms that measure no joint torques do not move."""
+    arm, kin = episode.arm, episode.kin
+    moved = 0.0
+    while moved < width:
+        wrench = WrenchEstimator(kin, 0.0, episode.compliance.torque_offset)
+        states = []
+        for _ in range(round(REST_READING_S / arm.control_period_s)):
+            arm.sync()
+            states.append(arm.state())
+        w = wrench.start(states)
+        T = kin.fk(states[-1].q)
+        across = 0.0 if w is None else float(w[:3] @ T[:3, 1])
+        if abs(across) < ONE_FINGER_SHARE * episode.grip_force_n:
+            break
+        follow_cartesian_path(arm, kin, line_path(T, -np.sign(across) * T[:3, 1]), CENTRING_STEP_M,
+                              episode.line_limits(), episode.show_arm)
+        moved += CENTRING_STEP_M
+    return moved
 
 
 def _grasp_plan(episode: Episode, handle: Handle) -> tuple[np.ndarray, float, np.ndarray]:

@@ -1,0 +1,41 @@
+"""A handle that one finger alone presses when the gripper closes (it lies off the fingers' middle by more than half
+its thickness: each finger closes only to the middle) is centred between them before the pull
+(deploy/control/stages.py `_centre_on_handle`); without that, the one finger drags it out of the grasp."""
+
+from __future__ import annotations
+
+import pytest
+
+import deploy.control.stages as stages
+from deploy.bench.open import simulate_episode
+from deploy.control.state import StopReason
+
+# Kitchen test scenarios whose handle the closing fingers meet off their middle: a drawer's horizontal bar seen a
+# centimetre low (drawer 21), a door's vertical bar in a recessed pull's pocket seen beside it (door 0).
+OFF_CENTRE = [("drawer", 21, 0.1), ("door", 0, 20.0)]
+
+
+def _episode(monkeypatch, task: str, seed: int, target: float, centre: bool) -> tuple[dict, list[float]]:
+    moves: list[float] = []
+    original = stages._centre_on_handle
+
+    def recorded(episode, width: float) -> float:
+        moves.append(original(episode, width) if centre else 0.0)
+        return moves[-1]
+
+    monkeypatch.setattr(stages, "_centre_on_handle", recorded)
+    return simulate_episode(task, seed, split="test", target=target), moves
+
+
+@pytest.mark.parametrize(("task", "seed", "target"), OFF_CENTRE)
+def test_a_handle_pressed_by_one_finger_is_centred_and_the_part_opens(monkeypatch, task, seed, target):
+    result, moves = _episode(monkeypatch, task, seed, target, centre=True)
+    assert moves and moves[0] > 0.0  # the first close met the handle with one finger
+    assert result["success"], result["message"]
+
+
+@pytest.mark.parametrize(("task", "seed", "target"), OFF_CENTRE)
+def test_uncentred_the_one_finger_loses_the_handle(monkeypatch, task, seed, target):
+    result, moves = _episode(monkeypatch, task, seed, target, centre=False)
+    assert moves  # the scenario closes on its handle: the test above is not vacuous
+    assert result["stop_reason"] == StopReason.GRASP_LOST, result["message"]
