@@ -15,7 +15,7 @@ from scipy.spatial import cKDTree
 
 from deploy.control.grasp import Handle, grasp_pose
 from deploy.control.state import EpisodeStop, StopReason
-from deploy.geometry.clearance import first_contact, line_poses, parallel_gripper, standing_out
+from deploy.geometry.clearance import first_contact, parallel_gripper, standing_out
 from deploy.geometry.cloud import depth_to_points
 from deploy.perception.handle import EDGE_BAND_M
 from deploy.perception.handle_blobs import MAX_STANDOFF_M
@@ -27,7 +27,6 @@ CLEARANCE_M = -0.005  # the gripper hits the scene where a scene point lies this
 # within the calibration's error (5 mm) and the depth's noise, a graze the compliant approach and pull tolerate
 PLANE_BAND_M = 0.01  # the fronts' plane and what lies behind it: the fingers stop in front of it (the D415's noise)
 SCENE_STEP = 4  # the scene is every 4th pixel in each direction (about 1 cm apart at 1 m)
-APPROACH_STEP_M = 0.02  # the approach is checked this finely
 PITCHES_RAD = (GRASP_PITCH_RAD, 0.0)  # the grasps tried, in order: tilted down (the usual), then level
 GRIP_MARGIN_M = 0.015  # fingers opened only as wide as a handle needs clear it by this much each side: the pointed
 # handle's error (about 1 cm) and the calibration's 5 mm
@@ -64,8 +63,8 @@ def clear_grasps(handle: Handle, scene: cKDTree, pulls: Pulls, approach_m: float
     # tilted, the fingers' outer faces climb toward its walls as they go in
     for held, pitch in itertools.product([handle, turned] if handle.found == "knob" else [handle], pitches):
         T = grasp_pose(held, pitch_rad=pitch)
-        pull = first_contact(scene, pulls(T)[0], parallel_gripper(closed, max_opening_m), CLEARANCE_M)
-        path = line_poses(pregrasp_pose(T, approach_m), T, APPROACH_STEP_M)
+        pull = first_contact(scene, [T, *pulls(T)[0]], parallel_gripper(closed, max_opening_m), CLEARANCE_M)
+        path = [pregrasp_pose(T, approach_m), T]
         for opening in openings:
             touch = pull or first_contact(scene, path, parallel_gripper(opening, max_opening_m), CLEARANCE_M)
             if touch is None:
