@@ -1,6 +1,6 @@
 """The gripper's clearance from the scene the first frame showed: the gripper model holds what the Panda's collision
-meshes occupy, and a path is checked between its poses, so a thin surface (a counter's front face) it passes through
-is found."""
+meshes occupy, a path is checked between its poses, so a thin surface (a counter's front face) it passes through is
+found, and a finger dipping behind the fronts' plane is."""
 
 from itertools import combinations
 from pathlib import Path
@@ -9,7 +9,9 @@ import numpy as np
 import pybullet_data
 from scipy.spatial import cKDTree
 
-from deploy.geometry.clearance import first_contact, parallel_gripper, swept_poses
+from deploy.control.grasp import Handle, grasp_pose
+from deploy.control.scene_clearance import Scene, clear_grasps
+from deploy.geometry.clearance import first_behind, first_contact, parallel_gripper, swept_poses
 from drivers.arm.grasping import pregrasp_pose
 
 MESHES = Path(pybullet_data.getDataPath()) / "franka_panda" / "meshes" / "collision"
@@ -85,3 +87,18 @@ def test_a_path_is_checked_finely_enough_through_turns_and_moves():
     moves = [np.linalg.norm((Q @ reach - P @ reach)[:3], axis=0).max()
              for P, Q in zip(poses[:-1], poses[1:], strict=True)]
     assert max(moves) <= 0.005 + 1e-9 and len(poses) > 20
+
+
+def test_a_tilted_finger_dipping_behind_the_fronts_plane_is_refused_and_the_level_grasp_taken():
+    """A cup 1.5 cm out of its front: tilted down, the upper finger's far corner reaches behind the front (the scene
+    leaves the fronts' plane out, the plane stands for it); held level, the fingers stay in front of it."""
+    normal = np.array([-1.0, 0.0, 0.0])
+    scene = Scene(cKDTree(np.array([[0.0, 0.0, 0.0]])), np.array([0.8, 0.0, 0.6]), normal)
+    cup = Handle(np.array([0.785, 0.0, 0.6]), normal, np.array([0.0, 1.0, 0.0]), 100, "cup", open_m=0.08,
+                 thickness_m=0.03, depth_m=0.008)
+    grasps = clear_grasps(cup, scene, lambda T: [[T]], 0.1, 0.08)
+    assert [opening for _, opening in grasps] == [0.08, 0.06]
+    assert all(abs(T[2, 2]) < 1e-9 for T, _ in grasps)  # level: the approach has no downward tilt
+    tilted = grasp_pose(cup)
+    corner = first_behind([tilted], parallel_gripper(0.08, 0.08), scene.origin, normal, 0.01)
+    assert corner is not None and corner.point[2] > 0.6 and corner.point[0] > 0.81  # above the cup, behind

@@ -91,6 +91,22 @@ def swept_poses(poses: list[np.ndarray], step_m: float, reach_m: float) -> list[
     return swept
 
 
+def first_behind(poses: list[np.ndarray], boxes: tuple[ToolBox, ...], origin: np.ndarray, normal: np.ndarray,
+                 depth_m: float) -> Contact | None:
+    """Where the gripper at one of `poses` (4x4 tool poses, base frame) reaches more than `depth_m` behind the plane
+    through `origin` with outward unit `normal` (the fronts' plane, which the scene leaves out); None when it keeps in
+    front of it. Moving straight between the poses, it reaches deepest at one of them."""
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    for T in poses:
+        R, p = np.asarray(T, float)[:3, :3], np.asarray(T, float)[:3, 3]
+        for box in boxes:
+            corners = p + (np.array(box.centre) + signs * box.half) @ R.T
+            offset = (corners - origin) @ normal
+            if offset.min() < -depth_m:
+                return Contact(box.name, corners[np.argmin(offset)])
+    return None
+
+
 def standing_out(points: np.ndarray, origin: np.ndarray, right: np.ndarray, up: np.ndarray, normal: np.ndarray,
                  half_size: tuple[float, float], plane_band_m: float, part_depth_m: float) -> np.ndarray:
     """The scene a gripper at a front can touch: the `points` standing more than `plane_band_m` out of the front's
