@@ -23,6 +23,8 @@ def _turned_deg(T_start: np.ndarray, T_end: np.ndarray) -> float:
     (UP, "bar", True),  # a vertical bar: fingers close across the hinge, the hand's width in the swing
     (np.array([0.0, 1.0, 0.0]), "knob", True),  # its stem would swing into the fingers
     (np.array([0.0, 1.0, 0.0]), "recessed pull", True),  # the pocket's walls would
+    (np.array([0.0, np.cos(0.7), np.sin(0.7)]), "cup", True),  # fingers closing 40 deg off the hinge: the door's turn
+    # would twist the handle between the pads and swing its face into a finger
 ])
 def test_a_handle_that_can_turn_between_the_pads_keeps_the_tool_orientation(bar, kind, turns):
     T = grasp_pose(np.array([0.7, 0.0, 0.6]), NORMAL, bar)

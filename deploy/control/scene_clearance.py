@@ -8,14 +8,14 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from deploy.control.grasp import Handle, grasp_pose
 from deploy.control.state import EpisodeStop, StopReason
-from deploy.geometry.clearance import first_contact, line_poses, parallel_gripper, standing_out
+from deploy.geometry.clearance import first_behind, first_contact, parallel_gripper, standing_out
 from deploy.geometry.cloud import depth_to_points
 from deploy.perception.handle import EDGE_BAND_M
 from deploy.perception.handle_blobs import MAX_STANDOFF_M
@@ -27,7 +27,6 @@ CLEARANCE_M = -0.005  # the gripper hits the scene where a scene point lies this
 # within the calibration's error (5 mm) and the depth's noise, a graze the compliant approach and pull tolerate
 PLANE_BAND_M = 0.01  # the fronts' plane and what lies behind it: the fingers stop in front of it (the D415's noise)
 SCENE_STEP = 4  # the scene is every 4th pixel in each direction (about 1 cm apart at 1 m)
-APPROACH_STEP_M = 0.02  # the approach is checked this finely
 PITCHES_RAD = (GRASP_PITCH_RAD, 0.0)  # the grasps tried, in order: tilted down (the usual), then level
 GRIP_MARGIN_M = 0.015  # fingers opened only as wide as a handle needs clear it by this much each side: the pointed
 # handle's error (about 1 cm) and the calibration's 5 mm
@@ -35,7 +34,17 @@ GRIP_MARGIN_M = 0.015  # fingers opened only as wide as a handle needs clear it 
 Pulls = Callable[[np.ndarray], list[list[np.ndarray]]]  # a grasp pose -> the pulls planned from it, most wanted first
 
 
-def scene_tree(frame: Frame, pointed: PointedPart) -> cKDTree:
+@dataclass(frozen=True)
+class Scene:
+    """What a gripper at the pointed front can touch: `points` standing out of the fronts' plane (`origin`, outward
+    unit `normal`), which the plane itself stands for."""
+
+    points: cKDTree
+    origin: np.ndarray
+    normal: np.ndarray
+
+
+def scene_tree(frame: Frame, pointed: PointedPart) -> Scene:
     """The scene a gripper at the pointed front can touch, from `frame` (the first, the arm's depth removed)."""
     step = SCENE_STEP
     K = np.diag([1.0 / step, 1.0 / step, 1.0]) @ frame.intrinsics.K
@@ -43,14 +52,16 @@ def scene_tree(frame: Frame, pointed: PointedPart) -> cKDTree:
     front = pointed.front
     plane = front.plane
     half = (front.width_m / 2 + EDGE_BAND_M, front.height_m / 2 + EDGE_BAND_M)  # with an edge pull's tab
-    return cKDTree(standing_out(points, plane.origin, plane.right, plane.up, plane.normal, half, PLANE_BAND_M,
-                                MAX_STANDOFF_M))
+    return Scene(cKDTree(standing_out(points, plane.origin, plane.right, plane.up, plane.normal, half, PLANE_BAND_M,
+                                      MAX_STANDOFF_M)), plane.origin, plane.normal)
 
 
-def clear_grasps(handle: Handle, scene: cKDTree, pulls: Pulls, approach_m: float, max_opening_m: float
+def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, max_opening_m: float
                  ) -> list[tuple[np.ndarray, float]]:
     """The grasps (pose and finger opening) whose approach (from `approach_m` out, the fingers open) and first planned
-    pull (the fingers closed on the handle) keep clear of `scene` (CLEARANCE_M), in the order wanted: a knob held as
+    pull (the fingers closed on the handle) keep clear of `scene` (CLEARANCE_M), the approach in front of the fronts'
+    plane too (PLANE_BAND_M deep at most; a tilted finger's far corner dips toward it; a recessed pull's pocket lies
+    behind it), in the order wanted: a knob held as
     found then turned a quarter, each tilted down then level (PITCHES_RAD), each with the fingers opened as the
     handle asks, then only as wide as it needs (its thickness and GRIP_MARGIN_M each side). EpisodeStop saying where
     the gripper would touch the scene when none does."""
@@ -64,10 +75,13 @@ def clear_grasps(handle: Handle, scene: cKDTree, pulls: Pulls, approach_m: float
     # tilted, the fingers' outer faces climb toward its walls as they go in
     for held, pitch in itertools.product([handle, turned] if handle.found == "knob" else [handle], pitches):
         T = grasp_pose(held, pitch_rad=pitch)
-        pull = first_contact(scene, pulls(T)[0], parallel_gripper(closed, max_opening_m), CLEARANCE_M)
-        path = line_poses(pregrasp_pose(T, approach_m), T, APPROACH_STEP_M)
+        pull = first_contact(scene.points, [T, *pulls(T)[0]], parallel_gripper(closed, max_opening_m), CLEARANCE_M)
+        path = [pregrasp_pose(T, approach_m), T]
         for opening in openings:
-            touch = pull or first_contact(scene, path, parallel_gripper(opening, max_opening_m), CLEARANCE_M)
+            gripper = parallel_gripper(opening, max_opening_m)
+            touch = pull or first_contact(scene.points, path, gripper, CLEARANCE_M)
+            if touch is None and handle.found != "recessed pull":
+                touch = first_behind(path, gripper, scene.origin, scene.normal, PLANE_BAND_M)
             if touch is None:
                 clear.append((T, opening))
             elif contact is None:

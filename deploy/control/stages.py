@@ -65,7 +65,8 @@ MIN_DOOR_RADIUS_M = 0.1  # the first arc's radius is taken as at least this
 PLANNED_DOOR_ARCS_DEG = (45.0, 30.0, 15.0)  # a door's pre-grasp is planned for the longest of these arcs it carries
 PLANNED_DOOR_REACH_M = 0.1  # ... or else for this much straight pull
 MIN_PLANNED_PULL_M = 0.05  # straight pulls planned are halved down to this
-HINGE_ALIGNED_COS = 0.7  # fingers closing within 45 deg of the hinge's direction close "along" it
+HINGE_ALIGNED_COS = float(np.cos(np.radians(20.0)))  # fingers closing within 20 deg of the hinge close "along" it:
+# the door turning between the pads twists the handle in them by at most a third of its turn (sin 20 deg)
 TURNING_HANDLES = ("edge pull", "cup", "bar")  # handles that may turn between the pads about the fingers' closing
 PLANNED_LINE_STEP_M, PLANNED_ARC_STEP_RAD = 0.05, float(np.radians(5.0))  # planned pulls are checked this finely
 ONE_FINGER_SHARE = 0.5  # closed, the arm feels more than this share of the grip force across the fingers: one finger

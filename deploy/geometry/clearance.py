@@ -3,7 +3,9 @@ frame, metres).
 
 The gripper is a few boxes in its tool frame (z: approach, y: the fingers' closing direction); the scene is the first
 frame's points with the part being opened left out (it moves with the gripper). A pose touches the scene when a
-scene point lies within the clearance of one of the boxes (or, for a negative clearance, that deep inside one).
+scene point lies within the clearance of one of the boxes (or, for a negative clearance, that deep inside one). The
+scene is surfaces, not solids: a path is checked between its poses too, finely enough that a surface the gripper
+passes through lies deeper than the clearance inside a box at one of the poses checked.
 """
 
 from __future__ import annotations
@@ -12,6 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation, Slerp
+
+MIN_SWEEP_STEP_M = 0.002  # a path is checked at least this finely (a clearance as deep as the thinnest box)
 
 
 @dataclass(frozen=True)
@@ -24,34 +29,37 @@ class ToolBox:
 
 
 def parallel_gripper(opening_m: float, max_opening_m: float) -> tuple[ToolBox, ...]:
-    """A parallel gripper opened `opening_m` around a tool frame between its finger pads, as a Franka hand's meshes
-    give it: fingers 2 cm wide either side of the opening, 5.4 cm long to 0.7 cm past the tool frame, tapering from
-    2.6 cm thick at the hand to 1.4 cm at the tip (three steps); the hand behind them, 9.2 cm deep, as wide as the
-    widest opening plus 6 cm each side (20 cm), 4 cm thick in its half nearer the fingers and 6.4 cm in the other; the
-    wrist behind the hand is left out (the fingers and hand reach the scene first)."""
+    """A parallel gripper opened `opening_m` around a tool frame between its finger pads, as the convex hulls of a
+    Franka hand's collision meshes give it (what a simulator and the arm's own collision checks use): fingers 2.1 cm
+    wide either side of the opening, 5.4 cm long to 0.7 cm past the tool frame, standing out of the opening 2.6 cm at
+    the hand and 1.9 cm at the tip (three steps); the hand behind them, 9.2 cm deep, as wide as the widest opening
+    plus 6.4 cm each side (20.8 cm), 6 cm thick in its half nearer the fingers and 6.4 cm in the other; the wrist
+    behind the hand is left out (the fingers and hand reach the scene first)."""
     half_open = opening_m / 2
-    return (ToolBox("fingertips", (0.0, 0.0, -0.0015), (0.01, half_open + 0.015, 0.0085)),
-            ToolBox("fingers", (0.0, 0.0, -0.0185), (0.01, half_open + 0.02, 0.0085)),
-            ToolBox("fingers", (0.0, 0.0, -0.037), (0.01, half_open + 0.026, 0.01)),
-            ToolBox("hand", (0.0, 0.0, -0.062), (0.02, max_opening_m / 2 + 0.06, 0.023)),
-            ToolBox("hand", (0.0, 0.0, -0.108), (0.032, max_opening_m / 2 + 0.06, 0.023)))
+    return (ToolBox("fingertips", (0.0, 0.0, -0.0015), (0.0105, half_open + 0.019, 0.0085)),
+            ToolBox("fingers", (0.0, 0.0, -0.0185), (0.0105, half_open + 0.0253, 0.0085)),
+            ToolBox("fingers", (0.0, 0.0, -0.037), (0.0105, half_open + 0.0264, 0.01)),
+            ToolBox("hand", (0.0, 0.0, -0.062), (0.03, max_opening_m / 2 + 0.064, 0.023)),
+            ToolBox("hand", (0.0, 0.0, -0.108), (0.032, max_opening_m / 2 + 0.064, 0.023)))
 
 
 @dataclass(frozen=True)
 class Contact:
-    """Where a pose of the path would touch the scene: the pose's index, the gripper box, the scene point."""
+    """Where a path would touch the scene: the gripper box and the scene point."""
 
-    index: int
     box: str
     point: np.ndarray
 
 
 def first_contact(scene: cKDTree, poses: list[np.ndarray], boxes: tuple[ToolBox, ...],
                   clearance_m: float) -> Contact | None:
-    """The first of `poses` (4x4 tool poses, base frame) at which a scene point lies within `clearance_m` of a gripper
-    box (a negative clearance: that deep inside it); None when the whole path keeps clear."""
+    """Where the gripper first touches the scene moving through `poses` (4x4 tool poses, base frame, and the motion
+    between them): a scene point within `clearance_m` of a gripper box (a negative clearance: that deep inside it);
+    None when the whole path keeps clear."""
     points = scene.data
-    for i, T in enumerate(poses):
+    thinnest = 2 * min(min(box.half) for box in boxes)
+    reach = max(float(np.linalg.norm(np.abs(box.centre) + box.half)) for box in boxes)
+    for T in swept_poses(poses, max(thinnest - 2 * max(-clearance_m, 0.0), MIN_SWEEP_STEP_M), reach):
         R, p = np.asarray(T, float)[:3, :3], np.asarray(T, float)[:3, 3]
         for box in boxes:
             centre, half = np.array(box.centre), np.array(box.half)
@@ -62,20 +70,41 @@ def first_contact(scene: cKDTree, poses: list[np.ndarray], boxes: tuple[ToolBox,
             distance = np.where(np.all(gap <= 0, axis=1), gap.max(axis=1),  # inside: minus the depth
                                 np.linalg.norm(np.maximum(gap, 0.0), axis=1))
             if distance.min() <= clearance_m:
-                return Contact(i, box.name, points[near][np.argmin(distance)])
+                return Contact(box.name, points[near][np.argmin(distance)])
     return None
 
 
-def line_poses(T_from: np.ndarray, T_to: np.ndarray, step_m: float) -> list[np.ndarray]:
-    """Poses from `T_from` to `T_to` (same orientation) every `step_m` or finer, both ends included."""
-    T_from, T_to = np.asarray(T_from, float), np.asarray(T_to, float)
-    n = max(1, int(np.ceil(np.linalg.norm(T_to[:3, 3] - T_from[:3, 3]) / step_m)))
-    poses = []
-    for k in range(n + 1):
-        T = T_to.copy()
-        T[:3, 3] = T_from[:3, 3] + (T_to[:3, 3] - T_from[:3, 3]) * k / n
-        poses.append(T)
-    return poses
+def swept_poses(poses: list[np.ndarray], step_m: float, reach_m: float) -> list[np.ndarray]:
+    """`poses` (4x4) with poses between them, interpolated (position linearly, orientation along the shortest turn),
+    so that no point within `reach_m` of the tool frame moves more than `step_m` from one to the next."""
+    poses = [np.asarray(T, float) for T in poses]
+    swept = poses[:1]
+    for A, B in zip(poses[:-1], poses[1:], strict=True):
+        turns = Rotation.from_matrix([A[:3, :3], B[:3, :3]])
+        moved = np.linalg.norm(B[:3, 3] - A[:3, 3]) + (turns[0].inv() * turns[1]).magnitude() * reach_m
+        n = max(1, int(np.ceil(moved / step_m)))
+        fractions = np.arange(1, n + 1) / n
+        for f, R in zip(fractions, Slerp([0.0, 1.0], turns)(fractions).as_matrix(), strict=True):
+            T = np.eye(4)
+            T[:3, :3], T[:3, 3] = R, A[:3, 3] + f * (B[:3, 3] - A[:3, 3])
+            swept.append(T)
+    return swept
+
+
+def first_behind(poses: list[np.ndarray], boxes: tuple[ToolBox, ...], origin: np.ndarray, normal: np.ndarray,
+                 depth_m: float) -> Contact | None:
+    """Where the gripper at one of `poses` (4x4 tool poses, base frame) reaches more than `depth_m` behind the plane
+    through `origin` with outward unit `normal` (the fronts' plane, which the scene leaves out); None when it keeps in
+    front of it. Moving straight between the poses, it reaches deepest at one of them."""
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    for T in poses:
+        R, p = np.asarray(T, float)[:3, :3], np.asarray(T, float)[:3, 3]
+        for box in boxes:
+            corners = p + (np.array(box.centre) + signs * box.half) @ R.T
+            offset = (corners - origin) @ normal
+            if offset.min() < -depth_m:
+                return Contact(box.name, corners[np.argmin(offset)])
+    return None
 
 
 def standing_out(points: np.ndarray, origin: np.ndarray, right: np.ndarray, up: np.ndarray, normal: np.ndarray,

@@ -1,0 +1,104 @@
+"""The gripper's clearance from the scene the first frame showed: the gripper model holds what the Panda's collision
+meshes occupy, a path is checked between its poses, so a thin surface (a counter's front face) it passes through is
+found, and a finger dipping behind the fronts' plane is."""
+
+from itertools import combinations
+from pathlib import Path
+
+import numpy as np
+import pybullet_data
+from scipy.spatial import cKDTree
+
+from deploy.control.grasp import Handle, grasp_pose
+from deploy.control.scene_clearance import Scene, clear_grasps
+from deploy.geometry.clearance import first_behind, first_contact, parallel_gripper, swept_poses
+from drivers.arm.grasping import pregrasp_pose
+
+MESHES = Path(pybullet_data.getDataPath()) / "franka_panda" / "meshes" / "collision"
+HAND_TO_TOOL_M, HAND_TO_FINGER_M = 0.105, 0.0584  # panda.urdf: the grasp target and the finger joints on the hand
+GRAZE_M = -0.005  # the clearance the grasp planner uses
+
+
+def _vertices(name: str) -> np.ndarray:
+    return np.array([[float(v) for v in line.split()[1:4]] for line in (MESHES / f"{name}.obj").read_text()
+                     .splitlines() if line.startswith("v ")])
+
+
+def _hull_points(vertices: np.ndarray) -> np.ndarray:
+    """Points along every segment between two vertices: inside the convex hull, its edges among them."""
+    pairs = np.array(list(combinations(range(len(vertices)), 2)))
+    f = np.linspace(0.0, 1.0, 6)[:, None, None]
+    return (vertices[pairs[:, 0]] * (1 - f) + vertices[pairs[:, 1]] * f).reshape(-1, 3)
+
+
+def _outside(points: np.ndarray, boxes) -> float:
+    """How far the point farthest from every box lies outside them (m)."""
+    gaps = [np.linalg.norm(np.maximum(np.abs(points - b.centre) - b.half, 0.0), axis=1) for b in boxes]
+    return float(np.min(gaps, axis=0).max())
+
+
+def test_the_gripper_model_holds_the_pandas_collision_hulls():
+    hand, finger = _hull_points(_vertices("hand")), _hull_points(_vertices("finger"))
+    for opening in (0.0, 0.04, 0.08):
+        left = finger + [0.0, opening / 2, HAND_TO_FINGER_M]
+        right = finger * [-1.0, -1.0, 1.0] + [0.0, -opening / 2, HAND_TO_FINGER_M]  # the right finger turned half
+        gripper = np.vstack([hand, left, right]) - [0.0, 0.0, HAND_TO_TOOL_M]
+        assert _outside(gripper, parallel_gripper(opening, 0.08)) < 0.001, opening
+
+
+def _counter_face(bottom_m: float) -> cKDTree:
+    """A countertop's front face 4 cm out of the fronts' plane (x 0.785) and its top, as the camera sees them."""
+    y, z = np.meshgrid(np.arange(-0.3, 0.3, 0.005), np.arange(bottom_m, 0.825, 0.005))
+    face = np.column_stack([np.full(y.size, 0.745), y.ravel(), z.ravel()])
+    y, x = np.meshgrid(np.arange(-0.3, 0.3, 0.005), np.arange(0.745, 0.9, 0.005))
+    top = np.column_stack([x.ravel(), y.ravel(), np.full(y.size, 0.825)])
+    return cKDTree(np.vstack([face, top]))
+
+
+def _level_grasp(height_m: float) -> np.ndarray:
+    """Approaching along +x at `height_m`, the fingers closing vertically, 1 cm short of the fronts' plane."""
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+    T[:3, 3] = [0.775, 0.0, height_m]
+    return T
+
+
+def test_fingers_passing_through_a_counters_front_face_touch_it_however_coarse_the_path():
+    T = _level_grasp(0.752)  # a tab on the door's top edge, 4.5 cm under the counter
+    approach = [pregrasp_pose(T, 0.1 - 0.02 * k) for k in range(6)]  # every 2 cm: each pose clear by itself
+    fully_open = parallel_gripper(0.08, 0.08)
+    assert all(first_contact(_counter_face(0.797), [P], fully_open, GRAZE_M) is None for P in approach)
+    touch = first_contact(_counter_face(0.797), approach, fully_open, GRAZE_M)
+    assert touch is not None and touch.box.startswith("finger") and touch.point[2] < 0.81
+    assert first_contact(_counter_face(0.797), approach[::5], fully_open, GRAZE_M) is not None  # the ends alone
+    narrow = parallel_gripper(0.041, 0.08)  # opened only as wide as the tab needs: the fingers pass under it
+    assert first_contact(_counter_face(0.80), approach[::5], narrow, GRAZE_M) is None
+
+
+def test_a_path_is_checked_finely_enough_through_turns_and_moves():
+    a = _level_grasp(0.5)
+    b = a.copy()
+    turn = np.radians(30.0)
+    b[:3, :3] = np.array([[np.cos(turn), -np.sin(turn), 0.0], [np.sin(turn), np.cos(turn), 0.0], [0, 0, 1]]) @ a[:3, :3]
+    b[:3, 3] += [0.05, 0.02, 0.0]
+    poses = swept_poses([a, b], 0.005, 0.15)
+    assert np.allclose(poses[0], a) and np.allclose(poses[-1], b)
+    reach = np.array([[0.0, 0.15, 0.0, 1.0], [0.0, 0.0, -0.15, 1.0], [0.15, 0.0, 0.0, 1.0]]).T  # tool-frame points
+    moves = [np.linalg.norm((Q @ reach - P @ reach)[:3], axis=0).max()
+             for P, Q in zip(poses[:-1], poses[1:], strict=True)]
+    assert max(moves) <= 0.005 + 1e-9 and len(poses) > 20
+
+
+def test_a_tilted_finger_dipping_behind_the_fronts_plane_is_refused_and_the_level_grasp_taken():
+    """A cup 1.5 cm out of its front: tilted down, the upper finger's far corner reaches behind the front (the scene
+    leaves the fronts' plane out, the plane stands for it); held level, the fingers stay in front of it."""
+    normal = np.array([-1.0, 0.0, 0.0])
+    scene = Scene(cKDTree(np.array([[0.0, 0.0, 0.0]])), np.array([0.8, 0.0, 0.6]), normal)
+    cup = Handle(np.array([0.785, 0.0, 0.6]), normal, np.array([0.0, 1.0, 0.0]), 100, "cup", open_m=0.08,
+                 thickness_m=0.03, depth_m=0.008)
+    grasps = clear_grasps(cup, scene, lambda T: [[T]], 0.1, 0.08)
+    assert [opening for _, opening in grasps] == [0.08, 0.06]
+    assert all(abs(T[2, 2]) < 1e-9 for T, _ in grasps)  # level: the approach has no downward tilt
+    tilted = grasp_pose(cup)
+    corner = first_behind([tilted], parallel_gripper(0.08, 0.08), scene.origin, normal, 0.01)
+    assert corner is not None and corner.point[2] > 0.6 and corner.point[0] > 0.81  # above the cup, behind
