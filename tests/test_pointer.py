@@ -17,7 +17,7 @@ from deploy.errors import PointerError
 from deploy.perception.base import Pointer
 from deploy.perception.pointing import point_at
 from deploy.rig import simulated_calibration
-from drivers.camera.base import Frame
+from drivers.camera.base import Frame, Intrinsics
 from sim_fallback.camera import SimCamera
 from sim_fallback.furniture_body import grip_frame
 from sim_fallback.handles import STYLES
@@ -328,3 +328,32 @@ def test_the_recess_over_a_plinth_is_no_pull():
     scene = kitchen_scene("door", 11, "test")
     found = point_at(scene.frame, scene.robot, Pointer(*scene.pixel(scene.target)))
     assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle
+
+
+def _thin_drawer_with_a_long_pocket() -> Frame:
+    """A synthetic D415 frame, 1 m straight ahead: a 13 x 67 cm drawer between coplanar neighbours (dark 3 mm gaps
+    around it), a recessed pull cut 3 cm deep into it, 25 cm long and over 60 % of its height, left of the middle."""
+    K = Intrinsics(640, 480, 600.0, 600.0, 320.0, 240.0)
+    depth = np.full((480, 640), 1.0, np.float32)
+    color = np.full((480, 640, 3), (150, 100, 60), np.uint8)
+    for rows, cols in (((198, 200), (100, 540)), ((281, 283), (100, 540)), ((0, 480), (118, 120)),
+                       ((0, 480), (521, 523))):
+        color[slice(*rows), slice(*cols)] = (40, 30, 20)
+    depth[:, :100], color[:, :100] = 1.4, (200, 200, 200)  # the wall beside the unit
+    depth[215:265, 150:300], color[215:265, 150:300] = 1.03, (90, 60, 35)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])  # optical z along base x
+    return Frame(0, 0.0, color, depth, K, T)
+
+
+def test_a_pull_pocket_longer_than_a_handle_band_on_a_thin_drawer_is_crossed_to_its_pull():
+    """A recessed pull covering most of a thin drawer's height, pointed beside it: the front's rectangle crosses the
+    pocket (cut into the panel, closed by it on every side) up to the drawer's gap, and the pocket is its pull
+    (before: the rectangle stopped at the pocket, and the drawer was refused as a front without a handle)."""
+    frame = _thin_drawer_with_a_long_pocket()
+    found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(440, 240))
+    assert found.handle.kind == "recessed pull"
+    s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
+    pocket_centre = found.front.plane.coordinates(np.array([[1.0, -(225 - 320) / 600.0, 0.0]]))[0]
+    assert abs(s - pocket_centre[0]) < 0.03 and abs(z - pocket_centre[1]) < 0.03
+    assert found.front.ended["left"] == "gap" and 0.6 < found.front.width_m < 0.72

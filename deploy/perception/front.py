@@ -17,7 +17,14 @@ from deploy.geometry.cloud import depth_to_points
 from deploy.geometry.planes import dominant_plane
 from deploy.perception.front_extent import Extent, front_extent, gap_line_shares
 from deploy.perception.handle import spills_over_edge
-from deploy.perception.handle_blobs import MAX_POCKET_M, Blob, bounds, handle_blobs, segment_distance
+from deploy.perception.handle_blobs import (
+    MAX_POCKET_M,
+    Blob,
+    bounds,
+    enclosed_pockets,
+    handle_blobs,
+    segment_distance,
+)
 from deploy.perception.plane_view import D415, NOISE_SIGMAS, QUANTUM_M, UP, PlaneFrame, PlaneView, rectify
 from drivers.camera.base import Frame
 
@@ -221,7 +228,7 @@ def find_front(frame: Frame, robot: np.ndarray, u: int, v: int,
     res_m = depth / frame.intrinsics.fx  # a cell is about a pixel at the seed
     view = rectify(frame, robot, plane, s_range, z_range, res_m)
     seed = (int(view.row(0.0)), int(view.col(0.0)))
-    extent = front_extent(view, seed)
+    extent = front_extent(view, seed, enclosed_pockets(view))  # a pull's pocket is crossed like a handle
     extent = split_by_handles(view, extent, handle_blobs(view, extent, frame.T_base_camera, frame.intrinsics.K))
     if box is not None:
         extent = _clipped(frame, view, extent, box)

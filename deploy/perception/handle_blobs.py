@@ -164,6 +164,31 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
     return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)))
 
 
+def enclosed_pockets(view: PlaneView) -> np.ndarray:
+    """The view's cells sunk into its plane (at most MAX_POCKET_M) in pockets of a pull's size (at most MAX_ACROSS_M
+    across, MAX_LENGTH_M along: pulls run horizontal or vertical) with the plane's surface on at least RIM_SHARE of
+    the measured ring around them: pockets cut into a panel, not a plinth's recess or a front set back."""
+    with np.errstate(invalid="ignore"):
+        sunk = view.seen & (view.smooth_m < -view.tolerance_m) & (view.smooth_m >= -MAX_POCKET_M)
+    join = max(int(round(JOIN_M / view.res_m)), 1)
+    joined = cv2.morphologyEx(sunk.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
+    measured = view.seen & ~view.no_depth
+    ring_kernel = np.ones((2 * join + 1, 2 * join + 1), np.uint8)
+    pockets = np.zeros(view.shape, bool)
+    for label in range(1, count):
+        x, y, bw, bh, _ = stats[label]
+        if max(bw, bh) * view.res_m < MIN_SIZE_M or min(bw, bh) * view.res_m > MAX_ACROSS_M \
+                or max(bw, bh) * view.res_m > MAX_LENGTH_M:
+            continue
+        box = (slice(max(y - join, 0), y + bh + join), slice(max(x - join, 0), x + bw + join))
+        member = labels[box] == label
+        ring = cv2.dilate(member.astype(np.uint8), ring_kernel).astype(bool) & ~member & measured[box]
+        if ring.any() and np.count_nonzero(ring & view.on_plane[box]) >= RIM_SHARE * np.count_nonzero(ring):
+            pockets[box] |= member
+    return pockets
+
+
 def segment_distance(blob: Blob, point: np.ndarray) -> float:
     """Distance (m) in the plane from `point` (s, z) to the blob's middle line (its length along its axis)."""
     d = np.asarray(point, float) - blob.centre
