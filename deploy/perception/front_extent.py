@@ -82,14 +82,17 @@ def _grow(view: PlaneView, surface: np.ndarray, depth_surface: np.ndarray, seed:
           band: tuple[int, int], axis: int) -> tuple[tuple[int, str], tuple[int, str]]:
     """Both ends along `axis` (0: rows, up and down; 1: columns) of the front through `seed`, judged over the
     cells `band` (inclusive) across it: `surface` the front's cells (1, 0, NaN unknown); gaps are looked for between
-    cells of the plane's surface in depth (`depth_surface`), whatever their colour."""
+    cells of the plane's surface in depth (`depth_surface`), whatever their colour, and seen cells without depth (a
+    dark or pale finish loses the D415's dots in patches, a gap's slit too)."""
     lo, hi = max(band[0], 0), min(band[1], surface.shape[1 - axis] - 1)
     if axis == 0:
-        cells, flat, grey = surface[:, lo:hi + 1], depth_surface[:, lo:hi + 1], view.gray[:, lo:hi + 1]
+        cells, flat, grey, seen = surface[:, lo:hi + 1], depth_surface[:, lo:hi + 1], view.gray[:, lo:hi + 1], \
+            view.seen[:, lo:hi + 1]
     else:
-        cells, flat, grey = surface[lo:hi + 1].T, depth_surface[lo:hi + 1].T, view.gray[lo:hi + 1].T
+        cells, flat, grey, seen = surface[lo:hi + 1].T, depth_surface[lo:hi + 1].T, view.gray[lo:hi + 1].T, \
+            view.seen[lo:hi + 1].T
     share = _share(cells, None, view.res_m)
-    lines = gap_lines(grey, flat == 1.0, view.res_m)
+    lines = gap_lines(grey, (flat == 1.0) | (np.isnan(flat) & seen), view.res_m)
     start = seed[axis]
     return _walk(share, lines, start, -1, view.res_m), _walk(share, lines, start, 1, view.res_m)
 
