@@ -395,16 +395,3 @@ def test_the_gaps_of_a_tall_drawer_that_loses_its_depth_in_patches_bound_it():
     s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
     assert np.linalg.norm([s, z] - _on_plane_at(found, 325, 113)) < GRIP_TOLERANCE_M, found.front.ended
     assert found.front.ended["top"] == "gap" and found.front.ended["bottom"] == "gap"
-
-
-def test_a_knob_just_under_a_counters_ragged_overhang_is_found():
-    """A 40 x 40 cm door under a counter whose overhang stands 4 cm out across the whole view, its lower edge ragged
-    (a depth edge the D415 blurs), a knob 3 mm below it. The overhang is structure around the front, its ragged edge
-    too: the knob is not joined to it (before: knob and overhang made one shape too large for a handle, and the door
-    was refused as a front without one; a cup joined to it that way measured 8 cm thick)."""
-    shapes = [((0, 100), (100, 640), 0.96, (120, 90, 60)), ((106, 124), (300, 336), 0.97, (200, 200, 210))]
-    shapes += [((100, 104), (c, c + 3), 0.96, (120, 90, 60)) for c in range(100, 640, 6)]  # the overhang's edge
-    frame = _fronts_ahead((341,), (198, 441), shapes)
-    found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(320, 200))
-    s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
-    assert np.linalg.norm([s, z] - _on_plane_at(found, 318, 115)) < 0.02 and found.handle.graspability > 0

@@ -106,8 +106,8 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     # hole of another colour than the front's: a handle the D415 lost (shadows keep their depth on the plane)
     inner_edge = inside & ~cv2.erode(inside.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     plinth_cells, middle = PLINTH_SHARE * (extent.right - extent.left + 1 - 2 * inner), (extent.top + extent.bottom) / 2
+    candidate = _without_structure((out | pocket | other) & view.seen[sl], view.seen[sl])
     join = max(int(round(JOIN_M / view.res_m)), 1)
-    candidate = _without_structure((out | pocket | other) & view.seen[sl], view.seen[sl], join)
     joined = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
     count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
     surface, measured = view.on_plane[sl], view.seen[sl] & ~view.no_depth[sl]
@@ -212,13 +212,11 @@ def bounds(blob: Blob, view: PlaneView) -> tuple[float, float, float, float]:
     return float(s.min()), float(s.max()), float(z.min()), float(z.max())
 
 
-def _without_structure(candidate: np.ndarray, seen: np.ndarray, fringe: int) -> np.ndarray:
-    """`candidate` without the rows and columns where it spans STRUCTURE_SHARE of the seen cells, and the `fringe`
-    lines either side of them (a structure's ragged edge, which would join it to a handle close to it)."""
+def _without_structure(candidate: np.ndarray, seen: np.ndarray) -> np.ndarray:
+    """`candidate` without the rows and columns where it spans STRUCTURE_SHARE of the seen cells."""
     out = candidate.copy()
     for axis in (0, 1):
         spans = np.sum(candidate, axis=1 - axis) >= STRUCTURE_SHARE * np.maximum(np.sum(seen, axis=1 - axis), 1)
-        spans = np.convolve(spans, np.ones(2 * fringe + 1), mode="same") > 0
         if axis == 0:
             out[spans] = False
         else:
