@@ -17,7 +17,7 @@ from deploy.errors import PointerError
 from deploy.perception.base import Pointer
 from deploy.perception.pointing import point_at
 from deploy.rig import simulated_calibration
-from drivers.camera.base import Frame
+from drivers.camera.base import Frame, Intrinsics
 from sim_fallback.camera import SimCamera
 from sim_fallback.furniture_body import grip_frame
 from sim_fallback.handles import STYLES
@@ -328,3 +328,70 @@ def test_the_recess_over_a_plinth_is_no_pull():
     scene = kitchen_scene("door", 11, "test")
     found = point_at(scene.frame, scene.robot, Pointer(*scene.pixel(scene.target)))
     assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle
+
+
+def _fronts_ahead(gap_rows: tuple[int, ...], gap_cols: tuple[int, ...], shapes: list) -> Frame:
+    """A synthetic D415 frame, 1 m straight ahead: brown coplanar fronts split by dark 3 mm gaps along rows `gap_rows`
+    and columns `gap_cols`, a wall at 1.4 m left of them; `shapes` ((row0, row1), (col0, col1), depth, RGB) on them."""
+    K = Intrinsics(640, 480, 600.0, 600.0, 320.0, 240.0)
+    depth = np.full((480, 640), 1.0, np.float32)
+    color = np.full((480, 640, 3), (150, 100, 60), np.uint8)
+    for row in gap_rows:
+        color[row:row + 2, 100:] = (40, 30, 20)
+    for col in gap_cols:
+        color[:, col:col + 2] = (40, 30, 20)
+    depth[:, :100], color[:, :100] = 1.4, (200, 200, 200)
+    for rows, cols, z, rgb in shapes:
+        depth[slice(*rows), slice(*cols)], color[slice(*rows), slice(*cols)] = z, rgb
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])  # optical z along base x
+    return Frame(0, 0.0, color, depth, K, T)
+
+
+def _on_plane_at(found, u: float, v: float) -> np.ndarray:
+    """(s, z) on the found front's plane of pixel (u, v) of a `_fronts_ahead` frame."""
+    return found.front.plane.coordinates(np.array([[1.0, -(u - 320) / 600.0, -(v - 240) / 600.0]]))[0, :2]
+
+
+def test_a_pull_pocket_longer_than_a_handle_band_on_a_thin_drawer_is_crossed_to_its_pull():
+    """A recessed pull covering most of a thin drawer's height, pointed beside it: the front's rectangle crosses the
+    pocket (cut into the panel, closed by it on every side) up to the drawer's gap, and the pocket is its pull
+    (before: the rectangle stopped at the pocket, and the drawer was refused as a front without a handle)."""
+    pocket = ((215, 265), (150, 300), 1.03, (90, 60, 35))  # 25 cm long, 3 cm deep, over 60 % of the drawer's height
+    frame = _fronts_ahead((198, 281), (118, 521), [pocket])  # a 13 x 67 cm drawer between coplanar neighbours
+    found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(440, 240))
+    assert found.handle.kind == "recessed pull"
+    s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
+    assert np.linalg.norm([s, z] - _on_plane_at(found, 225, 240)) < 0.03
+    assert found.front.ended["left"] == "gap" and 0.6 < found.front.width_m < 0.72
+
+
+def test_a_slit_sunk_into_the_front_is_no_pull():
+    """A 30 x 40 cm front whose bar runs along its top; beside the user's pixel a 1 cm slit (a seam, or the depth's
+    noise) lies 1.5 cm behind it. A pull's pocket takes a fingertip: the slit is no pull and the bar is the handle
+    (before: the slit, nearest the pixel, was taken for a recessed pull too narrow to hold, and refused)."""
+    bar = ((120, 126), (240, 400), 0.97, (128, 128, 128))  # 1 x 27 cm, 3 cm out of the front
+    slit = ((250, 256), (300, 330), 1.015, (110, 75, 45))  # 1 x 5 cm, 1.5 cm deep
+    frame = _fronts_ahead((98, 341), (198, 441), [bar, slit])
+    found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(320, 270))
+    assert found.handle.kind == "bar"
+    s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
+    assert np.linalg.norm([s, z] - _on_plane_at(found, 320, 123)) < 0.03
+
+
+def test_the_gaps_of_a_tall_drawer_that_loses_its_depth_in_patches_bound_it():
+    """Three coplanar drawers with a bar near each one's top, the middle one 47 cm tall, their finish losing the
+    D415's dots in specks over half of them (dark or pale finishes do). Pointed low on the middle drawer: its dark
+    gaps bound it although few of their cells have depth around them, and its own bar is its handle (before: the
+    gaps were judged on cells with depth only, the rectangle ran over its neighbours, and the cuts between the handles
+    gave the lower drawer's bar)."""
+    bars = [((r, r + 6), (250, 400), 0.97, (200, 170, 90)) for r in (40, 110, 410)]
+    frame = _fronts_ahead((20, 96, 380), (198, 441), bars)
+    rng = np.random.default_rng(0)
+    patches = cv2.resize(rng.random((240, 320)), (640, 480), interpolation=cv2.INTER_LINEAR) < 0.5
+    depth = frame.depth_m.copy()
+    depth[patches & (depth < 1.2)] = 0.0
+    found = point_at(replace(frame, depth_m=depth), np.zeros(depth.shape, bool), Pointer(320, 330))
+    s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
+    assert np.linalg.norm([s, z] - _on_plane_at(found, 325, 113)) < GRIP_TOLERANCE_M, found.front.ended
+    assert found.front.ended["top"] == "gap" and found.front.ended["bottom"] == "gap"

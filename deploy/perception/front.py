@@ -17,7 +17,15 @@ from deploy.geometry.cloud import depth_to_points
 from deploy.geometry.planes import dominant_plane
 from deploy.perception.front_extent import Extent, front_extent, gap_line_shares
 from deploy.perception.handle import spills_over_edge
-from deploy.perception.handle_blobs import MAX_POCKET_M, Blob, bounds, handle_blobs, segment_distance
+from deploy.perception.handle_blobs import (
+    MAX_POCKET_M,
+    Blob,
+    bounds,
+    enclosed_pockets,
+    handle_blobs,
+    segment_distance,
+    span_m,
+)
 from deploy.perception.plane_view import D415, NOISE_SIGMAS, QUANTUM_M, UP, PlaneFrame, PlaneView, rectify
 from drivers.camera.base import Frame
 
@@ -221,7 +229,7 @@ def find_front(frame: Frame, robot: np.ndarray, u: int, v: int,
     res_m = depth / frame.intrinsics.fx  # a cell is about a pixel at the seed
     view = rectify(frame, robot, plane, s_range, z_range, res_m)
     seed = (int(view.row(0.0)), int(view.col(0.0)))
-    extent = front_extent(view, seed)
+    extent = front_extent(view, seed, enclosed_pockets(view))  # a pull's pocket is crossed like a handle
     extent = split_by_handles(view, extent, handle_blobs(view, extent, frame.T_base_camera, frame.intrinsics.K))
     if box is not None:
         extent = _clipped(frame, view, extent, box)
@@ -292,7 +300,7 @@ def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Exte
     gap between them if one shows, else midway; the seed's handle is the nearest one on the seed's (the view's
     origin's) side of every cut."""
     inside = [b for b in blobs if (b.inside or spills_over_edge(b, view, extent)) and b.firm
-              and b.length_m < 0.95 * _span(view, extent, b.axis)]
+              and b.length_m < 0.95 * span_m(view, extent, b.axis)]
     if len(inside) < 2:
         return extent
     seed = np.zeros(2)
@@ -348,7 +356,8 @@ def _cut(view: PlaneView, band: tuple[int, int], between: tuple[float, float], m
     if b <= a:
         return int(index(middle))
     lo, hi = max(band[0], 0), band[1] + 1
-    surface = view.on_plane[:, lo:hi] if axis == 0 else view.on_plane[lo:hi].T
+    judged = view.on_plane | view.no_depth  # the surface, and cells without depth (patches, a slit)
+    surface = judged[:, lo:hi] if axis == 0 else judged[lo:hi].T
     grey = view.gray[:, lo:hi] if axis == 0 else view.gray[lo:hi].T
     pad = min(a, 8)  # the lines beyond either end give the first and last lines their sides
     shares = gap_line_shares(grey[a - pad:b + 8], surface[a - pad:b + 8], view.res_m)[pad:pad + b - a]
@@ -356,12 +365,6 @@ def _cut(view: PlaneView, band: tuple[int, int], between: tuple[float, float], m
         return int(index(middle))
     best = int(np.argmax(shares))
     return a + best if shares[best] >= WEAK_GAP_SHARE else int(index(middle))
-
-
-def _span(view: PlaneView, extent: Extent, axis: np.ndarray) -> float:
-    """The rectangle's size (m) along a direction (s, z) in the plane."""
-    width, height = (extent.right - extent.left + 1) * view.res_m, (extent.bottom - extent.top + 1) * view.res_m
-    return float(abs(axis[0]) * width + abs(axis[1]) * height)
 
 
 def plane_coordinates(plane: PlaneFrame, depth_m: np.ndarray, K: np.ndarray,

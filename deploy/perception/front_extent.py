@@ -8,7 +8,9 @@ profile of the cells of that side's band (the rows or columns the rectangle span
 - the surface ends: more than HANDLE_BAND_M of cells off the plane (a counter's overhang, a plinth, the floor, a
   wall, a neighbour standing out). Shorter stretches are a handle, its shadow or a pocket, and are crossed;
 - the view ends (the image's border): the side is marked cut.
-Cells the camera does not see (the arm, no depth) are neither surface nor boundary: they are crossed.
+Cells the camera does not see (the arm, no depth) are neither surface nor boundary: they are crossed, and so are the
+cells the caller says belong to the front whatever their depth (`crossed`: a recessed pull's pocket, cut into the
+panel and closed by it on every side, may run longer than HANDLE_BAND_M along a thin drawer).
 """
 
 from __future__ import annotations
@@ -54,8 +56,9 @@ class Extent:
     ended: dict[str, str]
 
 
-def front_extent(view: PlaneView, seed: tuple[int, int]) -> Extent:
-    """The front's rectangle around the seed cell (row, col) of `view` (see the module docstring)."""
+def front_extent(view: PlaneView, seed: tuple[int, int], crossed: np.ndarray | None = None) -> Extent:
+    """The front's rectangle around the seed cell (row, col) of `view` (see the module docstring); `crossed`: cells
+    crossed as unseen."""
     half = max(int(round(START_HALF_M / view.res_m)), 2)
     r, c = seed
     depth_surface = _surface(view)
@@ -63,6 +66,8 @@ def front_extent(view: PlaneView, seed: tuple[int, int]) -> Extent:
     # the front's cells: on its plane and of its colour; a hole of another colour is not the front, one of its colour
     # is not known (a pale wall and a dark front alike lose the D415's dots)
     surface = np.where(np.isnan(depth_surface) & view.seen, np.where(same > 0, np.nan, 0.0), depth_surface * same)
+    if crossed is not None:
+        surface[crossed] = np.nan
     rows, cols = (r, r), (c - half, c + half)
     ended: dict[str, str] = {}
     for _ in range(2):
@@ -77,14 +82,17 @@ def _grow(view: PlaneView, surface: np.ndarray, depth_surface: np.ndarray, seed:
           band: tuple[int, int], axis: int) -> tuple[tuple[int, str], tuple[int, str]]:
     """Both ends along `axis` (0: rows, up and down; 1: columns) of the front through `seed`, judged over the
     cells `band` (inclusive) across it: `surface` the front's cells (1, 0, NaN unknown); gaps are looked for between
-    cells of the plane's surface in depth (`depth_surface`), whatever their colour."""
+    cells of the plane's surface in depth (`depth_surface`), whatever their colour, and seen cells without depth (a
+    dark or pale finish loses the D415's dots in patches, a gap's slit too)."""
     lo, hi = max(band[0], 0), min(band[1], surface.shape[1 - axis] - 1)
     if axis == 0:
-        cells, flat, grey = surface[:, lo:hi + 1], depth_surface[:, lo:hi + 1], view.gray[:, lo:hi + 1]
+        cells, flat, grey, seen = surface[:, lo:hi + 1], depth_surface[:, lo:hi + 1], view.gray[:, lo:hi + 1], \
+            view.seen[:, lo:hi + 1]
     else:
-        cells, flat, grey = surface[lo:hi + 1].T, depth_surface[lo:hi + 1].T, view.gray[lo:hi + 1].T
+        cells, flat, grey, seen = surface[lo:hi + 1].T, depth_surface[lo:hi + 1].T, view.gray[lo:hi + 1].T, \
+            view.seen[lo:hi + 1].T
     share = _share(cells, None, view.res_m)
-    lines = gap_lines(grey, flat == 1.0, view.res_m)
+    lines = gap_lines(grey, (flat == 1.0) | (np.isnan(flat) & seen), view.res_m)
     start = seed[axis]
     return _walk(share, lines, start, -1, view.res_m), _walk(share, lines, start, 1, view.res_m)
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from deploy.perception.front_extent import Extent
-from deploy.perception.handle_blobs import Blob, segment_distance
+from deploy.perception.handle_blobs import Blob, segment_distance, span_m
 from deploy.perception.plane_view import PlaneView
 
 SNAP_DEG = 20.0  # handles run horizontal or vertical: an axis within this of either is taken as it
@@ -67,9 +67,10 @@ def own_blob(blobs: list[Blob], view: PlaneView, extent: Extent) -> Blob | None:
     """The front's handle among the candidates: a firm one whose centre lies on the front (its rectangle `extent`,
     inclusive), else just beyond its top or bottom edge (an edge pull's tab), else just beyond a side where the
     front's surface stopped rather than at a gap (a bar on a door's very edge, as refrigerators and wardrobes have:
-    the surface past it is too narrow to be crossed). Among several: an edge pull on the top edge (where a hand
-    reaches for it on a drawer or a base door; the tab on the bottom edge is then the next front's), else the one
-    nearest the user's pixel (the view's origin)."""
+    the surface past it is too narrow to be crossed); and no longer than the front along it, unless the view cuts the
+    front that way (a line running past the front's ends is an edge or its shadow, not its handle). Among several: an
+    edge pull on the top edge (where a hand reaches for it on a drawer or a base door; the tab on the bottom edge is
+    then the next front's), else the one nearest the user's pixel (the view's origin)."""
     rows, cols = (extent.top, extent.bottom), (extent.left, extent.right)
     band = EDGE_BAND_M / view.res_m
     lo = cols[0] - (band if extent.ended.get("left") == "surface" else 0)
@@ -77,7 +78,7 @@ def own_blob(blobs: list[Blob], view: PlaneView, extent: Extent) -> Blob | None:
     on, near, beside = [], [], []
     for b in blobs:
         r, c = float(view.row(b.centre[1])), float(view.col(b.centre[0]))
-        if not b.firm or rows_apart(b, extent) > band or not lo <= c <= hi:
+        if not b.firm or rows_apart(b, extent) > band or not lo <= c <= hi or _longer_than(b, view, extent):
             continue
         if not cols[0] <= c <= cols[1]:
             if rows[0] <= r <= rows[1]:
@@ -171,6 +172,14 @@ def _snapped(axis: np.ndarray) -> np.ndarray:
     if angle >= 90.0 - SNAP_DEG:
         return np.array([0.0, 1.0])
     return a if a[0] >= 0 else -a
+
+
+def _longer_than(blob: Blob, view: PlaneView, extent: Extent) -> bool:
+    """Whether the blob runs longer than the front along its axis, on a front whose ends that way are seen."""
+    sides = ("left", "right") if abs(_snapped(blob.axis)[0]) == 1.0 else ("top", "bottom")
+    if any(extent.ended.get(side) == "view" for side in sides):
+        return False
+    return blob.length_m > span_m(view, extent, _snapped(blob.axis))
 
 
 def _kind(blob: Blob, view: PlaneView, rows: tuple[int, int]) -> str:

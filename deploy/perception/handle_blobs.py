@@ -35,6 +35,8 @@ MIN_POINTS = 8  # a candidate with fewer measured points is seen in colour only
 RELIEF_NOISE = 1.2  # ... and at least this many times the depth noise band there (points just outside the band
 # are noise as often as not)
 FIRM_LENGTH_M = 0.025  # the smallest real knob's diameter
+MIN_POCKET_ACROSS_M = 0.02  # a pull's pocket takes a fingertip (real ones 25-80 mm across): a narrower slit sunk
+# into the front is a seam, a gap between fronts or the depth's noise
 RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured)
 # is the front's surface
 
@@ -68,9 +70,11 @@ class Blob:
     @property
     def firm(self) -> bool:
         """Whether it is certainly a handle (not depth noise, not a neighbour's edge): large enough, with the front
-        around it, standing clearly out of (or into) the front, or of another colour where depth has a hole."""
+        around it, standing clearly out of (or into, in a pocket wide enough for a fingertip) the front, or of another
+        colour where depth has a hole."""
         relief = self.seen_in_colour_only or abs(self.relief_m) >= max(MIN_RELIEF_M, RELIEF_NOISE * self.noise_m)
-        return self.length_m >= FIRM_LENGTH_M and relief and self.rim >= RIM_SHARE
+        slit = self.relief_m < 0 and self.across_m < MIN_POCKET_ACROSS_M
+        return self.length_m >= FIRM_LENGTH_M and relief and not slit and self.rim >= RIM_SHARE
 
     @property
     def elongation(self) -> float:
@@ -164,11 +168,42 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
     return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)))
 
 
+def enclosed_pockets(view: PlaneView) -> np.ndarray:
+    """The view's cells sunk into its plane (at most MAX_POCKET_M) in pockets of a pull's size (at most MAX_ACROSS_M
+    across, MAX_LENGTH_M along: pulls run horizontal or vertical) with the plane's surface on at least RIM_SHARE of
+    the measured ring around them: pockets cut into a panel, not a plinth's recess or a front set back."""
+    with np.errstate(invalid="ignore"):
+        sunk = view.seen & (view.smooth_m < -view.tolerance_m) & (view.smooth_m >= -MAX_POCKET_M)
+    join = max(int(round(JOIN_M / view.res_m)), 1)
+    joined = cv2.morphologyEx(sunk.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
+    measured = view.seen & ~view.no_depth
+    ring_kernel = np.ones((2 * join + 1, 2 * join + 1), np.uint8)
+    pockets = np.zeros(view.shape, bool)
+    for label in range(1, count):
+        x, y, bw, bh, _ = stats[label]
+        if max(bw, bh) * view.res_m < MIN_SIZE_M or min(bw, bh) * view.res_m > MAX_ACROSS_M \
+                or max(bw, bh) * view.res_m > MAX_LENGTH_M:
+            continue
+        box = (slice(max(y - join, 0), y + bh + join), slice(max(x - join, 0), x + bw + join))
+        member = labels[box] == label
+        ring = cv2.dilate(member.astype(np.uint8), ring_kernel).astype(bool) & ~member & measured[box]
+        if ring.any() and np.count_nonzero(ring & view.on_plane[box]) >= RIM_SHARE * np.count_nonzero(ring):
+            pockets[box] |= member
+    return pockets
+
+
 def segment_distance(blob: Blob, point: np.ndarray) -> float:
     """Distance (m) in the plane from `point` (s, z) to the blob's middle line (its length along its axis)."""
     d = np.asarray(point, float) - blob.centre
     t = float(np.clip(d @ blob.axis, -blob.length_m / 2, blob.length_m / 2))
     return float(np.linalg.norm(d - t * blob.axis))
+
+
+def span_m(view: PlaneView, extent: Extent, axis: np.ndarray) -> float:
+    """The rectangle's size (m) along a direction (s, z) in the plane."""
+    width, height = (extent.right - extent.left + 1) * view.res_m, (extent.bottom - extent.top + 1) * view.res_m
+    return float(abs(axis[0]) * width + abs(axis[1]) * height)
 
 
 def bounds(blob: Blob, view: PlaneView) -> tuple[float, float, float, float]:
