@@ -86,8 +86,8 @@ def test_an_episode_with_robot_openarm_ends_with_a_named_reason(capsys, tmp_path
                          tmp_path / "run", "--json")
     data = json.loads(out)
     assert "Traceback" not in err and code in (0, 1)
-    assert data["success"] or data["stop_reason"] in ("ik infeasible", "blocked", "timeout", "tracking lost",
-                                                     "slipped", "arm error")
+    assert data["success"] or data["stop_reason"] in ("ik infeasible", "no clear path", "blocked", "timeout",
+                                                     "tracking lost", "slipped", "arm error")
     if data["stop_reason"] == "ik infeasible":
         assert "out of reach" in data["message"] or "joint limits" in data["message"]
 
