@@ -308,6 +308,18 @@ def test_a_bar_along_the_doors_top_edge_seen_from_above_is_its_handle():
     assert found.front.width_m < 0.6
 
 
+@pytest.mark.parametrize("seed, pixel", [(18, (256, 284)), (32, (361, 278))])
+def test_stacked_drawers_whose_gaps_are_not_seen_are_cut_where_their_handles_sit_alike(seed, pixel):
+    """Test kitchens 18 and 32 (drawer): a stack of drawers under the counter, one finish, the gaps between them not
+    seen, each bar in its front's upper part. Cut midway between two bars, the pointed drawer's rectangle took the
+    next drawer's bar (0.23 and 0.35 m away); cut where the lower bar sits as far below its front's top as the topmost
+    bar sits below the stack's seen top edge, it keeps its own."""
+    scene = kitchen_scene("drawer", seed, "test")
+    assert scene.front_truth()[pixel[1], pixel[0]]
+    found = point_at(scene.frame, scene.robot, Pointer(*pixel))
+    assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle
+
+
 @pytest.mark.parametrize("seed, pixel", [(31, (275, 301)), (49, (270, 270)), (88, (454, 288))])
 def test_a_handles_shadow_or_end_on_a_thin_drawer_is_not_its_gap(seed, pixel):
     """Test kitchens 31 and 49 (a knob lit from above) and 88 (a long bar seen from above): a 9-13 cm drawer under

@@ -305,8 +305,12 @@ def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Exte
         return extent
     seed = np.zeros(2)
     ranked = sorted(inside, key=lambda b: segment_distance(b, seed))
+    drop = None  # how far below a seen top edge the topmost handle sits (none above it: not a tab over the edge)
+    if extent.ended.get("top") in ("surface", "gap"):
+        drop = float(view.z(extent.top)) - max(float(b.centre[1]) for b in inside)
+        drop = drop if drop > 0 else None
     for own in ranked:
-        cuts = [_handle_cut(view, extent, own, other) for other in inside if other is not own]
+        cuts = [_handle_cut(view, extent, own, other, drop) for other in inside if other is not own]
         if all(_seed_side(view, side, line) for side, line in cuts):
             break
     else:
@@ -325,8 +329,11 @@ def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Exte
     return Extent(top, bottom, left, right, ended)
 
 
-def _handle_cut(view: PlaneView, extent: Extent, own: Blob, other: Blob) -> tuple[str, int]:
-    """(the side of `own`'s front the cut bounds, the cut's row or column) between handles `own` and `other`."""
+def _handle_cut(view: PlaneView, extent: Extent, own: Blob, other: Blob, drop: float | None) -> tuple[str, int]:
+    """(the side of `own`'s front the cut bounds, the cut's row or column) between handles `own` and `other`. With
+    no gap seen, side by side fronts are cut midway; stacked ones, where the lower handle sits as far below its front's
+    top as the topmost handle sits below the rectangle's seen top edge (`drop`; handles sit alike on a stack's fronts,
+    centred or near the top), at most midway."""
     s0, s1, z0, z1 = bounds(own, view)
     o0, o1, p0, p1 = bounds(other, view)
     mid = (own.centre + other.centre) / 2
@@ -335,7 +342,9 @@ def _handle_cut(view: PlaneView, extent: Extent, own: Blob, other: Blob) -> tupl
         col = _cut(view, (extent.top, extent.bottom), (s1, o0) if right else (o1, s0), mid[0], 1)
         return ("right" if right else "left"), col
     above = other.centre[1] > own.centre[1]
-    row = _cut(view, (extent.left, extent.right), (p0, z1) if above else (z0, p1), mid[1], 0)
+    lower = min(own.centre[1], other.centre[1])
+    guess = mid[1] if drop is None else min(lower + drop, mid[1])
+    row = _cut(view, (extent.left, extent.right), (p0, z1) if above else (z0, p1), guess, 0)
     return ("top" if above else "bottom"), row
 
 
@@ -345,16 +354,17 @@ def _seed_side(view: PlaneView, side: str, line: int) -> bool:
     return {"right": col < line, "left": col > line, "top": row > line, "bottom": row < line}[side]
 
 
-def _cut(view: PlaneView, band: tuple[int, int], between: tuple[float, float], middle: float, axis: int) -> int:
+def _cut(view: PlaneView, band: tuple[int, int], between: tuple[float, float], guess: float, axis: int) -> int:
     """Where to cut between two handles: the line (a row for axis 0, a column for 1, over the cells `band` across
     it) between the handles' facing edges (`between`, plane coordinates) most of whose length shows a gap, at least
-    WEAK_GAP_SHARE of it; else the line through `middle` (handles sit mid-front or alike on neighbouring fronts)."""
+    WEAK_GAP_SHARE of it; else the line through `guess` (plane coordinate), kept off the handles."""
     index = view.row if axis == 0 else view.col
     a, b = sorted(int(i) for i in index(np.array(between)))
     margin = max(int(round(HANDLE_CLEARANCE_M / view.res_m)), 1)  # not a handle's own edge or shadow
     a, b = a + margin, b - margin
     if b <= a:
-        return int(index(middle))
+        return int(index(guess))
+    fallback = int(np.clip(index(guess), a, b))
     lo, hi = max(band[0], 0), band[1] + 1
     judged = view.on_plane | view.no_depth  # the surface, and cells without depth (patches, a slit)
     surface = judged[:, lo:hi] if axis == 0 else judged[lo:hi].T
@@ -362,9 +372,9 @@ def _cut(view: PlaneView, band: tuple[int, int], between: tuple[float, float], m
     pad = min(a, 8)  # the lines beyond either end give the first and last lines their sides
     shares = gap_line_shares(grey[a - pad:b + 8], surface[a - pad:b + 8], view.res_m)[pad:pad + b - a]
     if len(shares) == 0:
-        return int(index(middle))
+        return fallback
     best = int(np.argmax(shares))
-    return a + best if shares[best] >= WEAK_GAP_SHARE else int(index(middle))
+    return a + best if shares[best] >= WEAK_GAP_SHARE else fallback
 
 
 def plane_coordinates(plane: PlaneFrame, depth_m: np.ndarray, K: np.ndarray,
