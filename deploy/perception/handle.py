@@ -68,9 +68,9 @@ def own_blob(blobs: list[Blob], view: PlaneView, extent: Extent) -> Blob | None:
     inclusive), else just beyond its top or bottom edge (an edge pull's tab), else just beyond a side where the
     front's surface stopped rather than at a gap (a bar on a door's very edge, as refrigerators and wardrobes have:
     the surface past it is too narrow to be crossed); and not running past both the front's ends along it (by more
-    than an edge band each), unless the view or a cut ends the front that way (such a line is an edge or its
-    shadow). Among several: an edge pull on the top edge (where a hand reaches for it on a drawer or a base door; the
-    tab on the bottom edge is then the next front's), else the one nearest the user's pixel (the view's origin)."""
+    than an edge band each), unless the view cuts the front that way (such a line is an edge or its shadow). Among
+    several: an edge pull on the top edge (where a hand reaches for it on a drawer or a base door; the tab on the
+    bottom edge is then the next front's), else the one nearest the user's pixel (the view's origin)."""
     rows, cols = (extent.top, extent.bottom), (extent.left, extent.right)
     band = EDGE_BAND_M / view.res_m
     lo = cols[0] - (band if extent.ended.get("left") == "surface" else 0)
@@ -176,10 +176,9 @@ def _snapped(axis: np.ndarray) -> np.ndarray:
 
 def _longer_than(blob: Blob, view: PlaneView, extent: Extent) -> bool:
     """Whether the blob runs past both ends of the front along its axis by more than EDGE_BAND_M each, on a front
-    whose ends that way are seen, not cut by the view or between handles (a front found no wider than its own bar
-    has the bar's length, give or take)."""
+    whose ends that way are seen (a front found no wider than its own bar has the bar's length, give or take)."""
     sides = ("left", "right") if abs(_snapped(blob.axis)[0]) == 1.0 else ("top", "bottom")
-    if any(extent.ended.get(side) in ("view", "handle") for side in sides):
+    if any(extent.ended.get(side) == "view" for side in sides):
         return False
     return blob.length_m > span_m(view, extent, _snapped(blob.axis)) + 2 * EDGE_BAND_M
 
