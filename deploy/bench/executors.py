@@ -4,9 +4,9 @@ Every executor has the same `map(fn, jobs)`: `fn(**job)` for each job dict, resu
 (like the built-in `map`), each as soon as it and every job before it have finished, so a progress callback
 advances steadily while later jobs are still running. A job that raises stops the map with a `JobError` naming
 the job (`fn(**job)`, ready to rerun alone), chained to the original exception, or with the job's own
-`ModelError` / `ConfigError` as it is (one line naming the thing, the cause and the fix); jobs not yet started are
-not started (local processes cancel them; on Ray only a few jobs per CPU are ever submitted ahead, since cancelling
-a Ray task as it completes can crash the driver, and the few running on finish unused).
+`ModelError` / `ConfigError` as it is (one line naming the thing, the cause and the fix); no further job starts
+(local processes cancel the waiting ones; on Ray only two jobs per CPU are ever submitted ahead, since cancelling a
+Ray task as it completes can crash the driver, and the few already running finish unused).
 Use an executor as a context manager so a Ray connection is always shut down:
 
     with make_executor(workers=4, ray_address=None) as executor:
