@@ -91,8 +91,9 @@ class Part:
 class Furniture:
     """One piece of furniture ready to load: `urdf` (the file PyBullet loads), `T_urdf` (4x4: the URDF root's pose
     in the furniture frame, after `scale`, PyBullet's globalScaling), `size_m` (width, depth, height in the
-    furniture frame), its openable `parts`, the `finishes` of its links by link name (links not named look like
-    their URDF colour, painted) and `source` (what made it, for reports: "procedural test 12", "partnet 45213").
+    furniture frame: the room it takes, what its parts sweep past its sides and top included), its openable
+    `parts`, the `finishes` of its links by link name (links not named look like their URDF colour, painted) and
+    `source` (what made it, for reports: "procedural test 12", "partnet 45213").
     Equal when every field is (`T_urdf` compared element by element)."""
 
     urdf: Path

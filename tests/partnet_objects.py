@@ -31,14 +31,16 @@ ROOT_RPY = "1.570796326794897 0 -1.570796326794897"  # the dataset's base -> bod
 
 @dataclass(frozen=True)
 class Front:
-    """A drawer or door front covering `y` x `z` (front coordinates); a door hinges on its low-y edge.
-    `handle`: "bar" (horizontal on drawers, vertical on doors) or None; `label` as semantics.txt says it."""
+    """A drawer or door front covering `y` x `z` (front coordinates); a door hinges on its low-y edge,
+    `hinge_depth` behind its outer face. `handle`: "bar" (horizontal on drawers, vertical on doors) or None;
+    `label` as semantics.txt says it."""
 
     kind: str
     y: tuple[float, float]
     z: tuple[float, float]
     handle: str | None = "bar"
     label: str = ""
+    hinge_depth: float = 0.0
 
     def grip_centre(self) -> np.ndarray:
         """Where the handle's bar centre is, front coordinates (closed)."""
@@ -111,7 +113,7 @@ def _front_link(writer: _Writer, n: int, front: Front, drawer_open: float, axis_
         joint = _joint(f"joint_{n}", "prismatic", f"link_{n}", M @ origin, axis_length * (M @ (1.0, 0, 0)),
                        -drawer_open, DRAWER_TRAVEL - drawer_open)
     else:
-        origin = np.array([FRONT_X, y0, (z0 + z1) / 2])
+        origin = np.array([FRONT_X - front.hinge_depth, y0, (z0 + z1) / 2])
         joint = _joint(f"joint_{n}", "revolute", f"link_{n}", M @ origin, M @ (0, 0, -1.0), 0.0, np.pi / 2)
     return writer.link(f"link_{n}", pieces, origin=origin), joint, subparts
 

@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 
 from sim_fallback.partnet import list_objects, load_partnet, usable
 from sim_fallback.partnet.check import check_furniture, check_part, grip_points
+from sim_fallback.partnet.loader import FITTING_GAP_M
 from sim_fallback.partnet.naming import grid_positions, part_names
 from sim_fallback.partnet.sizes import CATEGORY_RANGE_M, real_scale
 
@@ -49,7 +50,9 @@ def test_a_folder_lists_its_objects_parts_and_the_links_that_are_not_parts(tmp_p
 def test_the_model_stands_z_up_with_its_front_on_x_whichever_axis_it_faces(tmp_path, front_axis):
     furniture = load_partnet(write_object(tmp_path / "1", front_axis), scale="native")
     assert furniture.scale == 1.0
-    np.testing.assert_allclose(furniture.size_m, [BODY[1], FRONT_X + BODY[0] / 2, BODY[2] + 0.02], atol=1e-6)
+    gap = FITTING_GAP_M  # left beside and above it in a kitchen (its door swings within the body's sides)
+    np.testing.assert_allclose(furniture.size_m, [BODY[1] + 2 * gap, FRONT_X + BODY[0] / 2, BODY[2] + 0.02 + gap],
+                               atol=1e-6)
     points = grip_points(furniture)  # through PyBullet: the loaded URDF at T_urdf
     for front in DRAWER_OVER_DOOR:
         np.testing.assert_allclose(points[front.kind], in_furniture(front.grip_centre()), atol=1e-6)
@@ -120,7 +123,8 @@ def test_real_size_puts_every_dimension_in_its_category_range_and_scales_the_dra
     native, real = load_partnet(folder, scale="native"), load_partnet(folder, scale="real")
     low, high = np.array(CATEGORY_RANGE_M["StorageFurniture"]).T
     assert np.all(np.array(real.size_m) >= low) and np.all(np.array(real.size_m) <= high)
-    np.testing.assert_allclose(real.size_m, np.array(native.size_m) * real.scale)
+    gaps = np.array([2, 0, 1]) * FITTING_GAP_M
+    np.testing.assert_allclose(np.array(real.size_m) - gaps, (np.array(native.size_m) - gaps) * real.scale)
     assert real.part("drawer").upper == pytest.approx(native.part("drawer").upper * real.scale)
     assert real.part("door").upper == native.part("door").upper
     assert real_scale(np.array(native.size_m), "Microwave") < real.scale  # the same model as a microwave: smaller

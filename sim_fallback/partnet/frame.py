@@ -8,6 +8,7 @@ toward (drawers along their axis, doors where their free edge swings)."""
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 
 def opening_direction(joint_type: str, axis: np.ndarray, origin: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -18,6 +19,17 @@ def opening_direction(joint_type: str, axis: np.ndarray, origin: np.ndarray, cen
     motion = np.cross(axis, centre - origin)
     norm = np.linalg.norm(motion)
     return motion / norm if norm > 1e-9 else np.zeros(3)
+
+
+def swept(points: np.ndarray, joint_type: str, axis: np.ndarray, origin: np.ndarray, upper: float,
+          count: int = 12) -> np.ndarray:
+    """`points` at `count` values of their joint's range [0, `upper`]: slid along the unit `axis` (prismatic) or
+    turned about the line through `origin` along it (revolute), all in one frame; stacked."""
+    values = np.linspace(0.0, upper, count)
+    if joint_type == "prismatic":
+        return np.concatenate([points + v * axis for v in values])
+    turns = Rotation.from_rotvec(values[:, None] * axis[None, :])
+    return np.concatenate([turn.apply(points - origin) + origin for turn in turns])
 
 
 def nearest_horizontal_axis(direction: np.ndarray, model_axes: np.ndarray, up: np.ndarray) -> np.ndarray:

@@ -12,7 +12,13 @@ import numpy as np
 
 from sim_fallback.furniture import Furniture, Mechanism, Part, PartKind
 from sim_fallback.partnet.errors import PartNetError
-from sim_fallback.partnet.frame import footprint_pose, front_direction, furniture_rotation, nearest_horizontal_axis
+from sim_fallback.partnet.frame import (
+    footprint_pose,
+    front_direction,
+    furniture_rotation,
+    nearest_horizontal_axis,
+    swept,
+)
 from sim_fallback.partnet.handles import handle_in_link, handle_truth
 from sim_fallback.partnet.meshes import geometry_mesh
 from sim_fallback.partnet.model import PartNetModel
@@ -26,6 +32,9 @@ MECHANISMS: dict[PartKind, Mechanism] = {  # the middle of the procedural cabine
     "drawer": Mechanism(friction=8.0, damping=5.0),
     "door": Mechanism(friction=1.0, damping=1.0),
 }
+FITTING_GAP_M = 0.003  # what a fitter leaves between a unit and its neighbours or the counter over it
+DOOR_SWING_RAD = np.pi / 2  # a door is given room to open this far (its range, when less)
+BEFORE_FRONT_M = 0.03  # swung parts this far before the front still meet a neighbour (its handles stand out)
 BOARD_KG_PER_M2 = 10.0  # a link's mass per m^2 of its bounding box's three faces (15 mm board, ~680 kg/m^3)
 
 
@@ -45,7 +54,9 @@ def load_partnet(folder: Path, part: str | None = None, scale: ScaleRule = "real
     R = _rotation(model)
     body = model.body_points()
     s = 1.0 if scale == "native" else real_scale(footprint_pose(R, body, 1.0)[1], model.files.category)
-    T_urdf, size = footprint_pose(R, body, s)
+    T_urdf, (width, depth, height) = footprint_pose(R, body, s)
+    side, top = _swing_room(model, R, s, body)
+    size = (width + 2 * (side + FITTING_GAP_M), depth, height + top + FITTING_GAP_M)
     parts = tuple(part for kind in ("drawer", "door") for part in _parts(model, kind, R, s))
     furniture = Furniture(urdf=_write_copy(model, s), T_urdf=T_urdf, scale=s, size_m=tuple(map(float, size)),
                           parts=parts, source=model.source)
@@ -68,6 +79,26 @@ def _rotation(model: PartNetModel) -> np.ndarray:
         raise PartNetError(f"{model.source}: none of its drawers and doors opens sideways or forward, so its front "
                            f"is unknown; fix: choose another object") from None
     return furniture_rotation(front, axes[:, 1])
+
+
+def _swing_room(model: PartNetModel, R: np.ndarray, s: float, body: np.ndarray) -> tuple[float, float]:
+    """How far its drawers and doors, moved through their range (a door up to a right angle), reach past the
+    body's sides and top (m) behind the front and just before it, where a unit beside it or a counter over it
+    stands: a door whose hinge sits inside its edge swings its edge sideways. A kitchen leaves it that much more
+    room."""
+    turned = body @ R.T * s
+    lo, hi = turned.min(axis=0), turned.max(axis=0)
+    side = top = 0.0
+    for part in model.openable:
+        joint, T = model.urdf.joints[part.link], model.poses[part.link]
+        upper = joint.upper if joint.type == "prismatic" else min(joint.upper, DOOR_SWING_RAD)
+        moved = swept(model.part_points(part.link), joint.type, T[:3, :3] @ joint.axis, T[:3, 3], upper)
+        moved = moved @ R.T * s
+        moved = moved[moved[:, 0] <= hi[0] + BEFORE_FRONT_M]
+        if len(moved):
+            side = max(side, float(moved[:, 1].max() - hi[1]), float(lo[1] - moved[:, 1].min()))
+            top = max(top, float(moved[:, 2].max() - hi[2]))
+    return side, top
 
 
 def _parts(model: PartNetModel, kind: PartKind, R: np.ndarray, s: float) -> list[Part]:
