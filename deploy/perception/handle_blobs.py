@@ -111,12 +111,14 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     joined = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
     count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
     surface, measured = view.on_plane[sl], view.seen[sl] & ~view.no_depth[sl]
+    open_past = view.behind[sl] & ~_within_rows(offset.shape, extent.top - r0, extent.bottom - r0)  # the room seen
+    # past the front's top or bottom edge: an edge pull's tab stands over it, and is no less the front's
     ring_kernel = np.ones((2 * join + 1, 2 * join + 1), np.uint8)
     smallest = MIN_SIZE_M / view.res_m
 
     def blob_of(member: np.ndarray, box: tuple[slice, slice]) -> Blob | None:
         rows, cols = np.nonzero(member & candidate[box])
-        ring = cv2.dilate(member.astype(np.uint8), ring_kernel).astype(bool) & ~member & measured[box]
+        ring = cv2.dilate(member.astype(np.uint8), ring_kernel).astype(bool) & ~member & measured[box] & ~open_past[box]
         rim = float(np.count_nonzero(ring & surface[box])) / np.count_nonzero(ring) if ring.any() else 0.0
         return _blob(view, rows + r0 + box[0].start, cols + c0 + box[1].start, extent, camera_to_base, K, rim)
 
@@ -166,6 +168,12 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
     r, c = int(view.row(centre[1])), int(view.col(centre[0]))
     inside = extent.top <= r <= extent.bottom and extent.left <= c <= extent.right
     return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)))
+
+
+def _within_rows(shape: tuple[int, int], top: int, bottom: int) -> np.ndarray:
+    """A grid of `shape`, True in rows `top` to `bottom` (inclusive)."""
+    rows = np.arange(shape[0])[:, None]
+    return np.broadcast_to((rows >= top) & (rows <= bottom), shape)
 
 
 def enclosed_pockets(view: PlaneView) -> np.ndarray:
