@@ -37,8 +37,8 @@ RELIEF_NOISE = 1.2  # ... and at least this many times the depth noise band ther
 FIRM_LENGTH_M = 0.025  # the smallest real knob's diameter
 MIN_POCKET_ACROSS_M = 0.02  # a pull's pocket takes a fingertip (real ones 25-80 mm across): a narrower slit sunk
 # into the front is a seam, a gap between fronts or the depth's noise
-RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured)
-# is the front's surface
+RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured,
+# and not the room seen past the front's top or bottom edge) is the front's surface
 
 
 @dataclass(frozen=True)
