@@ -348,6 +348,15 @@ def test_an_edge_pull_under_a_doors_bottom_edge_is_its_handle(seed, pixel):
     assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle
 
 
+def test_a_line_under_a_doors_bottom_edge_seen_in_colour_only_does_not_cut_it():
+    """Test kitchen 6 (door): under the pointed door's bottom edge a line shows in colour only (no depth standing out
+    of the door), with the room beyond it. Unlike an edge pull's tab it is judged by its whole ring, so it is no
+    handle that would cut the door's rectangle away from its bar."""
+    scene = kitchen_scene("door", 6, "test")
+    found = point_at(scene.frame, scene.robot, Pointer(*scene.pixel(scene.target)))
+    assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle
+
+
 def test_the_recess_over_a_plinth_is_no_pull():
     """Test kitchen 11 (door): under the door the plinth is set back, so the door's lowest band shows a long dark
     recess, in depth a pocket. It runs on to the front's edge (no panel below it), unlike a pull cut into the panel:
