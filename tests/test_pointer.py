@@ -58,11 +58,13 @@ class Scene:
         return (self.links[..., 0] == body) & (self.links[..., 1] == links[0]) & ~self.robot
 
 
-def kitchen_scene(task: str, seed: int, split: str = "test", target=None, part: str | None = None) -> Scene:
+def kitchen_scene(task: str, seed: int, split: str = "test", target=None, part: str | None = None,
+                  opening: float = 0.0) -> Scene:
     from deploy.bench.pointer import _robot_pixels
     from sim_fallback.furniture_body import part_links
 
-    scenario = make_scenario("kitchen", task, seed, split, part=part, target=target)  # type: ignore[arg-type]
+    scenario = make_scenario("kitchen", task, seed, split, part=part, target=target,  # type: ignore[arg-type]
+                             opening=opening)
     names = [shape.name for shape in scenario.build_layout().statics]
     with SimWorld(scenario) as world:
         camera = SimCamera(world, seed=seed)
@@ -330,6 +332,28 @@ def test_a_handles_shadow_or_end_on_a_thin_drawer_is_not_its_gap(seed, pixel):
     scene = kitchen_scene("drawer", seed, "test")
     assert scene.front_truth()[pixel[1], pixel[0]]
     found = point_at(scene.frame, scene.robot, Pointer(*pixel))
+    assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle
+
+
+@pytest.mark.parametrize("seed, pixel", [(10, (320, 229)), (39, (393, 283))])
+def test_an_edge_pull_under_a_doors_bottom_edge_is_its_handle(seed, pixel):
+    """Test kitchens 10 and 39 (door): the door's pull is a tab under its bottom edge, and past that edge the camera
+    sees the room, farther than the door (under a wall unit, or beyond a base door's edge seen from above). Those
+    cells are no other surface under the tab: it sits on its front by the door's surface above it (before: half its
+    ring was the room, so it was taken for something not on the door and the door refused as without a handle)."""
+    scene = kitchen_scene("door", seed, "test")
+    assert scene.front_truth()[pixel[1], pixel[0]]
+    found = point_at(scene.frame, scene.robot, Pointer(*pixel))
+    assert found.handle.kind == "edge pull"
+    assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle
+
+
+def test_a_line_under_a_doors_bottom_edge_seen_in_colour_only_does_not_cut_it():
+    """Test kitchen 6 (door): under the pointed door's bottom edge a line shows in colour only (no depth standing out
+    of the door), with the room beyond it. Unlike an edge pull's tab it is judged by its whole ring, so it is no
+    handle that would cut the door's rectangle away from its bar."""
+    scene = kitchen_scene("door", 6, "test")
+    found = point_at(scene.frame, scene.robot, Pointer(*scene.pixel(scene.target)))
     assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle
 
 

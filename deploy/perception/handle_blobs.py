@@ -7,7 +7,7 @@ from its cells where it has none (the ray's meeting with the plane).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -37,8 +37,8 @@ RELIEF_NOISE = 1.2  # ... and at least this many times the depth noise band ther
 FIRM_LENGTH_M = 0.025  # the smallest real knob's diameter
 MIN_POCKET_ACROSS_M = 0.02  # a pull's pocket takes a fingertip (real ones 25-80 mm across): a narrower slit sunk
 # into the front is a seam, a gap between fronts or the depth's noise
-RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured)
-# is the front's surface
+RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured,
+# and, for one measured standing out, not the room seen past the front's top or bottom edge) is the front's surface
 
 
 @dataclass(frozen=True)
@@ -111,14 +111,19 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     joined = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
     count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
     surface, measured = view.on_plane[sl], view.seen[sl] & ~view.no_depth[sl]
+    open_past = view.behind[sl] & ~_within_rows(offset.shape, extent.top - r0, extent.bottom - r0)  # the room seen
+    # past the front's top or bottom edge: an edge pull's tab, measured standing out, stands over it and is no less
+    # the front's; a line there not measured out of the plane (a shadow, what lies beyond) is judged by its whole ring
     ring_kernel = np.ones((2 * join + 1, 2 * join + 1), np.uint8)
     smallest = MIN_SIZE_M / view.res_m
 
     def blob_of(member: np.ndarray, box: tuple[slice, slice]) -> Blob | None:
         rows, cols = np.nonzero(member & candidate[box])
         ring = cv2.dilate(member.astype(np.uint8), ring_kernel).astype(bool) & ~member & measured[box]
-        rim = float(np.count_nonzero(ring & surface[box])) / np.count_nonzero(ring) if ring.any() else 0.0
-        return _blob(view, rows + r0 + box[0].start, cols + c0 + box[1].start, extent, camera_to_base, K, rim)
+        rims = [float(np.count_nonzero(r & surface[box])) / np.count_nonzero(r) if r.any() else 0.0
+                for r in (ring, ring & ~open_past[box])]
+        blob = _blob(view, rows + r0 + box[0].start, cols + c0 + box[1].start, extent, camera_to_base, K, rims[1])
+        return replace(blob, rim=rims[0]) if blob is not None and blob.relief_m <= 0 else blob
 
     blobs = []
     for label in range(1, count):
@@ -166,6 +171,12 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
     r, c = int(view.row(centre[1])), int(view.col(centre[0]))
     inside = extent.top <= r <= extent.bottom and extent.left <= c <= extent.right
     return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)))
+
+
+def _within_rows(shape: tuple[int, int], top: int, bottom: int) -> np.ndarray:
+    """A grid of `shape`, True in rows `top` to `bottom` (inclusive)."""
+    rows = np.arange(shape[0])[:, None]
+    return np.broadcast_to((rows >= top) & (rows <= bottom), shape)
 
 
 def enclosed_pockets(view: PlaneView) -> np.ndarray:
