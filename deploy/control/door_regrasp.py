@@ -30,15 +30,14 @@ def held_centre(T_tool: np.ndarray, handle: Handle) -> np.ndarray:
     return T[:3, 3] - handle.depth_m * T[:3, 2]
 
 
-def turned_back(handle: Handle, centre: np.ndarray, axis: Axis, opened_rad: float, yaw_rad: float) -> Handle:
-    """The first frame's `handle` where the door opened by `opened_rad` about `axis` carried it (its grip centre at
-    `centre`, from the arm), its front normal and bar turned with the door less `yaw_rad` (toward the closed door's
-    normal): the grasp of `grasp_pose` on it approaches the handle with the hand turned back by `yaw_rad`."""
-    turn = door_turn(axis, opened_rad - yaw_rad)
-    normal = turn.apply(handle.normal)
-    normal[2] = 0.0  # fronts are vertical: the grasp tilts its own approach
-    return replace(handle, center=np.asarray(centre, float), normal=normal / np.linalg.norm(normal),
-                   bar=turn.apply(handle.bar))
+def held_as(T_tool: np.ndarray, handle: Handle) -> Handle:
+    """`handle` as a tool at `T_tool` would hold it: its grip centre `handle.depth_m` before the tool frame along the
+    approach (tool z), its front normal against the approach made horizontal, its bar along the tool's x (across the
+    fingers' closing), so that `grasp_pose` on it at the tool's own tilt gives `T_tool` back."""
+    T = np.asarray(T_tool, float)
+    normal = -T[:3, 2].copy()
+    normal[2] = 0.0
+    return replace(handle, center=held_centre(T, handle), normal=normal / np.linalg.norm(normal), bar=T[:3, 0].copy())
 
 
 def door_plane(handle: Handle, centre: np.ndarray, axis: Axis, opened_rad: float, relief_m: float

@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 from deploy.axis_pipeline import viewpoint
 from deploy.control.classify import classify_joint, front_shift_m, front_turn_deg
 from deploy.control.context import MIN_GRASP_WIDTH_M, SETTLE_S, Episode
-from deploy.control.door_regrasp import door_plane, held_centre, turned_back
+from deploy.control.door_regrasp import door_plane, held_as, held_centre
 from deploy.control.grasp import (
     REGRASP_RADIUS_M,
     Handle,
@@ -381,9 +381,9 @@ def _turned_grasp(episode: Episode, axis: Axis) -> tuple[Callable[[np.ndarray], 
     """How to swing the hand back toward the robot (a pose -> its swing about the vertical line through the handle's
     grip centre, where the arm holds it now) and how far (rad): the first of DOOR_REGRASP_YAWS_DEG (at most the opening
     so far) whose grasp keeps clear of the first frame's scene and of the door where it now stands (`clear_grasps` on
-    the first frame's handle carried there, `turned_back`) and from which the arm follows, without changing branch,
-    the back-off, the swing, the approach and the rest of the arc, or half of it; None when none does, or without a
-    pointed part (no scene to check)."""
+    the handle as that grasp holds it, `held_as`) and from which the arm follows, without changing branch, the swing,
+    the approach and the rest of the arc, or half of it; None when none does, or without a pointed part (no scene to
+    check)."""
     state, pointed, kin = episode.state, episode.observer.pointed, episode.kin
     if pointed is None:
         return None
@@ -403,15 +403,14 @@ def _turned_grasp(episode: Episode, axis: Axis) -> tuple[Callable[[np.ndarray], 
     back = pregrasp_pose(T, RETREAT_M)
     for yaw in np.radians(DOOR_REGRASP_YAWS_DEG):
         T_grasp = pregrasp_pose(swing(back)(yaw), -RETREAT_M)
-        if yaw > state.opened or not _clears(turned_back(handle, centre, axis, state.opened, yaw), door, T_grasp,
-                                             pulls, episode.gripper.max_opening_m):
+        if yaw > state.opened or not _clears(held_as(T_grasp, handle), door, T_grasp, pulls,
+                                             episode.gripper.max_opening_m):
             continue
-        moves = [pull_poses(line_path(T, -T[:3, 2]), RETREAT_M, PLANNED_LINE_STEP_M),
-                 pull_poses(swing(back), yaw, PLANNED_ARC_STEP_RAD),
-                 pull_poses(line_path(swing(back)(yaw), T_grasp[:3, 2]), RETREAT_M, PLANNED_LINE_STEP_M)]
+        moves = [*pull_poses(swing(back), yaw, PLANNED_ARC_STEP_RAD),
+                 *pull_poses(line_path(swing(back)(yaw), T_grasp[:3, 2]), RETREAT_M, PLANNED_LINE_STEP_M)]
         for pull in pulls(T_grasp):
             try:
-                kin.solve_path([T, *(pose for move in moves for pose in move), *pull], q)
+                kin.solve_path([back, *moves, *pull], kin.ik(back, q))
             except IKError:
                 continue
             return swing, float(yaw)
