@@ -360,8 +360,8 @@ def regrasp_turned(episode: Episode, axis: Axis, out_of_reach: IKError) -> None:
                           "(no such grasp keeps clear of the scene and the door and carries the rest of the arc): "
                           "stand the robot nearer the door's hinge side or ask for a smaller opening")
     swing, yaw = plan
-    log.info("the arc is out of reach at %.1f deg (%s): holding the handle again with the hand turned back %.0f deg",
-             _shown(episode, state.opened), out_of_reach, np.degrees(yaw))
+    step_log.info("the arc is out of reach at %.1f deg (%s): holding the handle again with the hand turned back "
+                  "%.0f deg", _shown(episode, state.opened), out_of_reach, np.degrees(yaw))
     arm.set_gripper(state.open_width_m)
     episode.wait(CLOSE_TIME_S)
     open_width = arm.state().gripper_width_m
