@@ -348,9 +348,10 @@ def _may_turn_back(episode: Episode, axis: Axis) -> bool:
 
 
 def regrasp_turned(episode: Episode, axis: Axis, out_of_reach: IKError) -> None:
-    """The door's arc runs out of the arm's reach (`out_of_reach`) with the hand turned with the door: open, back off
-    along the approach, swing the hand back toward the robot about the vertical line through the handle's grip
-    centre (`_turned_grasp`), come back in and close, then count the opening from the new grip. EpisodeStop("ik
+    """The door's arc runs out of the arm's reach (`out_of_reach`) with the hand turned with the door: open, swing the
+    hand back toward the robot about the vertical line through the handle's grip centre (`_turned_grasp`; the handle
+    stays between the open fingers, about its own vertical line) and close, then count the opening from the new
+    grip. EpisodeStop("ik
     infeasible") when no such swing keeps clear of the scene and the door and carries the rest of the arc."""
     arm, kin, state = episode.arm, episode.kin, episode.state
     plan = _turned_grasp(episode, axis)
@@ -366,11 +367,8 @@ def regrasp_turned(episode: Episode, axis: Axis, out_of_reach: IKError) -> None:
     episode.wait(CLOSE_TIME_S)
     open_width = arm.state().gripper_width_m
     T = episode.tool()
-    follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), RETREAT_M, episode.line_limits(), episode.show_arm)
-    follow_cartesian_path(arm, kin, swing(episode.tool()), yaw, episode.arc_limits(), episode.show_arm)
-    T = episode.tool()
-    episode.view.grasp(episode.now(), pregrasp_pose(T, -RETREAT_M))
-    follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), RETREAT_M, episode.line_limits(), episode.show_arm)
+    episode.view.grasp(episode.now(), swing(T)(yaw))
+    follow_cartesian_path(arm, kin, swing(T), yaw, episode.arc_limits(), episode.show_arm)
     _close_and_check(episode, open_width, StopReason.GRASP_LOST, "re-grasp with the hand turned back failed (a "
                      "self-closing door swings shut when released): ")
     state.turned_regrasps += 1
@@ -381,8 +379,8 @@ def _turned_grasp(episode: Episode, axis: Axis) -> tuple[Callable[[np.ndarray], 
     """How to swing the hand back toward the robot (a pose -> its swing about the vertical line through the handle's
     grip centre, where the arm holds it now) and how far (rad): the first of DOOR_REGRASP_YAWS_DEG (at most the opening
     so far) whose grasp keeps clear of the first frame's scene and of the door where it now stands (`clear_grasps` on
-    the handle as that grasp holds it, `held_as`) and from which the arm follows, without changing branch, the swing,
-    the approach and the rest of the arc, or half of it; None when none does, or without a pointed part (no scene to
+    the handle as that grasp holds it, `held_as`) and from which the arm follows, without changing branch, the swing
+    and the rest of the arc, or half of it; None when none does, or without a pointed part (no scene to
     check)."""
     state, pointed, kin = episode.state, episode.observer.pointed, episode.kin
     if pointed is None:
@@ -400,17 +398,14 @@ def _turned_grasp(episode: Episode, axis: Axis) -> tuple[Callable[[np.ndarray], 
         path = door_arc(T_grasp, axis, handle.found)
         return [pull_poses(path, arc, PLANNED_ARC_STEP_RAD) for arc in (remaining, remaining / 2)]
 
-    back = pregrasp_pose(T, RETREAT_M)
     for yaw in np.radians(DOOR_REGRASP_YAWS_DEG):
-        T_grasp = pregrasp_pose(swing(back)(yaw), -RETREAT_M)
+        T_grasp = swing(T)(yaw)
         if yaw > state.opened or not _clears(held_as(T_grasp, handle), door, T_grasp, pulls,
                                              episode.gripper.max_opening_m):
             continue
-        moves = [*pull_poses(swing(back), yaw, PLANNED_ARC_STEP_RAD),
-                 *pull_poses(line_path(swing(back)(yaw), T_grasp[:3, 2]), RETREAT_M, PLANNED_LINE_STEP_M)]
         for pull in pulls(T_grasp):
             try:
-                kin.solve_path([back, *moves, *pull], kin.ik(back, q))
+                kin.solve_path([T, *pull_poses(swing(T), yaw, PLANNED_ARC_STEP_RAD), *pull], q)
             except IKError:
                 continue
             return swing, float(yaw)
