@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -12,6 +14,7 @@ from scipy.spatial.transform import Rotation
 from deploy.axis_pipeline import viewpoint
 from deploy.control.classify import classify_joint, front_shift_m, front_turn_deg
 from deploy.control.context import MIN_GRASP_WIDTH_M, SETTLE_S, Episode
+from deploy.control.door_regrasp import door_plane, held_as, held_centre
 from deploy.control.grasp import (
     REGRASP_RADIUS_M,
     Handle,
@@ -26,7 +29,7 @@ from deploy.control.grasp import (
     pull_poses,
 )
 from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
-from deploy.control.scene_clearance import clear_grasps, scene_tree
+from deploy.control.scene_clearance import Scene, clear_grasps, scene_tree
 from deploy.control.state import EpisodeStop, StopReason, display_scale, opening_unit
 from deploy.control.view import step_log
 from deploy.errors import PartHiddenError, PointerError
@@ -75,6 +78,12 @@ CENTRING_STEP_M = 0.002  # such a handle is centred between the fingers in steps
 REST_READING_S = 0.1  # a force at rest is the mean of the readings over this long
 PRESS_N = 10.0  # the approach ended with the tool pushing the handle this hard: ease back before closing
 EASE_STEP_M, MAX_EASE_M = 0.004, 0.02  # easing back: step, and at most this far
+DOOR_REGRASP_YAWS_DEG = (45.0, 30.0, 15.0)  # a door's arc out of reach: its handle is held again with the hand
+# turned back toward the robot by the first of these (at most the door's turn so far) that keeps clear of the scene
+# and of the door and that the arm carries
+MAX_TURNED_REGRASPS = 2
+SAME_GRASP_M, SAME_GRASP_RAD = 0.02, float(np.radians(7.0))  # a grasp this near one the scene clearance passed is
+# that one (half the 0.25 rad between its tilted and level grasps)
 
 
 def run(episode: Episode, dry_run: bool = False) -> tuple[StopReason, str]:
@@ -321,7 +330,99 @@ def step(episode: Episode, axis: Axis, source: str) -> None:
         raise EpisodeStop(StopReason.TIMEOUT, f"{cfg.timeout_s:.0f} s of arm time used, opened "
                           f"{_shown(episode, state.opened):.3f}")
     path, length, limits = _step_path(episode, axis)
-    _pull(episode, path, length, f"step {state.steps}: {source}", limits, step=True)
+    try:
+        _pull(episode, path, length, f"step {state.steps}: {source}", limits, step=True)
+    except IKError as out_of_reach:
+        if not _may_turn_back(episode, axis):
+            raise
+        regrasp_turned(episode, axis, out_of_reach)
+
+
+def _may_turn_back(episode: Episode, axis: Axis) -> bool:
+    """Whether a door's arc that ran out of reach may go on from a grasp with the hand turned back: the arc turns
+    the tool with the door, the gripper still holds the handle and few such re-grasps were made."""
+    state = episode.state
+    return (axis.joint_type is JointType.REVOLUTE and not episode.policy.straight_door(axis.joint_type)
+            and state.handle is not None and _turns_with_door(episode.tool(), axis, state.handle.found)
+            and episode.gripping() and state.turned_regrasps < MAX_TURNED_REGRASPS)
+
+
+def regrasp_turned(episode: Episode, axis: Axis, out_of_reach: IKError) -> None:
+    """The door's arc runs out of the arm's reach (`out_of_reach`) with the hand turned with the door: open, swing the
+    hand back toward the robot about the vertical line through the handle's grip centre (`_turned_grasp`; the handle
+    stays between the open fingers, about its own vertical line) and close, then count the opening from the new
+    grip. EpisodeStop("ik
+    infeasible") when no such swing keeps clear of the scene and the door and carries the rest of the arc."""
+    arm, kin, state = episode.arm, episode.kin, episode.state
+    plan = _turned_grasp(episode, axis)
+    if plan is None:
+        raise EpisodeStop(StopReason.IK_INFEASIBLE, f"{out_of_reach}; at {_shown(episode, state.opened):.0f} deg "
+                          "the door's handle cannot be held again with the hand turned back toward the robot either "
+                          "(no such grasp keeps clear of the scene and the door and carries the rest of the arc): "
+                          "stand the robot nearer the door's hinge side or ask for a smaller opening")
+    swing, yaw = plan
+    step_log.info("the arc is out of reach at %.1f deg (%s): holding the handle again with the hand turned back "
+                  "%.0f deg", _shown(episode, state.opened), out_of_reach, np.degrees(yaw))
+    arm.set_gripper(state.open_width_m)
+    episode.wait(CLOSE_TIME_S)
+    open_width = arm.state().gripper_width_m
+    T = episode.tool()
+    episode.view.grasp(episode.now(), swing(T)(yaw))
+    follow_cartesian_path(arm, kin, swing(T), yaw, episode.arc_limits(), episode.show_arm)
+    _close_and_check(episode, open_width, StopReason.GRASP_LOST, "re-grasp with the hand turned back failed (a "
+                     "self-closing door swings shut when released): ")
+    state.turned_regrasps += 1
+    state.opened_before, state.p_grasp = state.opened, episode.tool()[:3, 3]
+
+
+def _turned_grasp(episode: Episode, axis: Axis) -> tuple[Callable[[np.ndarray], PathFn], float] | None:
+    """How to swing the hand back toward the robot (a pose -> its swing about the vertical line through the handle's
+    grip centre, where the arm holds it now) and how far (rad): the first of DOOR_REGRASP_YAWS_DEG (at most the opening
+    so far) whose grasp keeps clear of the first frame's scene and of the door where it now stands (`clear_grasps` on
+    the handle as that grasp holds it, `held_as`) and from which the arm follows, without changing branch, the swing
+    and the rest of the arc, or half of it; None when none does, or without a pointed part (no scene to
+    check)."""
+    state, pointed, kin = episode.state, episode.observer.pointed, episode.kin
+    if pointed is None:
+        return None
+    handle, T, q = state.handle, episode.tool(), episode.arm.state().q
+    centre = held_centre(T, handle)
+    remaining = _goal(episode, axis) - state.opened
+    origin, normal = door_plane(handle, centre, axis, state.opened, pointed.handle.relief_m)
+    door = replace(scene_tree(episode.observer.first_look.frame, pointed), origin=origin, normal=normal)
+
+    def swing(T_from: np.ndarray) -> PathFn:
+        return arc_path(T_from, centre, -axis.direction)
+
+    def pulls(T_grasp: np.ndarray) -> list[list[np.ndarray]]:
+        path = door_arc(T_grasp, axis, handle.found)
+        return [pull_poses(path, arc, PLANNED_ARC_STEP_RAD) for arc in (remaining, remaining / 2)]
+
+    for yaw in np.radians(DOOR_REGRASP_YAWS_DEG):
+        T_grasp = swing(T)(yaw)
+        if yaw > state.opened or not _clears(held_as(T_grasp, handle), door, T_grasp, pulls,
+                                             episode.gripper.max_opening_m):
+            continue
+        for pull in pulls(T_grasp):
+            try:
+                kin.solve_path([T, *pull_poses(swing(T), yaw, PLANNED_ARC_STEP_RAD), *pull], q)
+            except IKError:
+                continue
+            return swing, float(yaw)
+    return None
+
+
+def _clears(handle: Handle, door: Scene, T_grasp: np.ndarray, pulls: Callable, max_opening_m: float) -> bool:
+    """Whether the scene clearance lets the gripper hold `handle` near `T_grasp`: one of its clear grasps lies within
+    SAME_GRASP_M and SAME_GRASP_RAD of it (the arm's grasp follows the door's estimated turns, the handle the
+    estimated opening)."""
+    try:
+        grips = clear_grasps(handle, door, pulls, RETREAT_M, max_opening_m)
+    except EpisodeStop:
+        return False
+    return any(np.linalg.norm(T[:3, 3] - T_grasp[:3, 3]) < SAME_GRASP_M
+               and Rotation.from_matrix(T[:3, :3].T @ T_grasp[:3, :3]).magnitude() < SAME_GRASP_RAD
+               for T, _ in grips)
 
 
 def regrasp(episode: Episode) -> None:
@@ -602,8 +703,13 @@ def door_arc(T: np.ndarray, axis: Axis, kind: str) -> PathFn:
     it turn between the pads as the door swings: the tool keeps its orientation, sparing the wrist the door's turn.
     Otherwise the tool turns with the door: a vertical bar (the hand's width lies in the swing), a knob (its stem
     would swing into the fingers), a pocket (its walls would)."""
+    return arc_path(T, axis.origin, axis.direction, turn=_turns_with_door(T, axis, kind))
+
+
+def _turns_with_door(T: np.ndarray, axis: Axis, kind: str) -> bool:
+    """Whether the tool at pose T holding a handle of `kind` turns with the door (`door_arc`)."""
     along_hinge = abs(float(T[:3, 1] @ axis.direction)) >= HINGE_ALIGNED_COS
-    return arc_path(T, axis.origin, axis.direction, turn=not (along_hinge and kind in TURNING_HANDLES))
+    return not (along_hinge and kind in TURNING_HANDLES)
 
 
 def _goal(episode: Episode, axis: Axis) -> float:

@@ -1,0 +1,49 @@
+"""Where to hold a door's handle again, the hand turned back toward the robot, when the arc carried by a grasp that
+turns with the door runs out of the arm's reach (pure functions, base frame, metres, radians, z up).
+
+A vertical bar or a knob can be held at a range of yaws about the vertical line through its grip centre: the hand
+turned back by a yaw toward the door's closed normal (toward the robot) holds the same handle, and the rest of the
+arc then asks that much less turn of the wrist. How far the hand can turn is for the scene clearance to say, with the
+door's plane where the door now stands."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from deploy.control.grasp import Handle
+from deploy.geometry.types import Axis
+
+
+def door_turn(axis: Axis, angle_rad: float) -> Rotation:
+    """The door's turn by `angle_rad` about the (oriented) hinge direction: positive opens."""
+    d = np.asarray(axis.direction, float)
+    return Rotation.from_rotvec(d / np.linalg.norm(d) * angle_rad)
+
+
+def held_centre(T_tool: np.ndarray, handle: Handle) -> np.ndarray:
+    """The handle's grip centre as the holding arm tells it: `handle.depth_m` back from the tool frame along the
+    approach (tool z)."""
+    T = np.asarray(T_tool, float)
+    return T[:3, 3] - handle.depth_m * T[:3, 2]
+
+
+def held_as(T_tool: np.ndarray, handle: Handle) -> Handle:
+    """`handle` as a tool at `T_tool` would hold it: its grip centre `handle.depth_m` before the tool frame along the
+    approach (tool z), its front normal against the approach made horizontal, its bar along the tool's x (across the
+    fingers' closing), so that `grasp_pose` on it at the tool's own tilt gives `T_tool` back."""
+    T = np.asarray(T_tool, float)
+    normal = -T[:3, 2].copy()
+    normal[2] = 0.0
+    return replace(handle, center=held_centre(T, handle), normal=normal / np.linalg.norm(normal), bar=T[:3, 0].copy())
+
+
+def door_plane(handle: Handle, centre: np.ndarray, axis: Axis, opened_rad: float, relief_m: float
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """(origin, outward unit normal) of the door's front where it now stands: the first frame's normal turned by
+    `opened_rad`, through the point `relief_m` (how far the grip centre stands out of the front) behind `centre`."""
+    normal = door_turn(axis, opened_rad).apply(handle.normal)
+    normal /= np.linalg.norm(normal)
+    return np.asarray(centre, float) - relief_m * normal, normal

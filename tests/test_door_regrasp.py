@@ -1,0 +1,77 @@
+"""A door's handle held again with the hand turned back toward the robot where the arc runs out of reach
+(deploy/control/door_regrasp.py, deploy/control/stages.py `regrasp_turned`)."""
+
+import numpy as np
+import pytest
+
+import deploy.control.stages as stages
+from deploy.bench.open import simulate_episode
+from deploy.control.door_regrasp import door_plane, held_as, held_centre
+from deploy.control.grasp import Handle, grasp_pose
+from deploy.control.state import StopReason
+from deploy.geometry.types import Axis, JointType
+from drivers.arm.motion import arc_path
+
+UP = np.array([0.0, 0.0, 1.0])
+NORMAL = np.array([-1.0, 0.0, 0.0])  # a front facing the robot, hinged on the robot's right
+HANDLE = Handle(np.array([0.7, 0.0, 0.6]), NORMAL, UP.copy(), 0, "bar")
+HINGE = Axis(JointType.REVOLUTE, np.array([0.72, -0.4, 0.6]), UP.copy(), confidence=0.0)  # opening: toward the robot
+OPENED = np.radians(60.0)
+
+# Test kitchen door 15 (70 deg): a knob whose arc, the hand turning with the door, runs the elbow (joint 4) onto its
+# speed limit at 68 deg.
+FAR_ARC_SEED = 15
+
+
+def _yaw_deg(a: np.ndarray, b: np.ndarray) -> float:
+    """The turn (deg) about the vertical from horizontal direction a to b."""
+    return float(np.degrees(np.arctan2(np.cross(a, b)[2], a @ b)))
+
+
+def _held() -> np.ndarray:
+    """The tool holding the handle after the door opened OPENED, turning with it."""
+    return arc_path(grasp_pose(HANDLE), HINGE.origin, HINGE.direction)(OPENED)
+
+
+def test_the_arm_holding_the_handle_tells_its_grip_centre():
+    carried = arc_path(np.eye(4), HINGE.origin, HINGE.direction)(OPENED)[:3, :3] @ (HANDLE.center - HINGE.origin)
+    assert held_centre(_held(), HANDLE) == pytest.approx(HINGE.origin + carried, abs=1e-9)
+
+
+@pytest.mark.parametrize("pitch", [0.25, 0.0])
+def test_the_handle_as_a_grasp_holds_it_gives_that_grasp_back(pitch):
+    T = arc_path(grasp_pose(HANDLE, pitch_rad=pitch), HINGE.origin, HINGE.direction)(OPENED)
+    assert grasp_pose(held_as(T, HANDLE), pitch_rad=pitch) == pytest.approx(T, abs=1e-9)
+
+
+@pytest.mark.parametrize("yaw_deg", [15.0, 30.0, 45.0])
+def test_swung_back_about_the_handle_the_hand_holds_the_same_grip_centre_nearer_the_closed_doors_normal(yaw_deg):
+    centre = held_centre(_held(), HANDLE)
+    swung = arc_path(_held(), centre, -HINGE.direction)(np.radians(yaw_deg))
+    held = held_as(swung, HANDLE)
+    carried = -_held()[:3, 2]
+    carried[2] = 0.0
+    assert _yaw_deg(NORMAL, carried) == pytest.approx(60.0)  # the door turned the hand 60 deg from facing the robot
+    assert _yaw_deg(NORMAL, held.normal) == pytest.approx(60.0 - yaw_deg)
+    assert held.center == pytest.approx(centre, abs=1e-9)
+    assert held.bar @ UP == pytest.approx(_held()[:3, 0] @ UP)  # the vertical bar as upright between the fingers
+
+
+def test_the_doors_plane_stands_turned_the_handles_relief_behind_its_grip_centre():
+    centre = held_centre(_held(), HANDLE)
+    origin, normal = door_plane(HANDLE, centre, HINGE, OPENED, 0.04)
+    assert _yaw_deg(NORMAL, normal) == pytest.approx(60.0)
+    assert (centre - origin) @ normal == pytest.approx(0.04)
+
+
+def test_a_door_arc_out_of_reach_goes_on_from_a_grasp_turned_back():
+    result = simulate_episode("door", FAR_ARC_SEED, split="test", target=70.0)
+    assert result["success"], result["message"]
+
+
+def test_without_turning_back_that_arc_ends_out_of_reach(monkeypatch):
+    monkeypatch.setattr(stages, "MAX_TURNED_REGRASPS", 0)
+    result = simulate_episode("door", FAR_ARC_SEED, split="test", target=70.0)
+    # the scenario does need the re-grasp: the test above is not vacuous
+    assert result["stop_reason"] == StopReason.IK_INFEASIBLE
+    assert "panda_joint4" in result["message"]
