@@ -351,8 +351,8 @@ def regrasp_turned(episode: Episode, axis: Axis, out_of_reach: IKError) -> None:
     """The door's arc runs out of the arm's reach (`out_of_reach`) with the hand turned with the door: open, swing the
     hand back toward the robot about the vertical line through the handle's grip centre (`_turned_grasp`; the handle
     stays between the open fingers, about its own vertical line) and close, then count the opening from the new
-    grip. EpisodeStop("ik
-    infeasible") when no such swing keeps clear of the scene and the door and carries the rest of the arc."""
+    grip. EpisodeStop("ik infeasible") when no such swing keeps clear of the scene and the door and carries the rest
+    of the arc."""
     arm, kin, state = episode.arm, episode.kin, episode.state
     plan = _turned_grasp(episode, axis)
     if plan is None:
