@@ -29,6 +29,7 @@ from deploy.control.state import EpisodeStop, StopReason
 from deploy.control.view import EpisodeView
 from deploy.errors import PointerError
 from deploy.geometry.estimators.base import Observation
+from deploy.geometry.static_scene import tolerance_m
 from deploy.geometry.types import AxisResult, Box, JointType, NoAxis
 from deploy.perception.base import Pointer, Segmenter
 from deploy.perception.handle import GripperSize
@@ -44,6 +45,8 @@ from drivers.camera.base import Camera, Frame
 log = logging.getLogger(__name__)
 
 NEAR_OBJECT_PX = 9  # the arm's pixels within this square around the object's count as near it
+POINTED_PATCH_PX = 5  # the pointed part's depth is read on the pixels this near the pointed pixel (either way)
+STILL_SHARE = 0.8  # the pointed part stands where it was when this share of those pixels read the first frame's depth
 NEAR_POINTER_PX = 90  # a pointed part the arm hides: the arm's pixels this near the pointed pixel count (a 30 cm front
 # at 1 m is about 180 pixels across)
 
@@ -146,6 +149,15 @@ class Observer:
             return None
         robot = self._self_filter.mask(self._looked, q, gripper_width_m, depth_test=False)
         return int(np.count_nonzero(self._near_object & robot))
+
+    def pointed_still(self) -> bool | None:
+        """Whether the part the user pointed at still stands where the first frame showed it: on the latest frame,
+        STILL_SHARE of the pixels around the pointed pixel that neither frame's arm hides read the first frame's
+        depth (within the static scene's tolerance). None without a pointer, a latest frame, or such pixels."""
+        pointer = Pointer.of(self._config.perception.point, self._config.perception.box)
+        if pointer is None or self._looked is None or self._last_seen is None:
+            return None
+        return still_around(self._looked, self._last_seen[0], pointer.pixel())
 
     def times(self) -> FrameTimes:
         return FrameTimes(self._seconds, list(self._frame_ms), list(self._frame_cpu_ms))
@@ -275,6 +287,24 @@ class Observer:
             self._folder.write_frame(frame, mask, state, pose, first=first, grasped=grasped, commanded=commanded)
         self._view.frame(state.t - self._t0, frame, mask, pose)
         self._view.arm(state.t - self._t0, state, commanded)
+
+
+def still_around(first: Frame, later: Frame, pixel: tuple[int, int], half: int = POINTED_PATCH_PX) -> bool | None:
+    """Whether the surface around `pixel` (row, column) of `first` is still there on `later` (the same camera): of
+    the pixels within `half` of it with depth on both frames (at least half of them), STILL_SHARE read the same
+    depth within `tolerance_m`; None when fewer have depth on both (the arm hides them, or the pixel is off the
+    image)."""
+    r, c = pixel
+    h, w = first.depth_m.shape
+    if not (0 <= r < h and 0 <= c < w):
+        return None
+    window = np.s_[max(r - half, 0):r + half + 1, max(c - half, 0):c + half + 1]
+    before, after = first.depth_m[window], later.depth_m[window]
+    both = (before > 0) & (after > 0)
+    if np.count_nonzero(both) < 0.5 * before.size:
+        return None
+    same = np.abs(after[both] - before[both]) <= tolerance_m(before[both], first.intrinsics.fx)
+    return bool(np.mean(same) >= STILL_SHARE)
 
 
 def _around(point: tuple[float, float] | None, shape: tuple[int, int]) -> np.ndarray:

@@ -84,6 +84,8 @@ DOOR_REGRASP_YAWS_DEG = (45.0, 30.0, 15.0)  # a door's arc out of reach: its han
 MAX_TURNED_REGRASPS = 2
 SAME_GRASP_M, SAME_GRASP_RAD = 0.02, float(np.radians(7.0))  # a grasp this near one the scene clearance passed is
 # that one (half the 0.25 rad between its tilted and level grasps)
+FOLLOW_CHECK_M = 0.1  # a drawer carried this far has left its place where the user pointed (depth noise at 1.5 m is
+# a third of it)
 
 
 def run(episode: Episode, dry_run: bool = False) -> tuple[StopReason, str]:
@@ -97,6 +99,7 @@ def run(episode: Episode, dry_run: bool = False) -> tuple[StopReason, str]:
     first_pull(episode, handle)
     while True:
         axis, source = estimate(episode, handle.normal)
+        _check_followed(episode, axis)
         if episode.state.opened >= _goal(episode, axis) - GOAL_TOLERANCE[axis.joint_type]:
             return StopReason.TARGET_REACHED, f"opened {_shown(episode, episode.state.opened):.3f} of " \
                                               f"{_shown(episode, episode.target()):.3f}"
@@ -651,6 +654,20 @@ def _read_drawer_lag(episode: Episode, axis: Axis) -> None:
     seen = seen_opening(window[-1].moving, episode.observer.first_look.points, axis.direction)
     if seen is not None and state.opened - MAX_DRAWER_LAG_M <= seen < state.opened:
         state.opened = seen
+
+
+def _check_followed(episode: Episode, axis: Axis) -> None:
+    """EpisodeStop(NOT_FOLLOWED) when the gripper carried a drawer FOLLOW_CHECK_M or more and the camera still sees
+    the front where the user pointed, in its place: the arm moved something else (a neighbour's handle), or its
+    grip slid along or off the handle."""
+    state = episode.state
+    if axis.joint_type is not JointType.PRISMATIC or state.opened < FOLLOW_CHECK_M:
+        return
+    if episode.observer.pointed_still():
+        pointer = Pointer.of(episode.config.perception.point, episode.config.perception.box)
+        raise EpisodeStop(StopReason.NOT_FOLLOWED, f"the gripper travelled {state.opened:.3f} m but the drawer "
+                          f"pointed at ({pointer}) did not follow: it still stands where it was; the gripper holds "
+                          "another part's handle or slid along its own; check which handle it grasped")
 
 
 def _log_estimate(episode: Episode, axis: Axis, source: str) -> None:

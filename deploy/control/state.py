@@ -31,6 +31,7 @@ class StopReason(str, Enum):
     NO_OBJECT = "no object"
     POINTER_REFUSED = "pointer refused"
     NO_CLEAR_PATH = "no clear path"
+    NOT_FOLLOWED = "part did not follow"
     INTERRUPTED = "interrupted"
 
 
