@@ -97,8 +97,34 @@ def test_a_tilted_finger_dipping_behind_the_fronts_plane_is_refused_and_the_leve
     cup = Handle(np.array([0.785, 0.0, 0.6]), normal, np.array([0.0, 1.0, 0.0]), 100, "cup", open_m=0.08,
                  thickness_m=0.03, depth_m=0.008)
     grasps = clear_grasps(cup, scene, lambda T: [[T]], 0.1, 0.08)
-    assert [opening for _, opening in grasps] == [0.08, 0.06]
-    assert all(abs(T[2, 2]) < 1e-9 for T, _ in grasps)  # level: the approach has no downward tilt
+    assert [opening for _, opening in grasps][:2] == [0.08, 0.06]  # as deep as the cup asks first
+    assert all(abs(T[2, 2]) < 1e-9 for T, _ in grasps[:2])  # level: the approach has no downward tilt
     tilted = grasp_pose(cup)
     corner = first_behind([tilted], parallel_gripper(0.08, 0.08), scene.origin, normal, 0.01)
     assert corner is not None and corner.point[2] > 0.6 and corner.point[0] > 0.81  # above the cup, behind
+
+
+def test_a_tab_under_a_counters_overhang_is_held_less_deep():
+    """A tab 2 cm out of its front, 4 cm under a counter whose front face stands 3 cm out of the fronts' plane: going
+    in as deep as the tab lets it, the upper finger's wider root meets the counter's face; with the pads' middle on
+    the grip centre or a little short of it, only the narrower fingertips pass under the counter."""
+    normal = np.array([-1.0, 0.0, 0.0])
+    y, z = np.meshgrid(np.arange(-0.3, 0.3, 0.005), np.arange(0.74, 0.78, 0.005))
+    counter = np.column_stack([np.full(y.size, 0.755), y.ravel(), z.ravel()])
+    scene = Scene(cKDTree(counter), np.array([0.785, 0.0, 0.7]), normal)
+    tab = Handle(np.array([0.767, 0.0, 0.7]), normal, np.array([0.0, 1.0, 0.0]), 0, "edge pull", open_m=0.08,
+                 thickness_m=0.017, depth_m=0.008)
+
+    def out_along_the_normal(T):
+        poses = [T.copy() for _ in range(6)]
+        for k, P in enumerate(poses):
+            P[:3, 3] += 0.05 * (k + 1) * normal
+        return [poses]
+
+    grasps = clear_grasps(tab, scene, out_along_the_normal, 0.1, 0.08)
+    assert grasps and all(T[0, 3] <= 0.767 + 1e-9 for T, _ in grasps)  # the tool frame no deeper than the grip
+    assert all(opening < 0.05 for _, opening in grasps)  # the fingers opened only as wide as the tab needs
+    deep = grasp_pose(tab, pitch_rad=0.0)
+    path = [pregrasp_pose(deep, 0.1), deep]
+    touch = first_contact(scene.points, path, parallel_gripper(0.047, 0.08), GRAZE_M)
+    assert touch is not None and touch.box == "fingers" and touch.point[2] >= 0.74
