@@ -2,15 +2,18 @@
 meshes occupy, a path is checked between its poses, so a thin surface (a counter's front face) it passes through is
 found, and a finger dipping behind the fronts' plane is."""
 
+from dataclasses import replace
 from itertools import combinations
 from pathlib import Path
 
 import numpy as np
 import pybullet_data
+import pytest
 from scipy.spatial import cKDTree
 
 from deploy.control.grasp import Handle, grasp_pose
 from deploy.control.scene_clearance import Scene, clear_grasps
+from deploy.control.state import EpisodeStop
 from deploy.geometry.clearance import first_behind, first_contact, parallel_gripper, swept_poses
 from drivers.arm.grasping import pregrasp_pose
 
@@ -102,3 +105,32 @@ def test_a_tilted_finger_dipping_behind_the_fronts_plane_is_refused_and_the_leve
     tilted = grasp_pose(cup)
     corner = first_behind([tilted], parallel_gripper(0.08, 0.08), scene.origin, normal, 0.01)
     assert corner is not None and corner.point[2] > 0.6 and corner.point[0] > 0.81  # above the cup, behind
+
+
+def test_a_recessed_pull_under_a_counters_overhang_is_held_at_its_lip():
+    """A pocket 8 cm under a counter whose front face stands 3 cm out of the fronts' plane: going in as deep as the
+    pocket lets it, the hand (21 cm along the fingers' closing direction) meets the counter's face; with the pads'
+    middle on the lip, the hand stays in front of it."""
+    normal = np.array([-1.0, 0.0, 0.0])
+    y, z = np.meshgrid(np.arange(-0.3, 0.3, 0.005), np.arange(0.78, 0.82, 0.005))
+    counter = np.column_stack([np.full(y.size, 0.755), y.ravel(), z.ravel()])
+    scene = Scene(cKDTree(counter), np.array([0.785, 0.0, 0.7]), normal)
+    pull = Handle(np.array([0.795, 0.0, 0.7]), normal, np.array([0.0, 1.0, 0.0]), 0, "recessed pull", open_m=0.025,
+                  depth_m=0.0087)
+
+    def out_along_the_normal(T):
+        poses = [T.copy() for _ in range(6)]
+        for k, P in enumerate(poses):
+            P[:3, 3] += 0.05 * (k + 1) * normal
+        return [poses]
+
+    grasps = clear_grasps(pull, scene, out_along_the_normal, 0.1, 0.08)
+    assert grasps and all(np.allclose(T[:3, 3], pull.center) for T, _ in grasps)  # the tool frame on the lip
+    deep = grasp_pose(pull, pitch_rad=0.0)
+    touch = first_contact(scene.points, [deep], parallel_gripper(0.025, 0.08), GRAZE_M)
+    assert touch is not None and touch.box == "hand"
+    tab = replace(pull, found="edge pull", center=np.array([0.767, 0.0, 0.7]), open_m=0.08, thickness_m=0.017,
+                  depth_m=0.008)
+    with pytest.raises(EpisodeStop):  # a tab's fingers would pass the counter's lower edge: only as deep as it asks
+        clear_grasps(tab, Scene(cKDTree(counter - [0.0, 0.0, 0.04]), scene.origin, normal), out_along_the_normal, 0.1,
+                     0.08)

@@ -129,3 +129,12 @@ def test_a_door_held_by_a_horizontal_handle_opens_with_the_tool_keeping_its_orie
     result = simulate_episode("door", 7, "test", target=30.0)
     assert blind and abs(blind[0].bar[2]) < 0.5  # a horizontal handle
     assert result["success"] and result["true_opened_deg"] >= 30.0, result["message"]
+
+
+def test_a_bar_standing_past_its_fronts_found_edge_is_no_obstacle_to_its_own_grasp(blind):
+    """Test kitchen 46: a top drawer whose bar sits on its front's top edge, the front found up to the bar's middle.
+    The scene the grasp keeps clear of leaves out the handle's own box, not only the front's rectangle (before: the
+    bar's upper half stood in the scene and every grasp "touched" it: no clear path)."""
+    result = simulate_episode("drawer", 46, "test", target=0.1)
+    assert blind and blind[0].found == "bar"
+    assert result["success"] and result["true_opened_m"] >= 0.1, result["message"]

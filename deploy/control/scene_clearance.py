@@ -2,7 +2,8 @@
 neighbour's handle or front, a wall beside the unit (deploy/geometry/clearance.py). The scene is the first frame's
 depth (the arm's pixels removed) in the base frame, less the pointed front and its handle, which move with the
 gripper; the grasps tried are the usual one, the one approaching level (no downward tilt), both again with the
-fingers opened only as wide as the handle needs, and for a knob all of these turned a quarter."""
+fingers opened only as wide as the handle needs, into a recessed pull all of these again going in less deep
+(the hand farther out of the front), and for a knob all of these turned a quarter."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from scipy.spatial import cKDTree
 
 from deploy.control.grasp import Handle, grasp_pose
 from deploy.control.state import EpisodeStop, StopReason
-from deploy.geometry.clearance import first_behind, first_contact, parallel_gripper, standing_out
+from deploy.geometry.clearance import first_behind, first_contact, outside_box, parallel_gripper, standing_out
 from deploy.geometry.cloud import depth_to_points
 from deploy.perception.handle import EDGE_BAND_M
 from deploy.perception.handle_blobs import MAX_STANDOFF_M
@@ -28,6 +29,8 @@ CLEARANCE_M = -0.005  # the gripper hits the scene where a scene point lies this
 PLANE_BAND_M = 0.01  # the fronts' plane and what lies behind it: the fingers stop in front of it (the D415's noise)
 SCENE_STEP = 4  # the scene is every 4th pixel in each direction (about 1 cm apart at 1 m)
 PITCHES_RAD = (GRASP_PITCH_RAD, 0.0)  # the grasps tried, in order: tilted down (the usual), then level
+POCKET_DEPTH_M = 0.0  # a recessed pull the usual depth keeps from clearing the scene is held with the pads' middle
+# on the lip its pocket's mouth shows, the hand farther out of the front (under a counter's overhang)
 GRIP_MARGIN_M = 0.015  # fingers opened only as wide as a handle needs clear it by this much each side: the pointed
 # handle's error (about 1 cm) and the calibration's 5 mm
 
@@ -52,8 +55,11 @@ def scene_tree(frame: Frame, pointed: PointedPart) -> Scene:
     front = pointed.front
     plane = front.plane
     half = (front.width_m / 2 + EDGE_BAND_M, front.height_m / 2 + EDGE_BAND_M)  # with an edge pull's tab
-    return Scene(cKDTree(standing_out(points, plane.origin, plane.right, plane.up, plane.normal, half, PLANE_BAND_M,
-                                      MAX_STANDOFF_M)), plane.origin, plane.normal)
+    points = standing_out(points, plane.origin, plane.right, plane.up, plane.normal, half, PLANE_BAND_M, MAX_STANDOFF_M)
+    handle = pointed.handle  # its own box too: a handle on the front's edge may stand past the front's rectangle
+    handle_half = (handle.length_m / 2 + EDGE_BAND_M, handle.thickness_m / 2 + PLANE_BAND_M, MAX_STANDOFF_M)
+    points = outside_box(points, handle.centre, np.array([handle.bar, handle.close, handle.normal]), handle_half)
+    return Scene(cKDTree(points), plane.origin, plane.normal)
 
 
 def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, max_opening_m: float
@@ -61,10 +67,10 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
     """The grasps (pose and finger opening) whose approach (from `approach_m` out, the fingers open) and first planned
     pull (the fingers closed on the handle) keep clear of `scene` (CLEARANCE_M), the approach in front of the fronts'
     plane too (PLANE_BAND_M deep at most; a tilted finger's far corner dips toward it; a recessed pull's pocket lies
-    behind it), in the order wanted: a knob held as
-    found then turned a quarter, each tilted down then level (PITCHES_RAD), each with the fingers opened as the
-    handle asks, then only as wide as it needs (its thickness and GRIP_MARGIN_M each side). EpisodeStop saying where
-    the gripper would touch the scene when none does."""
+    behind it), in the order wanted: a knob held as found then turned a quarter, each going in as deep as the handle
+    asks, then for a recessed pull to POCKET_DEPTH_M, each tilted down then level (PITCHES_RAD; level first into a
+    recessed pull), each with the fingers opened as the handle asks, then only as wide as it needs (its thickness and
+    GRIP_MARGIN_M each side). EpisodeStop saying where the gripper would touch the scene when none does."""
     openings = [handle.open_m or max_opening_m]
     closed = 0.0 if handle.thickness_m is None else handle.thickness_m
     if handle.thickness_m is not None and closed + 2 * GRIP_MARGIN_M < openings[0]:
@@ -73,8 +79,13 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
     clear, contact, during = [], None, ""
     pitches = PITCHES_RAD[::-1] if handle.found == "recessed pull" else PITCHES_RAD  # into a pocket, level first:
     # tilted, the fingers' outer faces climb toward its walls as they go in
-    for held, pitch in itertools.product([handle, turned] if handle.found == "knob" else [handle], pitches):
-        T = grasp_pose(held, pitch_rad=pitch)
+    depths = [handle.depth_m]
+    if handle.found == "recessed pull" and handle.depth_m > POCKET_DEPTH_M:  # not a tab's or a bar's: their fingers
+        # pass a counter's lower edge, which the scene's points miss by up to their spacing
+        depths.append(POCKET_DEPTH_M)
+    for held, depth, pitch in itertools.product([handle, turned] if handle.found == "knob" else [handle],
+                                                depths, pitches):
+        T = grasp_pose(held, depth, pitch)
         pull = first_contact(scene.points, [T, *pulls(T)[0]], parallel_gripper(closed, max_opening_m), CLEARANCE_M)
         path = [pregrasp_pose(T, approach_m), T]
         for opening in openings:

@@ -117,3 +117,11 @@ def standing_out(points: np.ndarray, origin: np.ndarray, right: np.ndarray, up: 
     s, z, offset = d @ right, d @ up, d @ normal
     on_part = (np.abs(s) <= half_size[0]) & (np.abs(z) <= half_size[1]) & (offset <= part_depth_m)
     return points[(offset > plane_band_m) & ~on_part]
+
+
+def outside_box(points: np.ndarray, centre: np.ndarray, axes: np.ndarray, half: tuple[float, float, float]
+                ) -> np.ndarray:
+    """The `points` outside the box at `centre` with unit edge directions the rows of `axes` (3x3) and `half` sizes
+    along them: e.g. the scene less a handle that moves with the gripper."""
+    d = (np.asarray(points, float).reshape(-1, 3) - centre) @ np.asarray(axes, float).T
+    return points[np.any(np.abs(d) > np.asarray(half), axis=1)]
