@@ -5,9 +5,20 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from deploy.config import Config, OpeningConfig
-from deploy.control.grasp import Handle, back_along_path, find_handle, grasp_pose, hinge_prior
+from deploy.control.grasp import (
+    Handle,
+    back_along_path,
+    find_handle,
+    grasp_pose,
+    hinge_prior,
+    hinge_side,
+    hinge_side_sure,
+    pointed_handle,
+)
 from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
+from deploy.geometry.clearance import parallel_gripper
 from deploy.geometry.types import Axis, Box, JointType, NoAxis
+from deploy.perception.handle import Handle as PointedHandle
 from deploy.policies import POLICIES, GrowingSteps, OpeningPolicy, opening_policy
 
 # a cabinet whose front faces -x (toward a robot at the origin), front face at x = 0.5
@@ -47,6 +58,23 @@ def test_handle_and_grasp_pose(vertical):
     assert abs(T[:3, 1] @ handle.bar) < 1e-6  # fingers across the bar
 
 
+@pytest.mark.parametrize("clearance", [0.012, 0.018, 0.024])
+def test_a_short_knob_is_held_with_the_fingers_short_of_the_front_behind_it(clearance):
+    """A 2.7 cm knob whose centre stands `clearance` out of its door (front at x = 0.5): the tilted grasp's fingers
+    (the leading corner of their tips, as the hand's collision boxes give them) stop at least the calibration's 5 mm
+    short of the door, however near the front the knob sits; pressed on it, the arm stalled away from the knob."""
+    centre = np.array([0.5 - clearance, 0.2, 0.6])
+    knob = PointedHandle("protruding", "knob", centre, np.array([0, 0, 1.0]), np.array([0, 1.0, 0]),
+                         np.array([-1.0, 0, 0]), 0.027, 0.027, clearance, clearance, 1.0, 0.0, "a knob", 0.08)
+    handle = pointed_handle(knob, vertical_default=True)
+    T = grasp_pose(handle)
+    tips = next(box for box in parallel_gripper(0.08, 0.08) if box.name == "fingertips")
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * tips.half + tips.centre
+    deepest = float((T[:3, :3] @ corners.T + T[:3, 3:4])[0].max())
+    assert deepest <= 0.5 - 0.005 + 1e-9
+    assert handle.depth_m >= -0.005 and (T[:3, 3] - centre) @ T[:3, 2] >= -0.005 - 1e-9  # the pads still reach it
+
+
 def test_knob_and_empty_handle():
     knob = np.random.default_rng(1).normal([0.47, 0.2, 0.6], 0.005, (50, 3))
     handle = find_handle(knob, np.zeros((0, 3)), BODY, VIEW, vertical_default=True)  # no front: the box's
@@ -63,6 +91,27 @@ def test_hinge_prior_is_the_far_edge_and_opens_outward():
     np.testing.assert_allclose(from_box.origin, [0.5, -0.3, 0.6], atol=1e-9)
     for prior in (from_face, from_box):  # a small positive rotation moves the handle out of the front (-x)
         assert np.cross(prior.direction, handle.center - prior.origin)[0] < 0
+
+
+def test_a_handle_in_the_middle_of_its_front_leaves_the_hinge_side_to_the_front_s_turn():
+    """A handle near one edge of the front (0.6 m wide, y -0.3 to 0.3) marks the other as the hinge; one in its middle
+    third (a pair of doors taken for one front, a knob in the middle) does not: a short straight pull then turns the
+    front toward its hinge, and the prior takes the edge on that side."""
+    near_edge = Handle(np.array([0.47, 0.25, 0.6]), np.array([-1.0, 0, 0]), np.array([0, 0, 1.0]), 100)
+    middle = Handle(np.array([0.47, 0.05, 0.6]), np.array([-1.0, 0, 0]), np.array([0, 0, 1.0]), 100)
+    assert hinge_side_sure(near_edge, _front(), BODY) and hinge_side_sure(near_edge, np.zeros((0, 3)), BODY)
+    assert not hinge_side_sure(middle, _front(), BODY) and not hinge_side_sure(middle, np.zeros((0, 3)), BODY)
+    for hinge_y in (-0.3, 0.3):  # a door hinged at y = hinge_y, its handle at y = 0.05, opened 3 deg toward -x
+        sign = 1.0 if hinge_y > 0.05 else -1.0  # the handle's side of the hinge
+        turned = Rotation.from_euler("z", -sign * 3.0, degrees=True).apply(middle.normal)
+        assert (turned - middle.normal)[1] * sign > 0  # the normal turned toward the hinge
+        side = hinge_side(middle.normal, turned)
+        assert side != 0.0
+        prior = hinge_prior(middle, _front(), BODY, side=side)
+        np.testing.assert_allclose(prior.origin, [0.5, hinge_y, 0.6], atol=0.015)
+        assert np.cross(prior.direction, middle.center - prior.origin)[0] < 0  # opens out of the front
+    assert hinge_side(middle.normal, Rotation.from_euler("z", 0.2, degrees=True).apply(middle.normal)) == 0.0
+    assert hinge_prior(middle, _front(), BODY, side=0.0).origin[1] == pytest.approx(-0.3, abs=0.015)  # far edge
 
 
 def test_opening_and_orientation():
