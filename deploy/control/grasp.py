@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import open3d as o3d
 from scipy.spatial.transform import Rotation
+from scipy.stats import theilslopes
 
 from deploy.geometry.boxes import front_direction
 from deploy.geometry.types import Axis, Box, JointType
@@ -27,7 +28,9 @@ PLANE_TOLERANCE_M = 0.004  # RANSAC inlier distance of the front plane
 FACE_BAND_M = 0.01  # points this close to the front plane belong to the front face
 SURE_EDGE_SHARE = 1.0 / 3.0  # a handle this near one edge of its front (share of the width) marks the other as
 # the hinge
-MIN_SIDE_TURN_RAD = float(np.radians(0.5))  # a front turned less than this tells no hinge side (the plane fit's noise)
+MIN_SIDE_TURN_RAD = float(np.radians(0.5))  # a front turned less than this tells no hinge side (the depth's noise)
+MIN_MOVED_M = 0.005  # a point that moved out more than this moved with the door (the depth's noise)
+SIDE_SAMPLES = 400  # the door's motion is read from at most this many of its points
 REGRASP_RADIUS_M = 0.12  # a slipped handle is looked for this close to where the gripper held it
 APPROACH_STEP_M = 0.025  # the planned approach is followed through a pose every this much (a short arm's joints
 # turn fast near the handle: the path check needs its waypoints dense enough to tell a turn from a branch change)
@@ -251,9 +254,19 @@ def hinge_side_sure(handle: Handle, object_points: np.ndarray, body_box: Box, fr
     return width > 0 and nearer < SURE_EDGE_SHARE * width
 
 
-def hinge_side(normal_before: np.ndarray, normal_after: np.ndarray) -> float:
-    """The hinge's side of the handle (+1 or -1 along UP x `normal_before`; 0 when the front did not turn by
-    MIN_SIDE_TURN_RAD) from the front's horizontal normal before and after a short straight pull: an opening door's
-    normal turns toward its hinge."""
-    lateral = float(np.asarray(normal_after, float) @ np.cross(UP, normal_before))
-    return 0.0 if abs(lateral) < np.sin(MIN_SIDE_TURN_RAD) else float(np.sign(lateral))
+def hinge_side(before: np.ndarray, after: np.ndarray, handle: Handle, pulled_m: float) -> float:
+    """The hinge's side of the handle (+1 or -1 along UP x normal; 0 when the motion does not tell) from the same
+    pixels' points (base frame, (N, 3) each) before and after a straight pull of `pulled_m`: a door's points move
+    out the less the nearer its hinge, so their outward motion falls toward it. Points that moved out between
+    MIN_MOVED_M and twice the pull are the door's (a neighbour and the body stay; a pixel that saw another surface
+    after jumps farther); the trend is a Theil-Sen slope over at most SIDE_SAMPLES of them, below
+    tan(MIN_SIDE_TURN_RAD) it tells nothing."""
+    before, after = np.asarray(before, float).reshape(-1, 3), np.asarray(after, float).reshape(-1, 3)
+    out = (after - before) @ handle.normal
+    lateral = (before - handle.center) @ np.cross(UP, handle.normal)
+    moved = np.flatnonzero((out > MIN_MOVED_M) & (out < 2.0 * pulled_m))
+    if len(moved) < MIN_FRONT_POINTS:
+        return 0.0
+    moved = np.random.default_rng(0).choice(moved, min(len(moved), SIDE_SAMPLES), replace=False)
+    slope = theilslopes(out[moved], lateral[moved])[0]
+    return 0.0 if abs(slope) < np.tan(MIN_SIDE_TURN_RAD) else float(-np.sign(slope))

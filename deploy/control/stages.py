@@ -17,7 +17,6 @@ from deploy.control.grasp import (
     Handle,
     back_along_path,
     find_handle,
-    front_normal,
     grasp_pose,
     hinge_prior,
     hinge_side,
@@ -33,7 +32,7 @@ from deploy.control.scene_clearance import clear_grasps, scene_tree
 from deploy.control.state import EpisodeStop, StopReason, display_scale, opening_unit
 from deploy.control.view import step_log
 from deploy.errors import PartHiddenError, PointerError
-from deploy.geometry.cloud import points_to_pixels
+from deploy.geometry.cloud import depth_to_points, points_to_pixels
 from deploy.geometry.estimators.trajectory import fit_trajectory
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 from deploy.perception.base import Pointer
@@ -260,6 +259,20 @@ def first_pull(episode: Episode, handle: Handle) -> None:
         _pull(episode, line_path(episode.tool(), handle.normal), length, "first pull")
 
 
+def _moved_side(episode: Episode, handle: Handle, pulled_m: float) -> float:
+    """`hinge_side` from the pixels on the object both in the first frame and in the latest (the camera stays put)."""
+    seen, first = episode.observer.latest_view(), episode.observer.first_look
+    if seen is None:
+        return 0.0
+    frame, mask = seen
+    both = mask & first.mask & np.isfinite(frame.depth_m) & np.isfinite(first.frame.depth_m) & \
+        (frame.depth_m > 0) & (first.frame.depth_m > 0)
+    K = frame.intrinsics.K
+    before = depth_to_points(first.frame.depth_m, K, both, first.frame.T_base_camera)
+    after = depth_to_points(frame.depth_m, K, both, frame.T_base_camera)
+    return hinge_side(before, after, handle, pulled_m)
+
+
 def _door_radius(episode: Episode) -> float:
     """Metres of handle travel per radian about the current axis (at least MIN_DOOR_RADIUS_M)."""
     axis = episode.state.axis
@@ -269,8 +282,8 @@ def _door_radius(episode: Episode) -> float:
 
 def _door_side_pull(episode: Episode, handle: Handle, length: float) -> float:
     """When the front does not tell which edge the hinge is on (`hinge_side_sure`), a short straight pull
-    (`probe_pull_m`, at most `length`) before any arc; the hinge is then the edge on the side the front turned toward
-    (`hinge_side`; the far edge when it turned too little to tell). Returns the handle's travel pulled (m)."""
+    (`probe_pull_m`, at most `length`) before any arc; the hinge is then the edge on the side where the front moved
+    out the less (`hinge_side`; the far edge when that does not tell). Returns the handle's travel pulled (m)."""
     state, observer = episode.state, episode.observer
     first, pointed = observer.first_look, observer.pointed
     corners = None if pointed is None else pointed.front.corners
@@ -278,16 +291,11 @@ def _door_side_pull(episode: Episode, handle: Handle, length: float) -> float:
         return 0.0
     probe = min(episode.config.opening.probe_pull_m, length)
     _pull(episode, line_path(episode.tool(), handle.normal), probe, "first pull (straight: the hinge's side unsure)")
-    seen = observer.latest_view()
-    side = 0.0
-    if seen is not None:
-        frame, mask = seen
-        after = front_normal(observer.points(frame, mask), episode.tool()[:3, 3], first.body_box, viewpoint(frame))
-        side = hinge_side(handle.normal, after)
+    side = _moved_side(episode, handle, probe)
     state.axis = _prior(episode, handle, side)
     seen_side = {1.0: "its right", -1.0: "its left"}.get(side, "neither side")
     step_log.info("first pull: the handle's place on its front left the hinge's side open; after %.3f m straight "
-                  "the front turned toward %s (as the camera sees it)", probe, seen_side)
+                  "the front moved out the less toward %s (as the camera sees it)", probe, seen_side)
     return probe
 
 
