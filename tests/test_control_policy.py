@@ -97,10 +97,10 @@ def test_hinge_prior_is_the_far_edge_and_opens_outward():
 
 def _pair_pulled(hinge_y: float, handle_y: float, pulled: float) -> tuple[np.ndarray, np.ndarray]:
     """A pair of doors (front x = 0.5, y -0.3 to 0.3, meeting at y = 0), seen before and after the one hinged at
-    `hinge_y` is pulled `pulled` straight out (-x) at `handle_y`: the same points (as the same pixels), with 2 mm depth
-    noise and a few pixels that saw another surface afterwards."""
+    `hinge_y` is pulled `pulled` straight out (-x) at `handle_y`: the same points (as the same pixels), each read with
+    5 mm noise in 7 mm steps (a D415's at 1.5 m), a few pixels seeing another surface afterwards."""
     rng = np.random.default_rng(3)
-    y, z = np.meshgrid(np.linspace(-0.3, 0.3, 61), np.linspace(0.3, 0.8, 26))
+    y, z = np.meshgrid(np.linspace(-0.3, 0.3, 121), np.linspace(0.3, 0.8, 51))
     before = np.column_stack([np.full(y.size, 0.5), y.ravel(), z.ravel()])
     radius = abs(handle_y - hinge_y)
     angle = np.arcsin(pulled / radius) * np.sign(handle_y - hinge_y)  # about +z: the door's side of the hinge
@@ -108,7 +108,8 @@ def _pair_pulled(hinge_y: float, handle_y: float, pulled: float) -> tuple[np.nda
     hinge = np.array([0.5, hinge_y, 0.0])
     after = before.copy()
     after[moving] = Rotation.from_euler("z", angle).apply(before[moving] - hinge) + hinge
-    after[:, 0] += rng.normal(0, 0.002, len(after))
+    for read in (before, after):
+        read[:, 0] = np.round((read[:, 0] + rng.normal(0, 0.005, len(read))) / 0.007) * 0.007
     after[rng.choice(len(after), 40, replace=False), 0] -= 0.3  # a pixel that now sees the arm or another front
     return before, after
 

@@ -29,8 +29,8 @@ FACE_BAND_M = 0.01  # points this close to the front plane belong to the front f
 SURE_EDGE_SHARE = 1.0 / 3.0  # a handle this near one edge of its front (share of the width) marks the other as
 # the hinge
 MIN_SIDE_TURN_RAD = float(np.radians(0.5))  # a front turned less than this tells no hinge side (the depth's noise)
-MIN_MOVED_M = 0.005  # a point that moved out more than this moved with the door (the depth's noise)
-SIDE_SAMPLES = 400  # the door's motion is read from at most this many of its points
+MIN_MOVED_M = 0.01  # a front that moved out more than this moved with the door (the depth's steps at 1-2 m)
+SIDE_BIN_M = 0.02  # the door's motion is read across its front in bins this wide
 REGRASP_RADIUS_M = 0.12  # a slipped handle is looked for this close to where the gripper held it
 APPROACH_STEP_M = 0.025  # the planned approach is followed through a pose every this much (a short arm's joints
 # turn fast near the handle: the path check needs its waypoints dense enough to tell a turn from a branch change)
@@ -257,16 +257,21 @@ def hinge_side_sure(handle: Handle, object_points: np.ndarray, body_box: Box, fr
 def hinge_side(before: np.ndarray, after: np.ndarray, handle: Handle, pulled_m: float) -> float:
     """The hinge's side of the handle (+1 or -1 along UP x normal; 0 when the motion does not tell) from the same
     pixels' points (base frame, (N, 3) each) before and after a straight pull of `pulled_m`: a door's points move
-    out the less the nearer its hinge, so their outward motion falls toward it. Points that moved out between
-    MIN_MOVED_M and twice the pull are the door's (a neighbour and the body stay; a pixel that saw another surface
-    after jumps farther); the trend is a Theil-Sen slope over at most SIDE_SAMPLES of them, below
-    tan(MIN_SIDE_TURN_RAD) it tells nothing."""
+    out the less the nearer its hinge, so their outward motion falls toward it. The points within FRONT_RADIUS_M of
+    the handle's height are binned across the front every SIDE_BIN_M, each bin's motion its median (the depth's
+    noise); bins that moved out between MIN_MOVED_M and twice the pull are the door's (a neighbour and the body
+    stay); the trend is their Theil-Sen slope, below tan(MIN_SIDE_TURN_RAD) it tells nothing."""
     before, after = np.asarray(before, float).reshape(-1, 3), np.asarray(after, float).reshape(-1, 3)
-    out = (after - before) @ handle.normal
-    lateral = (before - handle.center) @ np.cross(UP, handle.normal)
-    moved = np.flatnonzero((out > MIN_MOVED_M) & (out < 2.0 * pulled_m))
-    if len(moved) < MIN_FRONT_POINTS:
+    level = np.abs(before[:, 2] - handle.center[2]) < FRONT_RADIUS_M
+    out = (after[level] - before[level]) @ handle.normal
+    bins = np.round((before[level] - handle.center) @ np.cross(UP, handle.normal) / SIDE_BIN_M).astype(int)
+    lateral, moved = [], []
+    for b in np.unique(bins):
+        in_bin = out[bins == b]
+        if len(in_bin) >= MIN_HANDLE_POINTS and MIN_MOVED_M < np.median(in_bin) < 2.0 * pulled_m:
+            lateral.append(b * SIDE_BIN_M)
+            moved.append(float(np.median(in_bin)))
+    if len(moved) < 3:
         return 0.0
-    moved = np.random.default_rng(0).choice(moved, min(len(moved), SIDE_SAMPLES), replace=False)
-    slope = theilslopes(out[moved], lateral[moved])[0]
+    slope = theilslopes(moved, lateral)[0]
     return 0.0 if abs(slope) < np.tan(MIN_SIDE_TURN_RAD) else float(-np.sign(slope))
