@@ -70,18 +70,19 @@ def pointed_handle(handle: PointedHandle, vertical_default: bool) -> Handle:
     else:
         bar = np.cross(normal, handle.close)
     thickness = None if handle.kind == "recessed pull" else handle.thickness_m  # a pocket's width is not its bar's
-    depth = grip_depth_m(handle.clearance_m)
+    depth = grip_depth_m(handle.clearance_m, handle.kind == "knob")
     return Handle(np.asarray(handle.centre, float), normal, bar / np.linalg.norm(bar), 0, handle.kind, handle.open_m,
                   thickness, depth)
 
 
-def grip_depth_m(clearance_m: float, pitch_rad: float = GRASP_PITCH_RAD) -> float:
+def grip_depth_m(clearance_m: float, knob: bool, pitch_rad: float = GRASP_PITCH_RAD) -> float:
     """How far past a handle's grip centre the tool frame goes along an approach tilted down by `pitch_rad`, with
     `clearance_m` of room behind the centre (along the front's normal): as deep as GRASP_DEPTH_M, but with the
-    fingers' leading corner (the tips' upper edge: the tilt swings it toward the front) FACE_MARGIN_M short of the
-    front (a short tab, a knob near its front); at most MIN_GRASP_DEPTH_M short of the centre."""
+    fingers' leading corner (the tips' upper edge: the tilt swings it toward the front) short of the front (a short
+    tab, a knob near its front), by FACE_MARGIN_M more around a knob (the fingers pass beside its head onto the
+    door, where a lip's pads hold its edge); at most MIN_GRASP_DEPTH_M short of the centre."""
     reach = FINGERTIPS_PAST_TOOL_M * np.cos(pitch_rad) + FINGER_HALF_WIDTH_M * np.sin(pitch_rad)
-    depth = (clearance_m - FACE_MARGIN_M - reach) / np.cos(pitch_rad)
+    depth = (clearance_m - (FACE_MARGIN_M if knob else 0.0) - reach) / np.cos(pitch_rad)
     return float(np.clip(depth, MIN_GRASP_DEPTH_M, GRASP_DEPTH_M))
 
 
