@@ -228,3 +228,12 @@ def test_a_door_pulled_by_the_force_cue_is_hinged_where_the_grip_point_turned_no
     assert result["success"], result["message"]
     assert result["axis_position_error_m"] < 0.005
     assert abs(result["true_opened_deg"] - result["opened_deg"]) < 1.0
+
+
+def test_a_door_of_a_pair_taken_for_one_front_turns_about_its_own_hinge():
+    """Test kitchen door 30: the pointed front is a pair of doors, the handle by their meeting line in its middle.
+    The far edge of that front is the other door's hinge: the first arc about it jammed the door at 19 deg. The first
+    pull goes straight for 2.5 cm and the door's own motion tells its hinge's side."""
+    result = simulate_episode("door", 30, "test", target=45.0)
+    assert result["success"], result["message"]
+    assert result["axis_position_error_m"] < 0.05

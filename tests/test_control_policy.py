@@ -1,13 +1,26 @@
 """Pure decisions of the opening policy: handle, grasp pose, hinge prior, axis choice and opening."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 from deploy.config import Config, OpeningConfig
-from deploy.control.grasp import Handle, back_along_path, find_handle, grasp_pose, hinge_prior
+from deploy.control.grasp import (
+    Handle,
+    back_along_path,
+    find_handle,
+    grasp_pose,
+    hinge_prior,
+    hinge_side,
+    hinge_side_sure,
+    pointed_handle,
+)
 from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
+from deploy.geometry.clearance import parallel_gripper
 from deploy.geometry.types import Axis, Box, JointType, NoAxis
+from deploy.perception.handle import Handle as PointedHandle
 from deploy.policies import POLICIES, GrowingSteps, OpeningPolicy, opening_policy
 
 # a cabinet whose front faces -x (toward a robot at the origin), front face at x = 0.5
@@ -47,6 +60,23 @@ def test_handle_and_grasp_pose(vertical):
     assert abs(T[:3, 1] @ handle.bar) < 1e-6  # fingers across the bar
 
 
+@pytest.mark.parametrize("clearance", [0.012, 0.018, 0.024])
+def test_a_short_knob_is_held_with_the_fingers_short_of_the_front_behind_it(clearance):
+    """A 2.7 cm knob whose centre stands `clearance` out of its door (front at x = 0.5): the tilted grasp's fingers
+    (the leading corner of their tips, as the hand's collision boxes give them) stop at least the calibration's 5 mm
+    short of the door, however near the front the knob sits; pressed on it, the arm stalled away from the knob."""
+    centre = np.array([0.5 - clearance, 0.2, 0.6])
+    knob = PointedHandle("protruding", "knob", centre, np.array([0, 0, 1.0]), np.array([0, 1.0, 0]),
+                         np.array([-1.0, 0, 0]), 0.027, 0.027, clearance, clearance, 1.0, 0.0, "a knob", 0.08)
+    handle = pointed_handle(knob, vertical_default=True)
+    T = grasp_pose(handle)
+    tips = next(box for box in parallel_gripper(0.08, 0.08) if box.name == "fingertips")
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * tips.half + tips.centre
+    deepest = float((T[:3, :3] @ corners.T + T[:3, 3:4])[0].max())
+    assert deepest <= 0.5 - 0.005 + 1e-9
+    assert handle.depth_m >= -0.005 and (T[:3, 3] - centre) @ T[:3, 2] >= -0.005 - 1e-9  # the pads still reach it
+
+
 def test_knob_and_empty_handle():
     knob = np.random.default_rng(1).normal([0.47, 0.2, 0.6], 0.005, (50, 3))
     handle = find_handle(knob, np.zeros((0, 3)), BODY, VIEW, vertical_default=True)  # no front: the box's
@@ -63,6 +93,46 @@ def test_hinge_prior_is_the_far_edge_and_opens_outward():
     np.testing.assert_allclose(from_box.origin, [0.5, -0.3, 0.6], atol=1e-9)
     for prior in (from_face, from_box):  # a small positive rotation moves the handle out of the front (-x)
         assert np.cross(prior.direction, handle.center - prior.origin)[0] < 0
+
+
+def _pair_pulled(hinge_y: float, handle_y: float, pulled: float) -> tuple[np.ndarray, np.ndarray]:
+    """A pair of doors (front x = 0.5, y -0.3 to 0.3, meeting at y = 0), seen before and after the one hinged at
+    `hinge_y` is pulled `pulled` straight out (-x) at `handle_y`: the same points (as the same pixels), each read with
+    5 mm noise in 7 mm steps (a D415's at 1.5 m), a few pixels seeing another surface afterwards."""
+    rng = np.random.default_rng(3)
+    y, z = np.meshgrid(np.linspace(-0.3, 0.3, 121), np.linspace(0.3, 0.8, 51))
+    before = np.column_stack([np.full(y.size, 0.5), y.ravel(), z.ravel()])
+    radius = abs(handle_y - hinge_y)
+    angle = np.arcsin(pulled / radius) * np.sign(handle_y - hinge_y)  # about +z: the door's side of the hinge
+    moving = (before[:, 1] - 0.0) * np.sign(hinge_y) > 0
+    hinge = np.array([0.5, hinge_y, 0.0])
+    after = before.copy()
+    after[moving] = Rotation.from_euler("z", angle).apply(before[moving] - hinge) + hinge
+    for read in (before, after):
+        read[:, 0] = np.round((read[:, 0] + rng.normal(0, 0.005, len(read))) / 0.007) * 0.007
+    after[rng.choice(len(after), 40, replace=False), 0] -= 0.3  # a pixel that now sees the arm or another front
+    return before, after
+
+
+def test_a_handle_in_the_middle_of_its_front_leaves_the_hinge_side_to_how_the_front_moved():
+    """A handle near one edge of the front (0.6 m wide, y -0.3 to 0.3) marks the other as the hinge; one in its middle
+    third (a pair of doors taken for one front, a knob in the middle) does not: after a short straight pull the door
+    moved out the less the nearer its hinge, and the prior takes the edge on that side."""
+    near_edge = Handle(np.array([0.47, 0.25, 0.6]), np.array([-1.0, 0, 0]), np.array([0, 0, 1.0]), 100)
+    assert hinge_side_sure(near_edge, _front(), BODY) and hinge_side_sure(near_edge, np.zeros((0, 3)), BODY)
+    for hinge_y in (-0.3, 0.3):  # the handle on the other door of the pair, 5 cm from where they meet
+        middle = Handle(np.array([0.47, -0.05 * np.sign(hinge_y), 0.6]), np.array([-1.0, 0, 0]),
+                        np.array([0, 0, 1.0]), 100)
+        assert not hinge_side_sure(middle, _front(), BODY) and not hinge_side_sure(middle, np.zeros((0, 3)), BODY)
+        middle = replace(middle, center=np.array([0.47, 0.05 * np.sign(hinge_y), 0.6]))  # on the door that opens
+        side = hinge_side(*_pair_pulled(hinge_y, middle.center[1], 0.025), middle, 0.025)
+        assert side == np.sign(np.cross([0, 0, 1.0], middle.normal)[1] * hinge_y)
+        prior = hinge_prior(middle, _front(), BODY, side=side)
+        np.testing.assert_allclose(prior.origin, [0.5, hinge_y, 0.6], atol=0.015)
+        assert np.cross(prior.direction, middle.center - prior.origin)[0] < 0  # opens out of the front
+        still = _pair_pulled(hinge_y, middle.center[1], 0.025)[0]
+        assert hinge_side(still, still, middle, 0.025) == 0.0  # nothing moved: no side
+        assert hinge_prior(middle, _front(), BODY, side=0.0).origin[1] == pytest.approx(-hinge_y, abs=0.015)  # far
 
 
 def test_opening_and_orientation():

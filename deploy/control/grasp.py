@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import open3d as o3d
 from scipy.spatial.transform import Rotation
+from scipy.stats import theilslopes
 
 from deploy.geometry.boxes import front_direction
 from deploy.geometry.types import Axis, Box, JointType
@@ -25,13 +26,19 @@ FRONT_RADIUS_M = 0.15  # the front face is fitted to object points this close to
 MIN_FRONT_POINTS = 30
 PLANE_TOLERANCE_M = 0.004  # RANSAC inlier distance of the front plane
 FACE_BAND_M = 0.01  # points this close to the front plane belong to the front face
+SURE_EDGE_SHARE = 1.0 / 3.0  # a handle this near one edge of its front (share of the width) marks the other as
+# the hinge
+MIN_SIDE_TURN_RAD = float(np.radians(0.5))  # a front turned less than this tells no hinge side (the depth's noise)
+MIN_MOVED_M = 0.01  # a front that moved out more than this moved with the door (the depth's steps at 1-2 m)
+SIDE_BIN_M = 0.02  # the door's motion is read across its front in bins this wide
 REGRASP_RADIUS_M = 0.12  # a slipped handle is looked for this close to where the gripper held it
 APPROACH_STEP_M = 0.025  # the planned approach is followed through a pose every this much (a short arm's joints
 # turn fast near the handle: the path check needs its waypoints dense enough to tell a turn from a branch change)
 HANDLE_MIN_STANDOFF_M, HANDLE_MAX_STANDOFF_M = 0.01, 0.08  # a handle stands this far out of its front
-FINGERTIPS_PAST_TOOL_M = 0.01  # a Franka hand's fingertips reach 7 mm past its tool frame; with a 3 mm margin: the
-# grasp goes no deeper than the room behind the handle's grip centre less this (a short tab, a knob near its front)
-MIN_GRASP_DEPTH_M = -0.005  # ... and the tool frame at most this far short of the grip centre (the pads still close
+FINGERTIPS_PAST_TOOL_M, FINGER_HALF_WIDTH_M = 0.007, 0.0105  # a Franka hand's fingertips reach 7 mm past its tool
+# frame, each finger 2.1 cm wide (deploy/geometry/clearance.py)
+FACE_MARGIN_M = 0.005  # the fingertips stop this short of the front behind a handle: the calibration's error
+MIN_GRASP_DEPTH_M = -0.005  # the tool frame goes at most this far short of a handle's grip centre (the pads still close
 # on it: they are 2 cm long)
 
 
@@ -63,9 +70,20 @@ def pointed_handle(handle: PointedHandle, vertical_default: bool) -> Handle:
     else:
         bar = np.cross(normal, handle.close)
     thickness = None if handle.kind == "recessed pull" else handle.thickness_m  # a pocket's width is not its bar's
-    depth = float(np.clip(handle.clearance_m - FINGERTIPS_PAST_TOOL_M, MIN_GRASP_DEPTH_M, GRASP_DEPTH_M))
+    depth = grip_depth_m(handle.clearance_m, handle.kind == "knob")
     return Handle(np.asarray(handle.centre, float), normal, bar / np.linalg.norm(bar), 0, handle.kind, handle.open_m,
                   thickness, depth)
+
+
+def grip_depth_m(clearance_m: float, knob: bool, pitch_rad: float = GRASP_PITCH_RAD) -> float:
+    """How far past a handle's grip centre the tool frame goes along an approach tilted down by `pitch_rad`, with
+    `clearance_m` of room behind the centre (along the front's normal): as deep as GRASP_DEPTH_M, but with the
+    fingers' leading corner (the tips' upper edge: the tilt swings it toward the front) short of the front (a short
+    tab, a knob near its front), by FACE_MARGIN_M more around a knob (the fingers pass beside its head onto the
+    door, where a lip's pads hold its edge); at most MIN_GRASP_DEPTH_M short of the centre."""
+    reach = FINGERTIPS_PAST_TOOL_M * np.cos(pitch_rad) + FINGER_HALF_WIDTH_M * np.sin(pitch_rad)
+    depth = (clearance_m - (FACE_MARGIN_M if knob else 0.0) - reach) / np.cos(pitch_rad)
+    return float(np.clip(depth, MIN_GRASP_DEPTH_M, GRASP_DEPTH_M))
 
 
 def _local_plane(points: np.ndarray, near: np.ndarray, radius_m: float) -> tuple[np.ndarray, np.ndarray] | None:
@@ -187,15 +205,12 @@ def pregrasp_configuration(
     )
 
 
-def hinge_prior(handle: Handle, object_points: np.ndarray, body_box: Box, front_corners: np.ndarray | None = None
-                ) -> Axis:
-    """A door's likely hinge before any motion: the vertical edge of the front face farthest from the
-    handle (handles sit near the free edge), at the handle's height; opening pulls the handle outward.
-
-    The front face is the pointed front's rectangle when given (`front_corners`, (4, 3) base frame); else the
+def _front_edges(handle: Handle, object_points: np.ndarray, body_box: Box, front_corners: np.ndarray | None
+                 ) -> tuple[np.ndarray, float]:
+    """The front face's vertical edges (lateral coordinates along UP x normal, ascending) and its plane's depth along
+    the handle's normal: the pointed front's rectangle when given (`front_corners`, (4, 3) base frame); else the
     object points within FACE_BAND_M of the front plane (its depth the median of the points near the handle), its
-    edges the 2nd and 98th lateral percentiles; with too few face points the body box's front edges.
-    """
+    edges the 2nd and 98th lateral percentiles; with too few face points the body box's front edges."""
     side = np.cross(UP, handle.normal)
     pts = np.asarray(object_points, float).reshape(-1, 3)
     depth = pts @ handle.normal
@@ -204,17 +219,60 @@ def hinge_prior(handle: Handle, object_points: np.ndarray, body_box: Box, front_
     face = pts[np.abs(depth - np.median(depth[near])) < FACE_BAND_M] if enough else pts[:0]
     if front_corners is not None:
         corners = np.asarray(front_corners, float)
-        lateral = np.array([(corners @ side).min(), (corners @ side).max()])
-        plane = float(np.mean(corners @ handle.normal))
-    elif len(face) >= MIN_FRONT_POINTS:
-        lateral = np.percentile(face @ side, [2, 98])
-        plane = float(np.median(face @ handle.normal))
+        return np.array([(corners @ side).min(), (corners @ side).max()]), float(np.mean(corners @ handle.normal))
+    if len(face) >= MIN_FRONT_POINTS:
+        return np.percentile(face @ side, [2, 98]), float(np.median(face @ handle.normal))
+    corners = body_box.corners()
+    return np.array([(corners @ side).min(), (corners @ side).max()]), float((corners @ handle.normal).max())
+
+
+def hinge_prior(handle: Handle, object_points: np.ndarray, body_box: Box, front_corners: np.ndarray | None = None,
+                side: float = 0.0) -> Axis:
+    """A door's likely hinge before any motion: a vertical edge of the front face (`_front_edges`) at the handle's
+    height, opening pulling the handle outward. The edge lies on the `side` of the handle (its sign along
+    UP x normal, as `hinge_side` tells it) when one is given; else it is the edge farthest from the handle (handles
+    sit near the free edge)."""
+    lateral, plane = _front_edges(handle, object_points, body_box, front_corners)
+    handle_lateral = handle.center @ np.cross(UP, handle.normal)
+    if side:
+        edge = lateral[0] if side < 0 else lateral[1]
     else:
-        corners = body_box.corners()
-        lateral = np.array([(corners @ side).min(), (corners @ side).max()])
-        plane = float((corners @ handle.normal).max())
-    handle_lateral = handle.center @ side
-    edge = lateral[0] if abs(lateral[0] - handle_lateral) > abs(lateral[1] - handle_lateral) else lateral[1]
-    origin = handle.center + (edge - handle_lateral) * side + (plane - handle.center @ handle.normal) * handle.normal
+        edge = lateral[0] if abs(lateral[0] - handle_lateral) > abs(lateral[1] - handle_lateral) else lateral[1]
+    origin = handle.center + (edge - handle_lateral) * np.cross(UP, handle.normal) \
+        + (plane - handle.center @ handle.normal) * handle.normal
     direction = UP if np.cross(UP, handle.center - origin) @ handle.normal >= 0 else -UP
     return Axis(JointType.REVOLUTE, origin, direction.copy(), confidence=0.0)
+
+
+def hinge_side_sure(handle: Handle, object_points: np.ndarray, body_box: Box, front_corners: np.ndarray | None = None
+                    ) -> bool:
+    """Whether the front face tells the hinge's side: the handle lies within SURE_EDGE_SHARE of the front's width
+    from one of its edges (the hinge is then the other). A handle farther in (a front found too wide: a pair of
+    doors taken for one, a front cut by the image's edge; a knob in the middle of a door) leaves it open."""
+    lateral, _ = _front_edges(handle, object_points, body_box, front_corners)
+    width = float(lateral[1] - lateral[0])
+    nearer = float(np.min(np.abs(lateral - handle.center @ np.cross(UP, handle.normal))))
+    return width > 0 and nearer < SURE_EDGE_SHARE * width
+
+
+def hinge_side(before: np.ndarray, after: np.ndarray, handle: Handle, pulled_m: float) -> float:
+    """The hinge's side of the handle (+1 or -1 along UP x normal; 0 when the motion does not tell) from the same
+    pixels' points (base frame, (N, 3) each) before and after a straight pull of `pulled_m`: a door's points move
+    out the less the nearer its hinge, so their outward motion falls toward it. The points within FRONT_RADIUS_M of
+    the handle's height are binned across the front every SIDE_BIN_M, each bin's motion its median (the depth's
+    noise); bins that moved out between MIN_MOVED_M and twice the pull are the door's (a neighbour and the body
+    stay); the trend is their Theil-Sen slope, below tan(MIN_SIDE_TURN_RAD) it tells nothing."""
+    before, after = np.asarray(before, float).reshape(-1, 3), np.asarray(after, float).reshape(-1, 3)
+    level = np.abs(before[:, 2] - handle.center[2]) < FRONT_RADIUS_M
+    out = (after[level] - before[level]) @ handle.normal
+    bins = np.round((before[level] - handle.center) @ np.cross(UP, handle.normal) / SIDE_BIN_M).astype(int)
+    lateral, moved = [], []
+    for b in np.unique(bins):
+        in_bin = out[bins == b]
+        if len(in_bin) >= MIN_HANDLE_POINTS and MIN_MOVED_M < np.median(in_bin) < 2.0 * pulled_m:
+            lateral.append(b * SIDE_BIN_M)
+            moved.append(float(np.median(in_bin)))
+    if len(moved) < 3:
+        return 0.0
+    slope = theilslopes(moved, lateral)[0]
+    return 0.0 if abs(slope) < np.tan(MIN_SIDE_TURN_RAD) else float(-np.sign(slope))

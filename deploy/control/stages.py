@@ -22,6 +22,8 @@ from deploy.control.grasp import (
     find_handle,
     grasp_pose,
     hinge_prior,
+    hinge_side,
+    hinge_side_sure,
     pointed_handle,
     pregrasp_configuration,
     pregrasp_pose,
@@ -33,7 +35,7 @@ from deploy.control.scene_clearance import Scene, clear_grasps, scene_tree
 from deploy.control.state import EpisodeStop, StopReason, display_scale, opening_unit
 from deploy.control.view import step_log
 from deploy.errors import PartHiddenError, PointerError
-from deploy.geometry.cloud import points_to_pixels
+from deploy.geometry.cloud import depth_to_points, points_to_pixels
 from deploy.geometry.estimators.trajectory import fit_trajectory
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 from deploy.perception.base import Pointer
@@ -250,24 +252,63 @@ def probe_and_classify(episode: Episode, handle: Handle) -> None:
 
 def first_pull(episode: Episode, handle: Handle) -> None:
     """A first opening before any estimate: straight out along the front normal (drawer, and the paper's
-    policy), or a small arc about the door's likely hinge (the front's far edge); `first_pull_m` of the
+    policy), or a small arc about the door's likely hinge (a front's edge: `_door_side_pull`); `first_pull_m` of the
     handle's travel, or less where the steps' goal (target plus overshoot) is nearer."""
     state, opening_cfg = episode.state, episode.config.opening
-    revolute, radius = state.joint is JointType.REVOLUTE, 1.0  # radius: metres of handle travel per unit left
+    revolute = state.joint is JointType.REVOLUTE
     if revolute:
         state.axis = _prior(episode, handle)
-        radius = max(float(np.linalg.norm(np.cross(state.axis.direction, state.p_grasp - state.axis.origin))),
-                     MIN_DOOR_RADIUS_M)
     left = episode.target() + OVERSHOOT[state.joint_type()] - state.opened_before  # m, or rad for a door
-    length = min(opening_cfg.first_pull_m, left * radius)
+    length = min(opening_cfg.first_pull_m, left * (_door_radius(episode) if revolute else 1.0))
     if length <= 0.0:  # the probe pull already went past the goal
         return
     if revolute and not episode.policy.straight_door(state.joint):
-        axis = state.axis
-        _pull(episode, door_arc(episode.tool(), axis, handle.found), length / radius, "first pull",
-              episode.arc_limits())
+        length -= _door_side_pull(episode, handle, length)
+        if length > 0.0:
+            _pull(episode, door_arc(episode.tool(), state.axis, handle.found), length / _door_radius(episode),
+                  "first pull", episode.arc_limits())
     else:
         _pull(episode, line_path(episode.tool(), handle.normal), length, "first pull")
+
+
+def _moved_side(episode: Episode, handle: Handle, pulled_m: float) -> float:
+    """`hinge_side` from the pixels on the object both in the first frame and in the latest (the camera stays put)."""
+    seen, first = episode.observer.latest_view(), episode.observer.first_look
+    if seen is None:
+        return 0.0
+    frame, mask = seen
+    both = mask & first.mask & np.isfinite(frame.depth_m) & np.isfinite(first.frame.depth_m) & \
+        (frame.depth_m > 0) & (first.frame.depth_m > 0)
+    K = frame.intrinsics.K
+    before = depth_to_points(first.frame.depth_m, K, both, first.frame.T_base_camera)
+    after = depth_to_points(frame.depth_m, K, both, frame.T_base_camera)
+    return hinge_side(before, after, handle, pulled_m)
+
+
+def _door_radius(episode: Episode) -> float:
+    """Metres of handle travel per radian about the current axis (at least MIN_DOOR_RADIUS_M)."""
+    axis = episode.state.axis
+    return max(float(np.linalg.norm(np.cross(axis.direction, episode.state.p_grasp - axis.origin))),
+               MIN_DOOR_RADIUS_M)
+
+
+def _door_side_pull(episode: Episode, handle: Handle, length: float) -> float:
+    """When the front does not tell which edge the hinge is on (`hinge_side_sure`), a short straight pull
+    (`probe_pull_m`, at most `length`) before any arc; the hinge is then the edge on the side where the front moved
+    out the less (`hinge_side`; the far edge when that does not tell). Returns the handle's travel pulled (m)."""
+    state, observer = episode.state, episode.observer
+    first, pointed = observer.first_look, observer.pointed
+    corners = None if pointed is None else pointed.front.corners
+    if hinge_side_sure(handle, first.points, first.body_box, corners):
+        return 0.0
+    probe = min(episode.config.opening.probe_pull_m, length)
+    _pull(episode, line_path(episode.tool(), handle.normal), probe, "first pull (straight: the hinge's side unsure)")
+    side = _moved_side(episode, handle, probe)
+    state.axis = _prior(episode, handle, side)
+    seen_side = {1.0: "its right", -1.0: "its left"}.get(side, "neither side")
+    step_log.info("first pull: the handle's place on its front left the hinge's side open; after %.3f m straight "
+                  "the front moved out the less toward %s (as the camera sees it)", probe, seen_side)
+    return probe
 
 
 def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
@@ -630,11 +671,13 @@ def _planned_pulls(episode: Episode, handle: Handle, T_grasp: np.ndarray) -> lis
         length /= 2
 
 
-def _prior(episode: Episode, handle: Handle) -> Axis:
-    """The axis before any motion: a door's likely hinge, or a line along the front normal."""
+def _prior(episode: Episode, handle: Handle, side: float = 0.0) -> Axis:
+    """The axis before any motion: a door's likely hinge (on `side` of the handle when given: `hinge_prior`), or a
+    line along the front normal."""
     if episode.state.joint is JointType.REVOLUTE:
         first, pointed = episode.observer.first_look, episode.observer.pointed
-        return hinge_prior(handle, first.points, first.body_box, None if pointed is None else pointed.front.corners)
+        return hinge_prior(handle, first.points, first.body_box, None if pointed is None else pointed.front.corners,
+                           side)
     return Axis(JointType.PRISMATIC, handle.center, handle.normal, confidence=0.0)
 
 
