@@ -60,3 +60,10 @@ def test_a_neighbours_drawer_carried_out_is_not_claimed_as_the_pointed_ones(monk
 def test_the_pointed_drawer_carried_out_is_not_stopped():
     result = simulate_episode("drawer", THREE_DRAWERS, "test", target=0.15, part="middle drawer")
     assert result["stop_reason"] == StopReason.TARGET_REACHED and result["success"], result["message"]
+
+
+def test_a_drawer_seen_leaving_its_place_is_not_doubted_when_its_inside_stands_where_its_front_was():
+    """Test kitchen drawer 81: carried 29 cm out, the drawer shows its inside at the pointed pixel, about as deep as
+    its front stood; the front seen gone at 10 cm settled that it follows."""
+    result = simulate_episode("drawer", 81, "test", target=0.30)
+    assert result["stop_reason"] == StopReason.TARGET_REACHED and result["success"], result["message"]

@@ -702,11 +702,14 @@ def _read_drawer_lag(episode: Episode, axis: Axis) -> None:
 def _check_followed(episode: Episode, axis: Axis) -> None:
     """EpisodeStop(NOT_FOLLOWED) when the gripper carried a drawer FOLLOW_CHECK_M or more and the camera still sees
     the front where the user pointed, in its place: the arm moved something else (a neighbour's handle), or its
-    grip slid along or off the handle."""
+    grip slid along or off the handle. The first frame that shows the front gone settles it: a drawer carried
+    farther shows its inside where its front stood, which may read the front's old depth again."""
     state = episode.state
-    if axis.joint_type is not JointType.PRISMATIC or state.opened < FOLLOW_CHECK_M:
+    if axis.joint_type is not JointType.PRISMATIC or state.opened < FOLLOW_CHECK_M or state.followed:
         return
-    if episode.observer.pointed_still():
+    still = episode.observer.pointed_still()
+    state.followed = still is False
+    if still:
         pointer = Pointer.of(episode.config.perception.point, episode.config.perception.box)
         raise EpisodeStop(StopReason.NOT_FOLLOWED, f"the gripper travelled {state.opened:.3f} m but the drawer "
                           f"pointed at ({pointer}) did not follow: it still stands where it was; the gripper holds "
