@@ -40,6 +40,7 @@ from deploy.geometry.estimators.trajectory import fit_trajectory
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 from deploy.perception.base import Pointer
 from deploy.perception.pointing import point_at
+from drivers.arm.grasping import GRASP_PITCH_RAD
 from drivers.arm.motion import (
     Outcome,
     PathFn,
@@ -84,8 +85,8 @@ DOOR_REGRASP_YAWS_DEG = (45.0, 30.0, 15.0)  # a door's arc out of reach: its han
 # turned back toward the robot by the first of these (at most the door's turn so far) that keeps clear of the scene
 # and of the door and that the arm carries
 MAX_TURNED_REGRASPS = 2
-SAME_GRASP_M, SAME_GRASP_RAD = 0.02, float(np.radians(7.0))  # a grasp this near one the scene clearance passed is
-# that one (half the 0.25 rad between its tilted and level grasps)
+SAME_GRASP_M, SAME_GRASP_RAD = 0.02, GRASP_PITCH_RAD / 2  # a grasp this near one the scene clearance passed is
+# that one (half the turn between its tilted and level grasps)
 FOLLOW_CHECK_M = 0.1  # a drawer carried this far has left its place where the user pointed (depth noise at 1.5 m is
 # a third of it)
 

@@ -54,8 +54,9 @@ def load_partnet(folder: Path, part: str | None = None, scale: ScaleRule = "real
     R = _rotation(model)
     body = model.body_points()
     s = 1.0 if scale == "native" else real_scale(footprint_pose(R, body, 1.0)[1], model.files.category)
-    T_urdf, (width, depth, height) = footprint_pose(R, body, s)
-    side, top = _swing_room(model, R, s, body)
+    T_urdf, body_size = footprint_pose(R, body, s)
+    side, top = _swing_room(model, T_urdf, s, body_size)
+    width, depth, height = body_size
     size = (width + 2 * (side + FITTING_GAP_M), depth, height + top + FITTING_GAP_M)
     parts = tuple(part for kind in ("drawer", "door") for part in _parts(model, kind, R, s))
     furniture = Furniture(urdf=_write_copy(model, s), T_urdf=T_urdf, scale=s, size_m=tuple(map(float, size)),
@@ -81,23 +82,23 @@ def _rotation(model: PartNetModel) -> np.ndarray:
     return furniture_rotation(front, axes[:, 1])
 
 
-def _swing_room(model: PartNetModel, R: np.ndarray, s: float, body: np.ndarray) -> tuple[float, float]:
+def _swing_room(model: PartNetModel, T_urdf: np.ndarray, s: float, body_size: np.ndarray) -> tuple[float, float]:
     """How far its drawers and doors, moved through their range (a door up to a right angle), reach past the
     body's sides and top (m) behind the front and just before it, where a unit beside it or a counter over it
     stands: a door whose hinge sits inside its edge swings its edge sideways. A kitchen leaves it that much more
-    room."""
-    turned = body @ R.T * s
-    lo, hi = turned.min(axis=0), turned.max(axis=0)
+    room. `T_urdf`, `s` and `body_size` as `footprint_pose` gives them (the body centred on the furniture frame's
+    origin, on the floor, its front at x = depth / 2)."""
+    width, depth, height = body_size
     side = top = 0.0
     for part in model.openable:
         joint, T = model.urdf.joints[part.link], model.poses[part.link]
         upper = joint.upper if joint.type == "prismatic" else min(joint.upper, DOOR_SWING_RAD)
         moved = swept(model.part_points(part.link), joint.type, T[:3, :3] @ joint.axis, T[:3, 3], upper)
-        moved = moved @ R.T * s
-        moved = moved[moved[:, 0] <= hi[0] + BEFORE_FRONT_M]
+        moved = s * moved @ T_urdf[:3, :3].T + T_urdf[:3, 3]
+        moved = moved[moved[:, 0] <= depth / 2 + BEFORE_FRONT_M]
         if len(moved):
-            side = max(side, float(moved[:, 1].max() - hi[1]), float(lo[1] - moved[:, 1].min()))
-            top = max(top, float(moved[:, 2].max() - hi[2]))
+            side = max(side, float(np.abs(moved[:, 1]).max() - width / 2))
+            top = max(top, float(moved[:, 2].max() - height))
     return side, top
 
 
