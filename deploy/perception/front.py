@@ -16,7 +16,7 @@ from deploy.errors import PointerError
 from deploy.geometry.cloud import depth_to_points
 from deploy.geometry.planes import dominant_plane
 from deploy.perception.front_extent import Extent, front_extent, gap_line_shares
-from deploy.perception.handle import spills_over_edge
+from deploy.perception.handle import EDGE_BAND_M, spills_over_edge, tab_over_top
 from deploy.perception.handle_blobs import (
     MAX_POCKET_M,
     Blob,
@@ -296,11 +296,11 @@ def front_pixels(frame: Frame, robot: np.ndarray, plane: PlaneFrame, s_range: tu
 def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Extent:
     """The rectangle cut between the seed's handle and every other handle on it (or spilling over its top or bottom
     edge: `spills_over_edge`): each front carries one, so a rectangle holding several spans more than one front (the
-    gaps between them were not seen). Each cut runs across the direction that separates two handles, along the faint
-    gap between them if one shows, else midway; the seed's handle is the nearest one on the seed's (the view's
-    origin's) side of every cut."""
-    inside = [b for b in blobs if (b.inside or spills_over_edge(b, view, extent)) and b.firm
-              and b.length_m < 0.95 * span_m(view, extent, b.axis)]
+    gaps between them were not seen). Each cut runs across the direction that separates two handles (either, for two
+    handles apart both ways: one of them separates their fronts), along the faint gap between them if one shows, else
+    midway; the seed's handle is the nearest one on the seed's (the view's origin's) side of a cut from every other."""
+    inside = [b for b in blobs if (b.inside or spills_over_edge(b, view, extent) or tab_over_top(b, view, extent))
+              and b.firm and (b.length_m < 0.95 * span_m(view, extent, b.axis) or _standing_bar(b, view, extent))]
     if len(inside) < 2:
         return extent
     seed = np.zeros(2)
@@ -310,8 +310,8 @@ def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Exte
         drop = float(view.z(extent.top)) - max(float(b.centre[1]) for b in inside)
         drop = drop if drop > 0 else None
     for own in ranked:
-        cuts = [_handle_cut(view, extent, own, other, drop) for other in inside if other is not own]
-        if all(_seed_side(view, side, line) for side, line in cuts):
+        cuts = [_seed_cut(view, _handle_cuts(view, extent, own, other, drop)) for other in inside if other is not own]
+        if all(cut is not None for cut in cuts):
             break
     else:
         return extent
@@ -329,23 +329,40 @@ def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Exte
     return Extent(top, bottom, left, right, ended)
 
 
-def _handle_cut(view: PlaneView, extent: Extent, own: Blob, other: Blob, drop: float | None) -> tuple[str, int]:
-    """(the side of `own`'s front the cut bounds, the cut's row or column) between handles `own` and `other`. With
-    no gap seen, side by side fronts are cut midway; stacked ones, where the lower handle sits as far below its front's
-    top as the topmost handle sits below the rectangle's seen top edge (`drop`; handles sit alike on a stack's fronts,
-    centred or near the top), at most midway."""
+def _standing_bar(blob: Blob, view: PlaneView, extent: Extent) -> bool:
+    """Whether a candidate about as long as the rectangle is across is still a handle: it stands out of the plane in
+    depth (a full-width bar; an edge, its shadow or a gap's slit do not) and runs past neither of the rectangle's ends
+    by more than an edge band."""
+    return blob.relief_m > 0 and not blob.seen_in_colour_only and \
+        blob.length_m <= span_m(view, extent, blob.axis) + 2 * EDGE_BAND_M
+
+
+def _handle_cuts(view: PlaneView, extent: Extent, own: Blob, other: Blob,
+                 drop: float | None) -> list[tuple[str, int]]:
+    """The cuts that may part `own`'s front from `other`'s, each (the side of `own`'s front it bounds, its row or
+    column): across the direction the handles lie farther apart along, then, for handles apart both ways (fronts
+    diagonal to each other), across the other. With no gap seen, side by side fronts are cut midway; stacked ones,
+    where the lower handle sits as far below its front's top as the topmost handle sits below the rectangle's seen
+    top edge (`drop`; handles sit alike on a stack's fronts, centred or near the top), at most midway."""
     s0, s1, z0, z1 = bounds(own, view)
     o0, o1, p0, p1 = bounds(other, view)
     mid = (own.centre + other.centre) / 2
-    if max(o0 - s1, s0 - o1) >= max(p0 - z1, z0 - p1):  # side by side: a vertical cut
-        right = other.centre[0] > own.centre[0]
-        col = _cut(view, (extent.top, extent.bottom), (s1, o0) if right else (o1, s0), mid[0], 1)
-        return ("right" if right else "left"), col
+    apart_s, apart_z = max(o0 - s1, s0 - o1), max(p0 - z1, z0 - p1)
+    right = other.centre[0] > own.centre[0]
+    col = _cut(view, (extent.top, extent.bottom), (s1, o0) if right else (o1, s0), mid[0], 1)
+    beside = ("right" if right else "left"), col
     above = other.centre[1] > own.centre[1]
     lower = min(own.centre[1], other.centre[1])
     guess = mid[1] if drop is None else min(lower + drop, mid[1])
     row = _cut(view, (extent.left, extent.right), (p0, z1) if above else (z0, p1), guess, 0)
-    return ("top" if above else "bottom"), row
+    stacked = ("top" if above else "bottom"), row
+    cuts = [beside, stacked] if apart_s >= apart_z else [stacked, beside]
+    return cuts if min(apart_s, apart_z) > 0 else cuts[:1]
+
+
+def _seed_cut(view: PlaneView, cuts: list[tuple[str, int]]) -> tuple[str, int] | None:
+    """The first of `cuts` with the seed on the front's side of it; None when it lies past all of them."""
+    return next((cut for cut in cuts if _seed_side(view, *cut)), None)
 
 
 def _seed_side(view: PlaneView, side: str, line: int) -> bool:
