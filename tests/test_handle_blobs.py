@@ -1,6 +1,7 @@
 """Handle candidates on a front's rectified view, on a synthetic D415 frame: a long thin bar the D415 lost (seen in
 colour only) whose end nearly touches the depth hole along the front's side edge (the IR shadow a D415 leaves beside
-a depth edge) is still one handle, not part of a shape too large for one."""
+a depth edge) is still one handle, not part of a shape too large for one; a bar standing out across a drawer's whole
+width is a handle, a ledge running on past the front's ends is not."""
 
 from __future__ import annotations
 
@@ -15,15 +16,18 @@ K = Intrinsics(640, 480, 600.0, 600.0, 320.0, 240.0)
 FRONT_U, FRONT_V = (170, 470), (140, 340)  # the front's pixels, 1 m straight ahead: 0.5 x 0.33 m
 
 
-def _frame(bar_u: tuple[int, int]) -> Frame:
+def _frame(bar_u: tuple[int, int], bar_depth: float = 0.0, ledge: bool = False) -> Frame:
     """A brown front 1 m ahead before a wall 1.3 m away; a grey bar without depth 4 cm under its top at columns
-    `bar_u`; no depth and dark along its left edge, just outside it (the IR shadow)."""
+    `bar_u` (or standing out at `bar_depth`); no depth and dark along its left edge, just outside it (the IR shadow);
+    with `ledge`, a counter's edge 3 cm out across the whole image 2 cm over the front's top."""
     depth = np.full((480, 640), 1.3, np.float32)
     color = np.full((480, 640, 3), 200, np.uint8)
     front = (slice(*FRONT_V), slice(*FRONT_U))
     depth[front], color[front] = 1.0, (150, 100, 60)
     bar = (slice(FRONT_V[0] + 24, FRONT_V[0] + 30), slice(*bar_u))
-    depth[bar], color[bar] = 0.0, (128, 128, 128)
+    depth[bar], color[bar] = bar_depth, (128, 128, 128)
+    if ledge:
+        depth[FRONT_V[0] - 20:FRONT_V[0] - 12], color[FRONT_V[0] - 20:FRONT_V[0] - 12] = 0.97, (150, 100, 60)
     shadow = (slice(*FRONT_V), slice(FRONT_U[0] - 12, FRONT_U[0]))
     depth[shadow], color[shadow] = 0.0, (30, 30, 30)
     T = np.eye(4)
@@ -31,8 +35,8 @@ def _frame(bar_u: tuple[int, int]) -> Frame:
     return Frame(0, 0.0, color, depth, K, T)
 
 
-def _bars(bar_u: tuple[int, int]) -> list:
-    frame = _frame(bar_u)
+def _bars(bar_u: tuple[int, int], bar_depth: float = 0.0, ledge: bool = False, length_m: float = 0.35) -> list:
+    frame = _frame(bar_u, bar_depth, ledge)
     plane = PlaneFrame.facing(np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]), np.zeros(3))
     view = rectify(frame, np.zeros((480, 640), bool), plane, (-0.35, 0.35), (-0.25, 0.25), 1.0 / K.fx)
     s = (np.array(FRONT_U) - K.cx) / K.fx
@@ -40,9 +44,26 @@ def _bars(bar_u: tuple[int, int]) -> list:
     extent = Extent(int(view.row(z[0])) + 1, int(view.row(z[1])) - 1, int(view.col(s[0])) + 1, int(view.col(s[1])) - 1,
                     dict.fromkeys(("top", "bottom", "left", "right"), "gap"))
     blobs = handle_blobs(view, extent, frame.T_base_camera, K.K)
-    return [b for b in blobs if b.firm and b.inside and b.length_m > 0.35]
+    return [b for b in blobs if b.firm and b.inside and b.length_m > length_m]
 
 
 def test_a_long_bar_beside_the_side_edges_shadow_is_one_handle():
     assert len(_bars((FRONT_U[0] + 20, FRONT_U[1] - 40))) == 1  # clear of the shadow
     assert len(_bars((FRONT_U[0] + 4, FRONT_U[1] - 40))) == 1  # its end 4 px (7 mm) from the shadow
+
+
+def test_a_bar_standing_out_across_a_drawers_whole_width_is_its_handle():
+    bars = _bars((FRONT_U[0] + 3, FRONT_U[1] - 3), bar_depth=0.97, length_m=0.45)  # 0.49 of the 0.5 m front
+    assert len(bars) == 1 and bars[0].relief_m > 0.02
+
+
+def test_a_ledge_running_on_past_the_fronts_ends_is_no_handle():
+    frame = _frame((FRONT_U[0] + 20, FRONT_U[1] - 40), ledge=True)
+    plane = PlaneFrame.facing(np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]), np.zeros(3))
+    view = rectify(frame, np.zeros((480, 640), bool), plane, (-0.35, 0.35), (-0.25, 0.25), 1.0 / K.fx)
+    s = (np.array(FRONT_U) - K.cx) / K.fx
+    z = (K.cy - np.array(FRONT_V)) / K.fy
+    extent = Extent(int(view.row(z[0])) + 1, int(view.row(z[1])) - 1, int(view.col(s[0])) + 1, int(view.col(s[1])) - 1,
+                    dict.fromkeys(("top", "bottom", "left", "right"), "gap"))
+    blobs = handle_blobs(view, extent, frame.T_base_camera, K.K)
+    assert not [b for b in blobs if b.relief_m > 0.02 and b.length_m > 0.35]

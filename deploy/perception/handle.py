@@ -13,13 +13,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from deploy.perception.front_extent import Extent
-from deploy.perception.handle_blobs import Blob, segment_distance, span_m
+from deploy.perception.handle_blobs import EDGE_BAND_M, Blob, segment_distance, span_m
 from deploy.perception.plane_view import PlaneView
 
 SNAP_DEG = 20.0  # handles run horizontal or vertical: an axis within this of either is taken as it
 BAR_ELONGATION = 3.0  # a bar is at least this many times longer than thick (real bars 8-40x; cups 2-3x)
 KNOB_MAX_M = 0.06  # a knob is at most this wide (real knobs 20-50 mm)
-EDGE_BAND_M = 0.02  # a pull standing on the front's top or bottom edge is an edge pull
 COLOUR_ONLY_RELIEF_M = 0.03  # a handle without depth is taken to stand this far out: the middle of real bar and knob
 # handles' 25-40 mm
 OUTER_LAYER_M = 0.008  # a handle's front surface: its points this close to its outermost (a bar's radius)

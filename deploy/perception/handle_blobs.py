@@ -20,12 +20,14 @@ MAX_POCKET_M = 0.05  # a recessed pull's pocket is at most this deep
 MIN_SIZE_M = 0.015  # the smallest handle (a small knob's head)
 MAX_ACROSS_M = 0.10  # across its length a handle, or a pull's pocket, is at most hand-sized
 MAX_LENGTH_M = 1.2  # along it, at most a wide front's width
-STRUCTURE_SHARE = 0.8  # a row or column standing out in depth along this share of the search region (a front and a
-# margin either side) is the structure around the front (a counter's edge, the floor), not a handle, which is shorter
+STRUCTURE_SHARE = 0.8  # a row or column standing out along this share of the search region (a front and a margin
+# either side) is the structure around the front (a counter's edge, the floor), not a handle, which is shorter
 JOIN_M = 0.01  # pieces of one handle closer than this are one (a bar, its posts and its depth holes)
 POCKET_INSET_M = 0.02  # a pocket is cut into the panel, with material around it: at least this far inside its edges
 PLINTH_SHARE = 0.8  # a pocket low on the front, running on to its edges along this share of its width, is the
 # plinth's recess under the front (a pull is cut into the panel, with material around it)
+EDGE_BAND_M = 0.02  # a pull standing on the front's top or bottom edge is an edge pull; a bar across a whole
+# front may run this far past its ends
 EDGE_REACH_M = 0.05  # an edge pull stands out of its front's edge: blobs this close outside the rectangle count
 
 
@@ -106,8 +108,9 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     # hole of another colour than the front's: a handle the D415 lost (shadows keep their depth on the plane)
     inner_edge = inside & ~cv2.erode(inside.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     plinth_cells, middle = PLINTH_SHARE * (extent.right - extent.left + 1 - 2 * inner), (extent.top + extent.bottom) / 2
-    measured_out = (out | pocket) & view.seen[sl]
-    candidate = _without_structure((out | pocket | other) & view.seen[sl], measured_out, view.seen[sl])
+    band = int(round(EDGE_BAND_M / view.res_m))
+    candidate = _without_structure((out | pocket | other) & view.seen[sl], view.seen[sl],
+                                   (extent.left - c0 - band, extent.right - c0 + band))
     join = max(int(round(JOIN_M / view.res_m)), 1)
     joined = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
     count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
@@ -224,15 +227,18 @@ def bounds(blob: Blob, view: PlaneView) -> tuple[float, float, float, float]:
     return float(s.min()), float(s.max()), float(z.min()), float(z.max())
 
 
-def _without_structure(candidate: np.ndarray, measured: np.ndarray, seen: np.ndarray) -> np.ndarray:
-    """`candidate` without the rows and columns where its cells `measured` standing out of (or into) the plane span
-    STRUCTURE_SHARE of the seen cells. Cells without depth do not count: beside a long dark bar they are the bar's own
-    holes and the shadows or the void past the front's ends, where a counter's edge or the floor is measured."""
+def _without_structure(candidate: np.ndarray, seen: np.ndarray, ends: tuple[int, int]) -> np.ndarray:
+    """`candidate` without the columns where it spans STRUCTURE_SHARE of the seen cells, and the rows where it does
+    and runs on past the front's ends (`ends`: its left and right cells, widened by EDGE_BAND_M) along at least half
+    the seen cells there: a counter's edge, the floor, a unit's side. A bar across a whole drawer's front stops at
+    its ends."""
     out = candidate.copy()
-    for axis in (0, 1):
-        spans = np.sum(measured, axis=1 - axis) >= STRUCTURE_SHARE * np.maximum(np.sum(seen, axis=1 - axis), 1)
-        if axis == 0:
-            out[spans] = False
-        else:
-            out[:, spans] = False
+    columns = np.sum(candidate, axis=0) >= STRUCTURE_SHARE * np.maximum(np.sum(seen, axis=0), 1)
+    rows = np.sum(candidate, axis=1) >= STRUCTURE_SHARE * np.maximum(np.sum(seen, axis=1), 1)
+    past = np.ones(candidate.shape[1], bool)
+    past[max(ends[0], 0):max(ends[1], -1) + 1] = False
+    seen_past = np.sum(seen[:, past], axis=1)
+    rows &= (seen_past == 0) | (np.sum(candidate[:, past], axis=1) >= 0.5 * seen_past)
+    out[rows] = False
+    out[:, columns] = False
     return out
