@@ -431,3 +431,15 @@ def test_the_gaps_of_a_tall_drawer_that_loses_its_depth_in_patches_bound_it():
     s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
     assert np.linalg.norm([s, z] - _on_plane_at(found, 325, 113)) < GRIP_TOLERANCE_M, found.front.ended
     assert found.front.ended["top"] == "gap" and found.front.ended["bottom"] == "gap"
+
+
+def test_a_bar_along_the_top_edge_of_the_upper_of_two_drawers_whose_gap_is_unseen_is_its_handle():
+    """Two stacked drawers, the gap between them not seen, each with a bar along its top edge standing 3 cm out.
+    Pointed on the upper drawer under its bar, its rectangle starts under the bar (the surface breaks there): the bar
+    over its top edge still cuts it from the lower drawer, and it is the handle (before: the bar left out, the two
+    fronts were one and the lower drawer's bar, on it, was taken)."""
+    bars = [((r, r + 6), (150, 450), 0.97, (128, 128, 128)) for r in (100, 230)]
+    frame = _fronts_ahead((96,), (118, 481), bars)  # the upper drawer 96-226, the lower one below: no gap between
+    found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(300, 150))
+    s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
+    assert np.linalg.norm([s, z] - _on_plane_at(found, 300, 103)) < GRIP_TOLERANCE_M, found.front.ended

@@ -16,7 +16,7 @@ from deploy.errors import PointerError
 from deploy.geometry.cloud import depth_to_points
 from deploy.geometry.planes import dominant_plane
 from deploy.perception.front_extent import Extent, front_extent, gap_line_shares
-from deploy.perception.handle import EDGE_BAND_M, spills_over_edge
+from deploy.perception.handle import EDGE_BAND_M, spills_over_edge, tab_over_top
 from deploy.perception.handle_blobs import (
     MAX_POCKET_M,
     Blob,
@@ -299,7 +299,7 @@ def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Exte
     gaps between them were not seen). Each cut runs across the direction that separates two handles (either, for two
     handles apart both ways: one of them separates their fronts), along the faint gap between them if one shows, else
     midway; the seed's handle is the nearest one on the seed's (the view's origin's) side of a cut from every other."""
-    inside = [b for b in blobs if (b.inside or spills_over_edge(b, view, extent))
+    inside = [b for b in blobs if (b.inside or spills_over_edge(b, view, extent) or tab_over_top(b, view, extent))
               and b.firm and (b.length_m < 0.95 * span_m(view, extent, b.axis) or _standing_bar(b, view, extent))]
     if len(inside) < 2:
         return extent

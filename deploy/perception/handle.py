@@ -103,6 +103,15 @@ def spills_over_edge(blob: Blob, view: PlaneView, extent: Extent) -> bool:
         not extent.top - band <= r <= extent.bottom + band
 
 
+def tab_over_top(blob: Blob, view: PlaneView, extent: Extent) -> bool:
+    """Whether a candidate measured standing out of the plane has its centre just over the rectangle `extent`'s top
+    edge (within EDGE_BAND_M), between its sides: the tab or bar along the top edge that `own_blob` takes for the
+    front's own handle (the gap's dark line there, seen in colour only, is none)."""
+    z, top = float(blob.centre[1]), float(view.z(extent.top))
+    return blob.relief_m > 0 and not blob.seen_in_colour_only and \
+        extent.left <= view.col(blob.centre[0]) <= extent.right and top < z <= top + EDGE_BAND_M
+
+
 def rows_apart(blob: Blob, extent: Extent) -> int:
     """The rows of the view between the candidate's cells and the rectangle's (0 where they meet). A bar seen from
     above covers the front below it in the view (the rays past it meet the plane there), so a bar along a front's top
