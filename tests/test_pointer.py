@@ -443,3 +443,15 @@ def test_a_bar_along_the_top_edge_of_the_upper_of_two_drawers_whose_gap_is_unsee
     found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(300, 150))
     s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
     assert np.linalg.norm([s, z] - _on_plane_at(found, 300, 103)) < GRIP_TOLERANCE_M, found.front.ended
+
+
+def test_a_bar_whose_depth_is_lost_in_its_middle_is_one_handle_not_two_fronts():
+    """A drawer's long bar, 3 cm out, the D415's depth lost over 5 cm of its middle (a thin bar seen from afar): its
+    two measured pieces are one bar, so the drawer is one front and the whole bar its handle (before: two handles,
+    the front cut between them)."""
+    bar = ((170, 176), (160, 480), 0.97, (128, 128, 128))
+    lost = ((170, 176), (300, 330), 0.0, (150, 100, 60))
+    frame = _fronts_ahead((150, 300), (118, 521), [bar, lost])
+    found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(200, 250))
+    assert found.front.ended["left"] == "gap" and found.front.ended["right"] == "gap", found.front.ended
+    assert found.handle.kind == "bar" and found.handle.length_m > 0.45

@@ -148,7 +148,51 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
                                                 col > extent.right)]
             found = [blob_of(part, box) for part in parts if part.any() and part.sum() < member.sum()]
         blobs += [b for b in found if b is not None]
+    return _joined_pieces(view, blobs, extent, camera_to_base, K)
+
+
+def _joined_pieces(view: PlaneView, blobs: list[Blob], extent: Extent, camera_to_base: np.ndarray,
+                   K: np.ndarray) -> list[Blob]:
+    """`blobs` with the pieces of one bar (`_pieces_of_one_bar`), each measured standing out, made one candidate."""
+    blobs = list(blobs)
+    merged = True
+    while merged:
+        merged = False
+        for i, a in enumerate(blobs):
+            for b in blobs[i + 1:]:
+                if all(x.firm and x.relief_m > 0 and not x.seen_in_colour_only for x in (a, b)) \
+                        and _pieces_of_one_bar(view, a, b):
+                    rows, cols = np.concatenate([a.rows, b.rows]), np.concatenate([a.cols, b.cols])
+                    whole = _blob(view, rows, cols, extent, camera_to_base, K, min(a.rim, b.rim))
+                    if whole is not None:
+                        blobs = [x for x in blobs if x is not a and x is not b] + [whole]
+                        merged = True
+                        break
+            if merged:
+                break
     return blobs
+
+
+def _pieces_of_one_bar(view: PlaneView, a: Blob, b: Blob) -> bool:
+    """Whether two candidates are pieces of one bar whose depth the D415 lost between them: both running along the
+    same line (horizontal or vertical, each within the other's width of it), with no depth across that line in most
+    of the stretch between their facing ends (between two fronts' handles the fronts' surface is measured all
+    across it, but for their gap)."""
+    horizontal = [abs(x.axis[0]) >= abs(x.axis[1]) for x in (a, b)]
+    along, across = (0, 1) if horizontal[0] else (1, 0)
+    if horizontal[0] != horizontal[1] or abs(a.centre[across] - b.centre[across]) > max(a.across_m, b.across_m):
+        return False
+    first, second = sorted((a, b), key=lambda x: x.centre[along])
+    lo, hi = bounds(first, view)[2 * along + 1], bounds(second, view)[2 * along]
+    if hi <= lo:
+        return True  # they overlap along the line
+    if horizontal[0]:  # the cells of both across the line, the columns between them
+        band = slice(int(min(first.rows.min(), second.rows.min())), int(max(first.rows.max(), second.rows.max())) + 1)
+        lost = view.no_depth[band, int(view.col(lo)) + 1:int(view.col(hi))].any(axis=0)
+    else:
+        band = slice(int(min(first.cols.min(), second.cols.min())), int(max(first.cols.max(), second.cols.max())) + 1)
+        lost = view.no_depth[int(view.row(hi)) + 1:int(view.row(lo)), band].any(axis=1)
+    return lost.size > 0 and float(lost.mean()) >= 0.5
 
 
 def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, camera_to_base: np.ndarray,
