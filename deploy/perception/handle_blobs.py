@@ -175,9 +175,9 @@ def _joined_pieces(view: PlaneView, blobs: list[Blob], extent: Extent, camera_to
 
 def _pieces_of_one_bar(view: PlaneView, a: Blob, b: Blob) -> bool:
     """Whether two candidates are pieces of one bar whose depth the D415 lost between them: both running along the
-    same line (horizontal or vertical, each within the other's width of it), with no depth across that line in most
-    of the stretch between their facing ends (between two fronts' handles the fronts' surface is measured all
-    across it, but for their gap)."""
+    same line (horizontal or vertical, each within the other's width of it), one after the other along it, with no
+    depth across that line in most of the stretch between their facing ends (between two fronts' handles the fronts'
+    surface is measured all across it, but for their gap)."""
     horizontal = [abs(x.axis[0]) >= abs(x.axis[1]) for x in (a, b)]
     along, across = (0, 1) if horizontal[0] else (1, 0)
     if horizontal[0] != horizontal[1] or abs(a.centre[across] - b.centre[across]) > max(a.across_m, b.across_m):
@@ -185,7 +185,7 @@ def _pieces_of_one_bar(view: PlaneView, a: Blob, b: Blob) -> bool:
     first, second = sorted((a, b), key=lambda x: x.centre[along])
     lo, hi = bounds(first, view)[2 * along + 1], bounds(second, view)[2 * along]
     if hi <= lo:
-        return True  # they overlap along the line
+        return False  # side by side along the line: two things, not the pieces of one
     if horizontal[0]:  # the cells of both across the line, the columns between them
         band = slice(int(min(first.rows.min(), second.rows.min())), int(max(first.rows.max(), second.rows.max())) + 1)
         lost = view.no_depth[band, int(view.col(lo)) + 1:int(view.col(hi))].any(axis=0)
