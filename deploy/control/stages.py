@@ -33,7 +33,7 @@ from deploy.control.grasp import (
 )
 from deploy.control.policy import choose_axis, hinge_from_turn, opening, orient_axis, seen_opening
 from deploy.control.scene_clearance import Scene, clear_grasps, scene_tree
-from deploy.control.state import EpisodeState, EpisodeStop, StopReason, display_scale, opening_unit
+from deploy.control.state import EpisodeStop, StopReason, display_scale, opening_unit
 from deploy.control.view import step_log
 from deploy.errors import PartHiddenError, PointerError
 from deploy.geometry.cloud import depth_to_points, points_to_pixels
@@ -336,9 +336,10 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
         chosen = orient_axis(result, _measured_pull(episode, pull), state.p_grasp) \
             if isinstance(result, Axis) else None
         _follow_vision_alone(episode, vision, pull)
-        # a strained pull about the hinge prior: the path followed the prior, the front's turn shows the hinge
-        turned = _hinge_seen_turning(episode, pull) \
-            if strained and not state.estimated and (chosen is None or _on_front_turn(state)) else None
+        # once a step about the hinge prior was blocked across its arc (`_may_go_on_blocked`), the grip's path mostly
+        # followed the prior: while the pulls strain, the front's turn shows the hinge
+        turned = _hinge_seen_turning(episode, pull) if strained and state.prior_blocks and not state.estimated \
+            else None
         state.estimated |= chosen is not None and turned is None
         if turned is not None:
             chosen, source = turned, "front turn"
@@ -355,9 +356,9 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
 
 
 def _hinge_seen_turning(episode: Episode, pull: np.ndarray) -> Axis | None:
-    """A door's hinge prior that a pull strained across its arc (the prior is off, the door went its own way),
-    moved to where the closed front meets the front as the camera sees it turned around the grip now
-    (`hinge_from_turn`); None when the front turned too little to tell, or for a policy acting on vision alone."""
+    """The door's hinge where the closed front meets the front as the camera sees it turned around the grip now
+    (`hinge_from_turn`; the hinge prior gives the closed front's plane); None when the front turned too little to
+    tell, or for a policy acting on vision alone."""
     state, observer = episode.state, episode.observer
     seen, first = observer.latest_view(), observer.first_look
     if seen is None or first is None or state.handle is None or state.axis is None \
@@ -367,12 +368,6 @@ def _hinge_seen_turning(episode: Episode, pull: np.ndarray) -> Axis | None:
     grip = episode.tool()[:3, 3]
     normal = front_normal(observer.points(frame, mask), grip, first.body_box, viewpoint(frame))
     return hinge_from_turn(state.axis.origin, state.handle.center, grip, pull, normal, MIN_SEEN_TURN_DEG)
-
-
-def _on_front_turn(state: EpisodeState) -> bool:
-    """Whether the axis acted on last came from the door front's turn (`_hinge_seen_turning`): the grip's path so far
-    mostly followed the prior's arc, so a fit to it is no better."""
-    return bool(state.estimates) and state.estimates[-1]["source"] == "front turn"
 
 
 def _follow_vision_alone(episode: Episode, vision: AxisResult, pull: np.ndarray) -> None:
