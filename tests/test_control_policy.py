@@ -17,7 +17,7 @@ from deploy.control.grasp import (
     hinge_side_sure,
     pointed_handle,
 )
-from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
+from deploy.control.policy import choose_axis, hinge_from_turn, opening, orient_axis, seen_opening
 from deploy.geometry.clearance import parallel_gripper
 from deploy.geometry.types import Axis, Box, JointType, NoAxis
 from deploy.perception.handle import Handle as PointedHandle
@@ -240,3 +240,35 @@ def test_back_along_path_carries_the_held_point_back_to_where_the_part_started()
     points = back_along_path(drawer, np.array([0.3, 0.0, 0.5]), 0.25, 0.12)
     assert np.allclose(points, [[0.3, 0, 0.5], [0.3 + 0.25 / 3, 0, 0.5], [0.3 + 0.5 / 3, 0, 0.5], [0.55, 0, 0.5]])
     assert back_along_path(None, np.ones(3), 0.25, 0.12) == [pytest.approx(np.ones(3))]
+
+
+def _swung_door(hinge: np.ndarray, grip: np.ndarray, normal: np.ndarray, turn_deg: float, slid_m: float):
+    """A door hinged about the vertical through `hinge` (opening: the grip moves out along `normal`), turned by
+    `turn_deg`: its front's normal then, and where the held grip is after sliding `slid_m` along the pads (the
+    door's width)."""
+    sign = np.sign(np.cross([0.0, 0.0, 1.0], grip - hinge) @ normal)
+    R = Rotation.from_euler("z", sign * turn_deg, degrees=True).as_matrix()
+    lateral = np.cross([0.0, 0.0, 1.0], normal)
+    return R @ normal, hinge + R @ (grip - hinge) + slid_m * (R @ lateral)
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+@pytest.mark.parametrize("turn_deg, slid_m", [(8.0, 0.0), (25.0, 0.04), (40.0, -0.03)])
+def test_a_door_hinge_from_its_front_turn_whatever_the_prior_radius_and_the_grip_slid(side, turn_deg, slid_m):
+    # a 0.3 m door facing -x, the grip 4 cm proud of its front; the prior hinge on the front, on the other side
+    normal, hinge = np.array([-1.0, 0.0, 0.0]), np.array([0.7, 0.3 * side, 0.65])
+    grip = np.array([0.66, 0.0, 0.65])
+    prior = Axis(JointType.REVOLUTE, np.array([0.7, -0.6 * side, 0.65]), np.array([0.0, 0.0, side]), confidence=0.0)
+    turned, grip_now = _swung_door(hinge, grip, normal, turn_deg, slid_m)
+    seen = hinge_from_turn(prior.origin, grip, grip_now, normal, turned, min_turn_deg=5.0)
+    assert seen is not None and seen.joint_type is JointType.REVOLUTE
+    np.testing.assert_allclose(seen.origin[:2], hinge[:2], atol=1e-6)
+    assert opening(seen, grip, grip_now - slid_m * np.cross([0, 0, 1], turned)) == pytest.approx(np.radians(turn_deg))
+
+
+def test_a_front_turned_too_little_places_no_hinge():
+    normal, hinge, grip = np.array([-1.0, 0.0, 0.0]), np.array([0.7, 0.3, 0.65]), np.array([0.66, 0.0, 0.65])
+    on_front = np.array([0.7, -0.3, 0.65])
+    turned, grip_now = _swung_door(hinge, grip, normal, 3.0, 0.0)
+    assert hinge_from_turn(on_front, grip, grip_now, normal, turned, min_turn_deg=5.0) is None
+    assert hinge_from_turn(on_front, grip, grip_now, normal, np.array([0.0, 0.0, 1.0]), min_turn_deg=5.0) is None

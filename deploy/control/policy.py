@@ -37,6 +37,34 @@ def opening(axis: Axis, p_start: np.ndarray, p_now: np.ndarray) -> float:
     return float(np.arctan2(np.cross(a, b) @ d, a @ b))
 
 
+def hinge_from_turn(on_front: np.ndarray, grip_before: np.ndarray, grip_now: np.ndarray, normal_before: np.ndarray,
+                    normal_now: np.ndarray, min_turn_deg: float) -> Axis | None:
+    """A door's hinge from how its front turned: the vertical line where the closed front's plane (through the point
+    `on_front`, normal `normal_before`) meets the turned front's, which keeps the grip's depth in front of it
+    (`grip_before` closed, `grip_now` with the front's normal `normal_now` as the camera sees it around the grip).
+    Both planes hold the hinge, so the line needs no radius and no grip path (a handle may slide along the fingers'
+    pads). Directed so that opening turns the grip out along `normal_before`; None when the front turned less than
+    `min_turn_deg` (the planes meet too far off to tell)."""
+    n0, n1 = _horizontal(normal_before), _horizontal(normal_now)
+    if n0 is None or n1 is None or np.degrees(np.arccos(np.clip(n0 @ n1, -1.0, 1.0))) < min_turn_deg:
+        return None
+    grip_before, grip_now = np.asarray(grip_before, float), np.asarray(grip_now, float)
+    proud = float(n0 @ (grip_before - on_front))  # the grip in front of the hinge's plane
+    A = np.array([n0[:2], n1[:2]])
+    b = np.array([n0 @ on_front, n1 @ grip_now - proud])
+    origin = np.array([*np.linalg.solve(A, b), float(grip_now[2])])
+    up = np.array([0.0, 0.0, 1.0])
+    direction = up if np.cross(up, grip_before - origin) @ n0 >= 0 else -up
+    return Axis(JointType.REVOLUTE, origin, direction, confidence=0.0)
+
+
+def _horizontal(v: np.ndarray) -> np.ndarray | None:
+    """`v` without its vertical part, unit; None when it is vertical."""
+    h = np.array([v[0], v[1], 0.0], float)
+    size = float(np.linalg.norm(h))
+    return h / size if size > 1e-6 else None
+
+
 def choose_axis(
     vision: AxisResult, trajectory: AxisResult, joint: JointType | None, moved: float, config: OpeningConfig,
     strained: bool = False,

@@ -20,6 +20,7 @@ from deploy.control.grasp import (
     Handle,
     back_along_path,
     find_handle,
+    front_normal,
     grasp_pose,
     hinge_prior,
     hinge_side,
@@ -30,7 +31,7 @@ from deploy.control.grasp import (
     protruding_points,
     pull_poses,
 )
-from deploy.control.policy import choose_axis, opening, orient_axis, seen_opening
+from deploy.control.policy import choose_axis, hinge_from_turn, opening, orient_axis, seen_opening
 from deploy.control.scene_clearance import Scene, clear_grasps, scene_tree
 from deploy.control.state import EpisodeStop, StopReason, display_scale, opening_unit
 from deploy.control.view import step_log
@@ -68,6 +69,7 @@ RETREAT_M = 0.05  # re-grasp: back off this far along the approach and come back
 ARM_TOUCH_PX = 100  # the arm's pixels touching the object's on the first frame: it may hide the handle
 CLEAR_VIEW_TURNS_RAD = (0.7, -0.7, 1.2, -1.2)  # first-joint swings tried to take the arm out of the view
 MIN_DOOR_RADIUS_M = 0.1  # the first arc's radius is taken as at least this
+MIN_SEEN_TURN_DEG = 5.0  # a door's front seen turned less than this does not place its hinge (`hinge_from_turn`)
 PLANNED_DOOR_ARCS_DEG = (45.0, 30.0, 15.0)  # a door's pre-grasp is planned for the longest of these arcs it carries
 PLANNED_DOOR_REACH_M = 0.1  # ... or else for this much straight pull
 MIN_PLANNED_PULL_M = 0.05  # straight pulls planned are halved down to this
@@ -85,6 +87,7 @@ DOOR_REGRASP_YAWS_DEG = (45.0, 30.0, 15.0)  # a door's arc out of reach: its han
 # turned back toward the robot by the first of these (at most the door's turn so far) that keeps clear of the scene
 # and of the door and that the arm carries
 MAX_TURNED_REGRASPS = 2
+MAX_PRIOR_BLOCKS = 1  # a door's step blocked across its arc about the hinge prior goes on this often
 SAME_GRASP_M, SAME_GRASP_RAD = 0.02, GRASP_PITCH_RAD / 2  # a grasp this near one the scene clearance passed is
 # that one (half the turn between its tilted and level grasps)
 FOLLOW_CHECK_M = 0.1  # a drawer carried this far has left its place where the user pointed (depth noise at 1.5 m is
@@ -333,8 +336,14 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
         chosen = orient_axis(result, _measured_pull(episode, pull), state.p_grasp) \
             if isinstance(result, Axis) else None
         _follow_vision_alone(episode, vision, pull)
-        state.estimated |= chosen is not None
-        if chosen is None:
+        # once a step about the hinge prior was blocked across its arc (`_may_go_on_blocked`), the grip's path mostly
+        # followed the prior: while the pulls strain, the front's turn shows the hinge
+        turned = _hinge_seen_turning(episode, pull) if strained and state.prior_blocks and not state.estimated \
+            else None
+        state.estimated |= chosen is not None and turned is None
+        if turned is not None:
+            chosen, source = turned, "front turn"
+        elif chosen is None:
             chosen = state.axis if state.axis is not None else Axis(JointType.PRISMATIC, state.p_grasp, pull,
                                                                     confidence=0.0)
             source = f"prior ({source})"
@@ -344,6 +353,21 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
     _log_estimate(episode, chosen, source)
     state.timings["estimate_s"] += time.perf_counter() - clock
     return chosen, source
+
+
+def _hinge_seen_turning(episode: Episode, pull: np.ndarray) -> Axis | None:
+    """The door's hinge where the closed front meets the front as the camera sees it turned around the grip now
+    (`hinge_from_turn`; the hinge prior gives the closed front's plane); None when the front turned too little to
+    tell, or for a policy acting on vision alone."""
+    state, observer = episode.state, episode.observer
+    seen, first = observer.latest_view(), observer.first_look
+    if seen is None or first is None or state.handle is None or state.axis is None \
+            or state.axis.joint_type is not JointType.REVOLUTE or episode.config.opening.acting_fusion == "vision":
+        return None
+    frame, mask = seen
+    grip = episode.tool()[:3, 3]
+    normal = front_normal(observer.points(frame, mask), grip, first.body_box, viewpoint(frame))
+    return hinge_from_turn(state.axis.origin, state.handle.center, grip, pull, normal, MIN_SEEN_TURN_DEG)
 
 
 def _follow_vision_alone(episode: Episode, vision: AxisResult, pull: np.ndarray) -> None:
@@ -381,6 +405,25 @@ def step(episode: Episode, axis: Axis, source: str) -> None:
         if not _may_turn_back(episode, axis):
             raise
         regrasp_turned(episode, axis, out_of_reach)
+    except EpisodeStop as stop:
+        if stop.reason is not StopReason.BLOCKED or not _may_go_on_blocked(episode, axis):
+            raise
+
+
+def _may_go_on_blocked(episode: Episode, axis: Axis) -> bool:
+    """Whether a door's step that ended blocked may go on: it followed the hinge prior (no estimate acted on yet),
+    the door pressed across its arc (`force_cue_n` or more: it went its own way, the prior is off), the gripper
+    still holds it, few such steps went on (MAX_PRIOR_BLOCKS) and the front turned enough to place the hinge
+    (`_hinge_seen_turning`), which the next estimate then acts on."""
+    state = episode.state
+    if axis.joint_type is not JointType.REVOLUTE or state.estimated or state.prior_blocks >= MAX_PRIOR_BLOCKS \
+            or state.across_force_n < episode.config.opening.force_cue_n or not episode.gripping() \
+            or state.handle is None or _hinge_seen_turning(episode, state.handle.normal) is None:
+        return False
+    state.prior_blocks += 1
+    step_log.info("step %d blocked %.0f N across its arc about the hinge prior: the front turned otherwise, going on "
+                  "about the hinge its turn shows", state.steps - 1, state.across_force_n)
+    return True
 
 
 def _may_turn_back(episode: Episode, axis: Axis) -> bool:

@@ -60,6 +60,7 @@ class EpisodeState:
     steps: int = 0
     regrasped: bool = False
     turned_regrasps: int = 0  # a door's handle held again with the hand turned back toward the robot
+    prior_blocks: int = 0  # a door's steps blocked across their arc about the hinge prior that went on
     followed: bool = False  # the camera saw the pointed drawer leave its place (`stages._check_followed`)
     peak_pull_force_n: float = 0.0  # the largest force the tool applied while pulling (N, joint torques)
     across_force_n: float = 0.0  # the last pull's largest force across its path (N): its axis was off
