@@ -90,6 +90,8 @@ MAX_TURNED_REGRASPS = 2
 MAX_PRIOR_BLOCKS = 1  # a door's step blocked across its arc about the hinge prior goes on this often
 SAME_GRASP_M, SAME_GRASP_RAD = 0.02, GRASP_PITCH_RAD / 2  # a grasp this near one the scene clearance passed is
 # that one (half the turn between its tilted and level grasps)
+MAX_RESEATS = 2  # a drawer's pull out of the arm's reach: the arm takes the handle again from another configuration
+# at most this often
 FOLLOW_CHECK_M = 0.1  # a drawer carried this far has left its place where the user pointed (depth noise at 1.5 m is
 # a third of it)
 
@@ -272,7 +274,7 @@ def first_pull(episode: Episode, handle: Handle) -> None:
             _pull(episode, door_arc(episode.tool(), state.axis, handle.found), length / _door_radius(episode),
                   "first pull", episode.arc_limits())
     else:
-        _pull(episode, line_path(episode.tool(), handle.normal), length, "first pull")
+        _drawer_pull(episode, handle.normal, length, "first pull")
 
 
 def _moved_side(episode: Episode, handle: Handle, pulled_m: float) -> float:
@@ -325,12 +327,8 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
         chosen, source = (state.axis, "fixed") if state.estimated else _estimate_once(episode, pull)
         state.estimated = True
     else:
-        poses = np.array(state.measured)
         joint = state.joint or (vision.joint_type if isinstance(vision, Axis) else None)
-        # A parallel gripper's fingers let the handle turn in them, so its own turn is not the door's: a hinge is
-        # fitted to the grip point's path alone (the turn still helps tell a hinge from a slide).
-        turns = None if joint is JointType.REVOLUTE else Rotation.from_matrix(poses[:, :3, :3]).as_quat()
-        trajectory = fit_trajectory(poses[:, :3, 3], turns, joint)
+        trajectory = _grip_path_axis(np.array(state.measured), joint)
         strained = state.across_force_n >= episode.config.opening.force_cue_n
         result, source = choose_axis(vision, trajectory, state.joint, state.opened, episode.config.opening, strained)
         chosen = orient_axis(result, _measured_pull(episode, pull), state.p_grasp) \
@@ -370,6 +368,16 @@ def _hinge_seen_turning(episode: Episode, pull: np.ndarray) -> Axis | None:
     return hinge_from_turn(state.axis.origin, state.handle.center, grip, pull, normal, MIN_SEEN_TURN_DEG)
 
 
+def _grip_path_axis(poses: np.ndarray, joint: JointType | None) -> AxisResult:
+    """The axis fitted to the tool poses measured while pulling (NoAxis before any pull was measured: the first one
+    ran out of reach). A parallel gripper's fingers let the handle turn in them, so its own turn is not the door's: a
+    hinge is fitted to the grip point's path alone (the turn still helps tell a hinge from a slide)."""
+    if len(poses) == 0:
+        return NoAxis("no pull measured yet")
+    turns = None if joint is JointType.REVOLUTE else Rotation.from_matrix(poses[:, :3, :3]).as_quat()
+    return fit_trajectory(poses[:, :3, 3], turns, joint)
+
+
 def _follow_vision_alone(episode: Episode, vision: AxisResult, pull: np.ndarray) -> None:
     """Keep what the loop would act on with vision alone (fusion "vision"), to measure the other cues against."""
     state = episode.state
@@ -399,6 +407,9 @@ def step(episode: Episode, axis: Axis, source: str) -> None:
         raise EpisodeStop(StopReason.TIMEOUT, f"{cfg.timeout_s:.0f} s of arm time used, opened "
                           f"{_shown(episode, state.opened):.3f}")
     path, length, limits = _step_path(episode, axis)
+    if axis.joint_type is JointType.PRISMATIC:
+        _drawer_pull(episode, axis.direction, length, f"step {state.steps}: {source}", step=True)
+        return
     try:
         _pull(episode, path, length, f"step {state.steps}: {source}", limits, step=True)
     except IKError as out_of_reach:
@@ -433,6 +444,52 @@ def _may_turn_back(episode: Episode, axis: Axis) -> bool:
     return (axis.joint_type is JointType.REVOLUTE and not episode.policy.straight_door(axis.joint_type)
             and state.handle is not None and _turns_with_door(episode.tool(), axis, state.handle.found)
             and episode.gripping() and state.turned_regrasps < MAX_TURNED_REGRASPS)
+
+
+def _drawer_pull(episode: Episode, direction: np.ndarray, length: float, label: str, step: bool = False) -> None:
+    """A straight pull along `direction` (a drawer's axis, or the front normal before any); when it runs out of the
+    arm's reach with the gripper holding the handle, the arm takes the handle again from a configuration that carries
+    the rest of the pull (`reseat`)."""
+    try:
+        _pull(episode, line_path(episode.tool(), direction), length, label, episode.line_limits(), step)
+    except IKError as out_of_reach:
+        state = episode.state
+        if state.joint_type() is not JointType.PRISMATIC or not episode.gripping() or state.reseats >= MAX_RESEATS:
+            raise
+        reseat(episode, direction, out_of_reach)
+
+
+def reseat(episode: Episode, direction: np.ndarray, out_of_reach: IKError) -> None:
+    """The drawer's pull along `direction` ran out of the arm's reach (`out_of_reach`, a joint at its limit or a
+    singularity): count the travel so far, open, back off along the approach, move to the pre-grasp joints that carry
+    the rest of the pull from the same grasp (`pregrasp_configuration`), come back and close; later travel counts
+    from the new grip. EpisodeStop("ik infeasible") when no configuration carries the rest."""
+    arm, kin, state = episode.arm, episode.kin, episode.state
+    T_hold = episode.tool()
+    state.opened = state.opened_before + max(0.0, float((T_hold[:3, 3] - state.p_grasp) @ direction))
+    rest = max(episode.target() + OVERSHOOT[JointType.PRISMATIC] - state.opened, GOAL_TOLERANCE[JointType.PRISMATIC])
+    try:
+        q = pregrasp_configuration(kin, arm.state().q, T_hold, _line_pulls(T_hold, direction, rest), RETREAT_M)
+    except IKError:
+        reach = float(np.linalg.norm(T_hold[:2, 3]))
+        raise EpisodeStop(StopReason.IK_INFEASIBLE, f"{out_of_reach}; at {state.opened:.3f} m the drawer's handle is "
+                          f"{reach:.2f} m from the arm's base axis and no arm configuration carries the rest of the "
+                          "pull from there: stand the robot farther from the cabinet or ask for a shorter opening"
+                          ) from out_of_reach
+    step_log.info("the pull is out of reach at %.3f m (%s): taking the handle again from another arm configuration",
+                  state.opened, out_of_reach)
+    arm.set_gripper(state.open_width_m)
+    episode.wait(CLOSE_TIME_S)
+    follow_cartesian_path(arm, kin, line_path(T_hold, -T_hold[:3, 2]), RETREAT_M, episode.line_limits(),
+                          episode.show_arm)
+    move_to_joints(arm, q, episode.joint_limits, episode.show_arm)
+    episode.wait(SETTLE_S)
+    T = episode.tool()
+    follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), RETREAT_M, episode.line_limits(), episode.show_arm)
+    _close_and_check(episode, state.open_width_m, StopReason.GRASP_LOST, "re-grasp after the pull ran out of reach "
+                     "failed: ")
+    state.reseats += 1
+    state.opened_before, state.p_grasp = state.opened, episode.tool()[:3, 3]
 
 
 def regrasp_turned(episode: Episode, axis: Axis, out_of_reach: IKError) -> None:
@@ -708,8 +765,15 @@ def _planned_pulls(episode: Episode, handle: Handle, T_grasp: np.ndarray) -> lis
                   for arc in PLANNED_DOOR_ARCS_DEG]
     length = PLANNED_DOOR_REACH_M if revolute else \
         episode.config.opening.target_distance_m + OVERSHOOT[JointType.PRISMATIC]
+    return pulls + _line_pulls(T_grasp, handle.normal, length)
+
+
+def _line_pulls(T_grasp: np.ndarray, direction: np.ndarray, length: float) -> list[list[np.ndarray]]:
+    """Straight pulls from the grasp pose along `direction`, `length` and halves of it down to MIN_PLANNED_PULL_M (or
+    `length` alone when shorter), each as tool poses every PLANNED_LINE_STEP_M."""
+    pulls = []
     while True:
-        pulls.append(pull_poses(line_path(T_grasp, handle.normal), length, PLANNED_LINE_STEP_M))
+        pulls.append(pull_poses(line_path(T_grasp, direction), length, PLANNED_LINE_STEP_M))
         if length <= MIN_PLANNED_PULL_M:
             return pulls
         length /= 2

@@ -59,6 +59,7 @@ class EpisodeState:
     open_width_m: float = 0.0
     steps: int = 0
     regrasped: bool = False
+    reseats: int = 0  # a drawer's handle taken again from another arm configuration (its pull out of reach)
     turned_regrasps: int = 0  # a door's handle held again with the hand turned back toward the robot
     prior_blocks: int = 0  # a door's steps blocked across their arc about the hinge prior that went on
     followed: bool = False  # the camera saw the pointed drawer leave its place (`stages._check_followed`)
