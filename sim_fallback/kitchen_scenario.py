@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from drivers.arm.robots import PANDA_REACH, Reach
 from sim_fallback.errors import PartError, SceneError
@@ -19,11 +20,13 @@ from sim_fallback.layout import Layout, Placed, StaticShape
 from sim_fallback.parts import ordered, resolve
 from sim_fallback.placement import (
     BASE_HEIGHT_M,
+    CLEARANCE_M,
     STAND_HALF_M,
     CameraMount,
     Obstacle,
     arm_at_start,
     base_heights,
+    overlap,
     park_robot,
     place_camera,
 )
@@ -32,6 +35,10 @@ from sim_fallback.unit_families import Split, random_look
 
 ATTEMPTS = 30  # kitchens drawn for one seed until the target has a reachable part as asked
 OPENED = {"drawer": 0.3, "door": float(np.radians(45.0))}  # the grip stays in view opened this far
+PARKINGS = 20  # robot parkings drawn until the part opens as asked clear of the robot
+ARM_COLUMN_M = 0.35  # the arm's base and shoulder stand this high above its base plate (the Panda's shoulder: 0.333 m)
+ARM_BASE_HALF_M = 0.11  # and this far either side of its axis (the Panda's base: about 0.2 m across)
+SWEEP_STEPS = 10  # the part's openings checked against the robot, from closed to the task's
 GRIP_BAND_M = 0.4  # a front no mount sees whole (a tall door) need only be seen this far above and below its grip
 STAND = Finish("painted", (0.25, 0.25, 0.27), 0.3, 0)
 SPLITS, KINDS = ("train", "test"), ("drawer", "door")
@@ -90,7 +97,7 @@ class KitchenScenario:
             room = random_room(furniture, role, split, look, rng, source)
             try:
                 chosen = _choose_part(room, task, part, rng, reach, opening)
-                return _park(cls, task, seed, split, room, chosen, condition, reach)
+                return _park(cls, task, seed, split, room, chosen, condition, reach, opening)
             except PartError as exc:
                 if target is not None:  # another kitchen would not change its parts nor their heights
                     raise
@@ -162,8 +169,10 @@ def _reach(placed: Placed, parts: list[PartGeometry], task: str, reach: Reach) -
 
 
 def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, room: Room, part: PartGeometry,
-          condition: Condition, reach: Reach) -> KitchenScenario:
-    """The robot parked in front of `part` (its grip in `reach`), the camera placed, all in the robot base frame."""
+          condition: Condition, reach: Reach, opening: float) -> KitchenScenario:
+    """The robot parked in front of `part` (its grip in `reach`) where the part opens to `opening` (m or rad)
+    without passing through the robot's stand or arm column, as a user parks it; the camera placed; all in the
+    robot base frame."""
     rng = np.random.default_rng([SPLITS.index(split), KINDS.index(task), seed, 3])
     placed = room.furniture[room.target]
     T_room = placed.T
@@ -171,13 +180,19 @@ def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, r
     normal = T_room[:3, :3] @ part.normal
     others = [p.footprint() for k, p in enumerate(room.furniture) if k != room.target]
     others += [s.footprint() for s in room.statics if s.name != "floor"]  # walls too: a corner's side wall
-    try:
-        T = park_robot(grip, normal, task, others, rng, reach)
-    except ValueError as exc:
-        raise SceneError(f"{placed.furniture.source}, {part.name}: {exc}") from None
     lo, hi = base_heights(_grip_height(placed, part), task, reach)  # type: ignore[misc]
-    height = float(rng.uniform(lo, hi))
-    T[2, 3] = -height
+    for _ in range(PARKINGS):
+        try:
+            T = park_robot(grip, normal, task, others, rng, reach)
+        except ValueError as exc:
+            raise SceneError(f"{placed.furniture.source}, {part.name}: {exc}") from None
+        height = float(rng.uniform(lo, hi))
+        T[2, 3] = -height
+        if not meets_robot(part, T @ T_room, height, opening):
+            break
+    else:
+        raise SceneError(f"{placed.furniture.source}, {part.name}: no parking spot in reach lets it open clear of "
+                         "the robot's stand and arm; give another seed")
     layout = Layout(tuple(room.furniture), tuple(room.statics), room.target, part.name).moved(T)
     if height > 0.01:
         stand = StaticShape("robot stand", "box", (2 * STAND_HALF_M, 2 * STAND_HALF_M, height - 0.002),
@@ -185,6 +200,37 @@ def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, r
         layout = Layout(layout.furniture, (*layout.statics, stand), layout.target, layout.part)
     camera = _camera(layout, part, T @ T_room, -height, task, rng, arm_at_start(reach, task))
     return cls(task, seed, split, layout, height, camera, random_start(rng), condition)
+
+
+def meets_robot(part: PartGeometry, T_base_furniture: np.ndarray, base_height: float, opening: float) -> bool:
+    """Whether `part` (its furniture at `T_base_furniture`), opened from closed to `opening` (m or rad), passes
+    through the robot's stand (a square STAND_HALF_M across under the base plate, `base_height` down to the floor)
+    or its arm's column (ARM_BASE_HALF_M across, ARM_COLUMN_M up from the base plate), where no arm posture gives
+    way."""
+    for corners in swept_boxes(part, opening):
+        c = corners @ T_base_furniture[:3, :3].T + T_base_furniture[:3, 3]
+        footprint = c[[0, 2, 6, 4], :2]
+        for half, low, high in ((STAND_HALF_M, -base_height, 0.0), (ARM_BASE_HALF_M, 0.0, ARM_COLUMN_M)):
+            square = (half - CLEARANCE_M) * np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, -1.0], [-1.0, 1.0]])
+            if c[:, 2].min() < high and c[:, 2].max() > low and overlap(footprint, square):  # touching, not near
+                return True
+    return False
+
+
+def swept_boxes(part: PartGeometry, opening: float) -> list[np.ndarray]:
+    """The part's box corners (furniture frame, `PartGeometry.corners` order) at SWEEP_STEPS openings from closed to
+    `opening`: a drawer slid out along its normal; a door turned outward about the back of its vertical edge farthest
+    from its grip (its hinge)."""
+    corners = part.corners()
+    if part.kind == "drawer":
+        return [corners + s * part.normal for s in np.linspace(0.0, opening, SWEEP_STEPS)]
+    sideways = np.cross([0.0, 0.0, 1.0], part.normal)
+    lateral, grip = corners @ sideways, part.grip @ sideways
+    edge = max((lateral.min(), lateral.max()), key=lambda e: abs(grip - e))
+    pivot = edge * sideways + (corners @ part.normal).min() * part.normal
+    turn = -np.sign(grip - edge)  # the grip moves out along the normal
+    return [(corners - pivot) @ Rotation.from_rotvec([0.0, 0.0, turn * a]).as_matrix().T + pivot
+            for a in np.linspace(0.0, opening, SWEEP_STEPS)]
 
 
 def _camera(layout: Layout, part: PartGeometry, T_base_furniture: np.ndarray, floor_z: float, task: PartKind,

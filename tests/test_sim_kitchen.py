@@ -125,6 +125,22 @@ def test_the_robot_stands_clear_of_every_wall():
             assert not any(overlap(stand, w.footprint()) for w in walls), (task, seed)
 
 
+def test_a_door_opens_to_its_target_clear_of_the_robots_stand_and_base():
+    """A user parks the robot where the door can open as asked: these doors (test 33, 80 at 45 deg) swung into the
+    robot's stand from 30-32 deg, where no arm posture could help."""
+    for seed in (33, 80):
+        target = np.radians(45.0)
+        scenario = make_scenario("kitchen", "door", seed, "test", opening=target)
+        with SimWorld(scenario) as world:
+            c, body, joint = world.client, world.cabinet_id, world.cabinet_joint
+            for angle in np.linspace(0.0, target, 10):
+                pb.resetJointState(body, joint, float(angle), physicsClientId=c)
+                stand = len(scenario.kitchen.statics) - 2  # the stand is the last shape, a link of the statics body
+                assert scenario.kitchen.statics[-1].name == "robot stand"
+                assert not pb.getClosestPoints(body, world.statics_id, 0.0, joint, stand, physicsClientId=c), seed
+                assert not world.sweep_hits_robot_base(float(angle)), seed
+
+
 def test_no_part_of_the_target_starts_inside_the_room():
     """A side wall stands beyond a tall unit at the run's end, and the countertop ends at its side: neither passes
     through the target (these seeds had a drawer in a wall, or a door kicked open by it at the first step)."""
