@@ -47,3 +47,11 @@ def door_plane(handle: Handle, centre: np.ndarray, axis: Axis, opened_rad: float
     normal = door_turn(axis, opened_rad).apply(handle.normal)
     normal /= np.linalg.norm(normal)
     return np.asarray(centre, float) - relief_m * normal, normal
+
+
+def opening_direction(axis: Axis, point: np.ndarray) -> np.ndarray:
+    """The unit direction `point`, carried by the door, moves in as the door opens about the (oriented) hinge."""
+    d = np.asarray(axis.direction, float)
+    moving = np.cross(d / np.linalg.norm(d), np.asarray(point, float) - np.asarray(axis.origin, float))
+    return moving / np.linalg.norm(moving)
+
