@@ -55,3 +55,11 @@ def opening_direction(axis: Axis, point: np.ndarray) -> np.ndarray:
     moving = np.cross(d / np.linalg.norm(d), np.asarray(point, float) - np.asarray(axis.origin, float))
     return moving / np.linalg.norm(moving)
 
+
+
+def closing_push_n(opening_n: float, closing_n: float) -> float:
+    """The force (N) a door pushes its handle toward closed with by itself (a self-closing hinge's spring), from the
+    force the hand applies along the door's opening direction while it carries the door open and while it eases it
+    back toward closed, as slowly: the door's friction adds to the first what it takes from the second, so their
+    mean is the push alone (none for a door that stays where it is left)."""
+    return (opening_n + closing_n) / 2.0
