@@ -90,6 +90,8 @@ SELF_CLOSING_PROBE_RAD = float(np.radians(3.0))  # before letting a door go, the
 # closed and carries it open again, feeling whether it pushes toward closed by itself
 SELF_CLOSING_N = 2.0  # a door pushing its handle toward closed harder than this (four times the wrench's noise at
 # rest) is self-closing: let go, it swings shut
+HELD_SWING_SPEED_SHARE = 0.25  # the door's probe and a swing about a held handle move at this share of the arc's
+# speed: the arm's own inertia stays out of the force felt, and the admittance keeps up with a pivot off the grip
 SAME_GRASP_M, SAME_GRASP_RAD = 0.02, GRASP_PITCH_RAD / 2  # a grasp this near one the scene clearance passed is
 # that one (half the turn between its tilted and level grasps)
 FOLLOW_CHECK_M = 0.1  # a drawer carried this far has left its place where the user pointed (depth noise at 1.5 m is
@@ -447,8 +449,9 @@ def _closing_push(episode: Episode, axis: Axis) -> tuple[float, float] | None:
 
 def _force_along_arc(episode: Episode, axis: Axis, sign: float) -> float | None:
     """The mean force (N) the hand applies along the door's opening direction while it carries the door
-    SELF_CLOSING_PROBE_RAD along its arc (`sign` 1: open, -1: toward closed) at the arc's speed, compliant as a pull
-    is; the motion's first third (the filter settling, the start) not counted. None without measured torques."""
+    SELF_CLOSING_PROBE_RAD along its arc (`sign` 1: open, -1: toward closed), slowly (`_slow_arc`) and compliant as
+    a pull is, over the whole motion (the arm's inertia speeding up and slowing down cancels). None without measured
+    torques."""
     arm, kin, handle = episode.arm, episode.kin, episode.state.handle
     compliance = episode.compliance.with_force_limit(episode.config.opening.pull_force_limit_n)
     wrench = WrenchEstimator(kin, compliance.filter_time_constant_s, compliance.torque_offset)
@@ -464,11 +467,17 @@ def _force_along_arc(episode: Episode, axis: Axis, sign: float) -> float | None:
     path = door_arc(episode.tool(), replace(axis, direction=sign * np.asarray(axis.direction)), handle.found)
     arm.set_compliance(True)
     try:
-        follow_cartesian_path(arm, kin, path, SELF_CLOSING_PROBE_RAD, episode.arc_limits(), on_tick,
+        follow_cartesian_path(arm, kin, path, SELF_CLOSING_PROBE_RAD, _slow_arc(episode), on_tick,
                               compliance=compliance)
     finally:
         arm.set_compliance(False)
-    return float(np.mean(along[len(along) // 3:])) if along else None
+    return float(np.mean(along)) if along else None
+
+
+def _slow_arc(episode: Episode) -> MotionLimits:
+    """The arc's limits at HELD_SWING_SPEED_SHARE of its speed (and of its acceleration and jerk)."""
+    limits = episode.arc_limits()
+    return MotionLimits(*(HELD_SWING_SPEED_SHARE * np.asarray(x) for x in (limits.v_max, limits.a_max, limits.j_max)))
 
 
 def _swing_held(episode: Episode, swing: Callable[[np.ndarray], PathFn], yaw: float, push_n: float) -> None:
@@ -480,7 +489,7 @@ def _swing_held(episode: Episode, swing: Callable[[np.ndarray], PathFn], yaw: fl
     episode.view.grasp(episode.now(), swing(T)(yaw))
     arm.set_compliance(True)
     try:
-        result = follow_cartesian_path(arm, kin, swing(T), yaw, episode.arc_limits(), episode.show_arm,
+        result = follow_cartesian_path(arm, kin, swing(T), yaw, _slow_arc(episode), episode.show_arm,
                                        compliance=episode.compliance.with_force_limit(
                                            episode.config.opening.pull_force_limit_n))
     finally:
