@@ -474,6 +474,13 @@ def _force_along_arc(episode: Episode, axis: Axis, sign: float) -> float | None:
     return float(np.mean(along)) if along else None
 
 
+def _held_swing_limit(episode: Episode) -> float | None:
+    """The force bound of a swing about a held handle: a pull's, plus the grip's squeeze, which moves onto one finger
+    as the pads turn about the handle (the arm then feels it across the fingers, as in `_centre_on_handle`)."""
+    limit = episode.config.opening.pull_force_limit_n
+    return None if limit is None else limit + episode.grip_force_n
+
+
 def _slow_arc(episode: Episode) -> MotionLimits:
     """The arc's limits at HELD_SWING_SPEED_SHARE of its speed (and of its acceleration and jerk)."""
     limits = episode.arc_limits()
@@ -481,17 +488,17 @@ def _slow_arc(episode: Episode) -> MotionLimits:
 
 
 def _swing_held(episode: Episode, swing: Callable[[np.ndarray], PathFn], yaw: float, push_n: float) -> None:
-    """Swing the hand back by `yaw` about the handle's vertical line still closed on it, compliant and force-bounded
-    as a pull is: a round bar or knob turns between the pads. EpisodeStop("ik infeasible") when the swing stops
-    short (the handle does not turn in the fingers) or the grip slips: the door stays held where it stands."""
+    """Swing the hand back by `yaw` about the handle's vertical line still closed on it, slowly, compliant and
+    force-bounded (`_held_swing_limit`): a round bar turns between the pads. EpisodeStop("ik infeasible") when the
+    swing stops short (the handle does not turn in the fingers) or the grip slips: the door stays held where it
+    stands."""
     arm, kin, state = episode.arm, episode.kin, episode.state
     T = episode.tool()
     episode.view.grasp(episode.now(), swing(T)(yaw))
     arm.set_compliance(True)
     try:
         result = follow_cartesian_path(arm, kin, swing(T), yaw, _slow_arc(episode), episode.show_arm,
-                                       compliance=episode.compliance.with_force_limit(
-                                           episode.config.opening.pull_force_limit_n))
+                                       compliance=episode.compliance.with_force_limit(_held_swing_limit(episode)))
     finally:
         arm.set_compliance(False)
     if result.outcome is not Outcome.COMPLETED or not episode.gripping():
