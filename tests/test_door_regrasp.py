@@ -6,7 +6,7 @@ import pytest
 
 import deploy.control.stages as stages
 from deploy.bench.open import simulate_episode
-from deploy.control.door_regrasp import door_plane, held_as, held_centre
+from deploy.control.door_regrasp import closing_push_n, door_plane, held_as, held_centre, opening_direction
 from deploy.control.grasp import Handle, grasp_pose
 from deploy.control.state import StopReason
 from deploy.geometry.types import Axis, JointType
@@ -21,6 +21,9 @@ OPENED = np.radians(60.0)
 # Test kitchen door 15 (70 deg): a knob whose arc, the hand turning with the door, runs the elbow (joint 4) onto its
 # speed limit at 68 deg.
 FAR_ARC_SEED = 15
+# Test kitchen door 93 (70 deg): a vertical bar on a self-closing hinge whose arc runs out of reach at 67 deg; let go
+# for the turned re-grasp, it swings shut.
+SPRING_SEED = 93
 
 
 def _yaw_deg(a: np.ndarray, b: np.ndarray) -> float:
@@ -64,6 +67,22 @@ def test_the_doors_plane_stands_turned_the_handles_relief_behind_its_grip_centre
     assert (centre - origin) @ normal == pytest.approx(0.04)
 
 
+@pytest.mark.parametrize("opened", [0.0, OPENED])
+def test_the_handle_of_a_door_opening_toward_the_robot_moves_along_the_doors_outward_normal(opened):
+    turn = arc_path(np.eye(4), HINGE.origin, HINGE.direction)(opened)
+    centre = turn[:3, :3] @ (HANDLE.center - HINGE.origin) + HINGE.origin
+    moving = opening_direction(HINGE, centre)
+    assert np.linalg.norm(moving) == pytest.approx(1.0)
+    assert moving @ (centre - HINGE.origin) == pytest.approx(0.0, abs=1e-9)  # across the lever, on the arc
+    assert moving @ (turn[:3, :3] @ NORMAL) > np.cos(np.radians(5.0))  # the grip centre is 2 cm off the hinge's plane
+
+
+@pytest.mark.parametrize("push_n, friction_n", [(8.0, 3.0), (0.0, 2.5), (2.0, 5.0)])
+def test_friction_cancels_between_carrying_the_door_open_and_easing_it_closed(push_n, friction_n):
+    # the hand holds the door back against its push and works against friction opening it, is helped closing it
+    assert closing_push_n(push_n + friction_n, push_n - friction_n) == pytest.approx(push_n)
+
+
 def test_a_door_arc_out_of_reach_goes_on_from_a_grasp_turned_back():
     result = simulate_episode("door", FAR_ARC_SEED, split="test", target=70.0)
     assert result["success"], result["message"]
@@ -75,3 +94,8 @@ def test_without_turning_back_that_arc_ends_out_of_reach(monkeypatch):
     # the scenario does need the re-grasp: the test above is not vacuous
     assert result["stop_reason"] == StopReason.IK_INFEASIBLE
     assert "panda_joint4" in result["message"]
+
+
+def test_a_self_closing_door_stays_held_while_the_hand_turns_back_about_its_bar():
+    result = simulate_episode("door", SPRING_SEED, split="test", target=70.0)
+    assert result["success"], result["message"]

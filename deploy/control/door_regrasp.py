@@ -47,3 +47,19 @@ def door_plane(handle: Handle, centre: np.ndarray, axis: Axis, opened_rad: float
     normal = door_turn(axis, opened_rad).apply(handle.normal)
     normal /= np.linalg.norm(normal)
     return np.asarray(centre, float) - relief_m * normal, normal
+
+
+def opening_direction(axis: Axis, point: np.ndarray) -> np.ndarray:
+    """The unit direction `point`, carried by the door, moves in as the door opens about the (oriented) hinge."""
+    d = np.asarray(axis.direction, float)
+    moving = np.cross(d / np.linalg.norm(d), np.asarray(point, float) - np.asarray(axis.origin, float))
+    return moving / np.linalg.norm(moving)
+
+
+
+def closing_push_n(opening_n: float, closing_n: float) -> float:
+    """The force (N) a door pushes its handle toward closed with by itself (a self-closing hinge's spring), from the
+    force the hand applies along the door's opening direction while it carries the door open and while it eases it
+    back toward closed, as slowly: the door's friction adds to the first what it takes from the second, so their
+    mean is the push alone (none for a door that stays where it is left)."""
+    return (opening_n + closing_n) / 2.0

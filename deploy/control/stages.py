@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 from deploy.axis_pipeline import viewpoint
 from deploy.control.classify import classify_joint, front_shift_m, front_turn_deg
 from deploy.control.context import MIN_GRASP_WIDTH_M, SETTLE_S, Episode
-from deploy.control.door_regrasp import door_plane, held_as, held_centre
+from deploy.control.door_regrasp import closing_push_n, door_plane, held_as, held_centre, opening_direction
 from deploy.control.grasp import (
     REGRASP_RADIUS_M,
     Handle,
@@ -41,6 +41,7 @@ from deploy.geometry.estimators.trajectory import fit_trajectory
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 from deploy.perception.base import Pointer
 from deploy.perception.pointing import point_at
+from drivers.arm.base import ArmState
 from drivers.arm.grasping import GRASP_PITCH_RAD
 from drivers.arm.motion import (
     Outcome,
@@ -88,6 +89,12 @@ DOOR_REGRASP_YAWS_DEG = (45.0, 30.0, 15.0)  # a door's arc out of reach: its han
 # and of the door and that the arm carries
 MAX_TURNED_REGRASPS = 2
 MAX_PRIOR_BLOCKS = 1  # a door's step blocked across its arc about the hinge prior goes on this often
+SELF_CLOSING_PROBE_RAD = float(np.radians(3.0))  # before letting a door go, the hand eases it this far back toward
+# closed and carries it open again, feeling whether it pushes toward closed by itself
+SELF_CLOSING_N = 2.0  # a door pushing its handle toward closed harder than this (four times the wrench's noise at
+# rest) is self-closing: let go, it swings shut
+HELD_SWING_SPEED_SHARE = 0.25  # the door's probe and a swing about a held handle move at this share of the arc's
+# speed: the arm's own inertia stays out of the force felt, and the admittance keeps up with a pivot off the grip
 SAME_GRASP_M, SAME_GRASP_RAD = 0.02, GRASP_PITCH_RAD / 2  # a grasp this near one the scene clearance passed is
 # that one (half the turn between its tilted and level grasps)
 MAX_RESEATS = 2  # a drawer's pull out of the arm's reach: the arm takes the handle again from another configuration
@@ -493,12 +500,14 @@ def reseat(episode: Episode, direction: np.ndarray, out_of_reach: IKError) -> No
 
 
 def regrasp_turned(episode: Episode, axis: Axis, out_of_reach: IKError) -> None:
-    """The door's arc runs out of the arm's reach (`out_of_reach`) with the hand turned with the door: open, swing the
-    hand back toward the robot about the vertical line through the handle's grip centre (`_turned_grasp`; the handle
-    stays between the open fingers, about its own vertical line) and close, then count the opening from the new
-    grip. EpisodeStop("ik infeasible") when no such swing keeps clear of the scene and the door and carries the rest
-    of the arc."""
-    arm, kin, state = episode.arm, episode.kin, episode.state
+    """The door's arc runs out of the arm's reach (`out_of_reach`) with the hand turned with the door: swing the hand
+    back toward the robot about the vertical line through the handle's grip centre (`_turned_grasp`) and count the
+    opening from the new grip. A door that stays where it is left is let go for the swing (the handle stays between
+    the open fingers) and held again after it; a self-closing one (`_closing_push`) stays held, the handle turning
+    between the fingers (`_swing_held`). EpisodeStop("ik infeasible") when no such swing keeps clear of the scene
+    and the door and carries the rest of the arc, or when a self-closing door's handle does not turn in the
+    fingers."""
+    arm, state = episode.arm, episode.state
     plan = _turned_grasp(episode, axis)
     if plan is None:
         raise EpisodeStop(StopReason.IK_INFEASIBLE, f"{out_of_reach}; at {_shown(episode, state.opened):.0f} deg "
@@ -506,18 +515,98 @@ def regrasp_turned(episode: Episode, axis: Axis, out_of_reach: IKError) -> None:
                           "(no such grasp keeps clear of the scene and the door and carries the rest of the arc): "
                           "stand the robot nearer the door's hinge side or ask for a smaller opening")
     swing, yaw = plan
-    step_log.info("the arc is out of reach at %.1f deg (%s): holding the handle again with the hand turned back "
-                  "%.0f deg", _shown(episode, state.opened), out_of_reach, np.degrees(yaw))
-    arm.set_gripper(state.open_width_m)
-    episode.wait(CLOSE_TIME_S)
-    open_width = arm.state().gripper_width_m
-    T = episode.tool()
-    episode.view.grasp(episode.now(), swing(T)(yaw))
-    follow_cartesian_path(arm, kin, swing(T), yaw, episode.arc_limits(), episode.show_arm)
-    _close_and_check(episode, open_width, StopReason.GRASP_LOST, "re-grasp with the hand turned back failed (a "
-                     "self-closing door swings shut when released): ")
+    push = _closing_push(episode, axis)
+    if push is not None and push[0] > SELF_CLOSING_N:
+        step_log.info("the arc is out of reach at %.1f deg (%s): the door pushes the handle toward closed with "
+                      "%.1f N (friction %.1f N), so the hand stays closed on it and turns back %.0f deg about it",
+                      _shown(episode, state.opened), out_of_reach, *push, np.degrees(yaw))
+        _swing_held(episode, swing, yaw, push[0])
+    else:
+        step_log.info("the arc is out of reach at %.1f deg (%s): holding the handle again with the hand turned back "
+                      "%.0f deg", _shown(episode, state.opened), out_of_reach, np.degrees(yaw))
+        arm.set_gripper(state.open_width_m)
+        episode.wait(CLOSE_TIME_S)
+        open_width = arm.state().gripper_width_m
+        T = episode.tool()
+        episode.view.grasp(episode.now(), swing(T)(yaw))
+        follow_cartesian_path(arm, episode.kin, swing(T), yaw, episode.arc_limits(), episode.show_arm)
+        _close_and_check(episode, open_width, StopReason.GRASP_LOST, "re-grasp with the hand turned back failed: ")
     state.turned_regrasps += 1
     state.opened_before, state.p_grasp = state.opened, episode.tool()[:3, 3]
+
+
+def _closing_push(episode: Episode, axis: Axis) -> tuple[float, float] | None:
+    """(push, friction), N: how hard the held door pushes its handle toward closed by itself and the friction it
+    moves against (`closing_push_n`), from the force the hand applies along the door's opening direction while it
+    eases the door SELF_CLOSING_PROBE_RAD back toward closed and then carries it open again. None when the arm
+    measures no joint torques."""
+    closing = _force_along_arc(episode, axis, -1.0)
+    opening_n = None if closing is None else _force_along_arc(episode, axis, 1.0)
+    if closing is None or opening_n is None:
+        return None
+    return closing_push_n(opening_n, closing), (opening_n - closing) / 2.0
+
+
+def _force_along_arc(episode: Episode, axis: Axis, sign: float) -> float | None:
+    """The mean force (N) the hand applies along the door's opening direction while it carries the door
+    SELF_CLOSING_PROBE_RAD along its arc (`sign` 1: open, -1: toward closed), slowly (`_slow_arc`) and compliant as
+    a pull is, over the whole motion (the arm's inertia speeding up and slowing down cancels). None without measured
+    torques."""
+    arm, kin, handle = episode.arm, episode.kin, episode.state.handle
+    compliance = episode.compliance.with_force_limit(episode.config.opening.pull_force_limit_n)
+    wrench = WrenchEstimator(kin, compliance.filter_time_constant_s, compliance.torque_offset)
+    along: list[float] = []
+
+    def on_tick(state: ArmState, _t: float) -> bool:
+        w = wrench.update(state)
+        if w is not None:
+            along.append(float(w[:3] @ opening_direction(axis, held_centre(kin.fk(state.q), handle))))
+        episode.show_arm(state)
+        return True
+
+    path = door_arc(episode.tool(), replace(axis, direction=sign * np.asarray(axis.direction)), handle.found)
+    arm.set_compliance(True)
+    try:
+        follow_cartesian_path(arm, kin, path, SELF_CLOSING_PROBE_RAD, _slow_arc(episode), on_tick,
+                              compliance=compliance)
+    finally:
+        arm.set_compliance(False)
+    return float(np.mean(along)) if along else None
+
+
+def _held_swing_limit(episode: Episode) -> float | None:
+    """The force bound of a swing about a held handle: a pull's, plus the grip's squeeze, which moves onto one finger
+    as the pads turn about the handle (the arm then feels it across the fingers, as in `_centre_on_handle`)."""
+    limit = episode.config.opening.pull_force_limit_n
+    return None if limit is None else limit + episode.grip_force_n
+
+
+def _slow_arc(episode: Episode) -> MotionLimits:
+    """The arc's limits at HELD_SWING_SPEED_SHARE of its speed (and of its acceleration and jerk)."""
+    limits = episode.arc_limits()
+    return MotionLimits(*(HELD_SWING_SPEED_SHARE * np.asarray(x) for x in (limits.v_max, limits.a_max, limits.j_max)))
+
+
+def _swing_held(episode: Episode, swing: Callable[[np.ndarray], PathFn], yaw: float, push_n: float) -> None:
+    """Swing the hand back by `yaw` about the handle's vertical line still closed on it, slowly, compliant and
+    force-bounded (`_held_swing_limit`): a round bar turns between the pads. EpisodeStop("ik infeasible") when the
+    swing stops short (the handle does not turn in the fingers) or the grip slips: the door stays held where it
+    stands."""
+    arm, kin, state = episode.arm, episode.kin, episode.state
+    T = episode.tool()
+    episode.view.grasp(episode.now(), swing(T)(yaw))
+    arm.set_compliance(True)
+    try:
+        result = follow_cartesian_path(arm, kin, swing(T), yaw, _slow_arc(episode), episode.show_arm,
+                                       compliance=episode.compliance.with_force_limit(_held_swing_limit(episode)))
+    finally:
+        arm.set_compliance(False)
+    if result.outcome is not Outcome.COMPLETED or not episode.gripping():
+        raise EpisodeStop(StopReason.IK_INFEASIBLE, f"the door's arc is out of the arm's reach at "
+                          f"{_shown(episode, state.opened):.0f} deg, and the door closes by itself (it pushes the "
+                          f"handle toward closed with {push_n:.1f} N) so it cannot be let go to hold it again, and its "
+                          f"handle did not turn in the fingers ({result.reason}): stand the robot nearer the door's "
+                          "hinge side or ask for a smaller opening")
 
 
 def _turned_grasp(episode: Episode, axis: Axis) -> tuple[Callable[[np.ndarray], PathFn], float] | None:
