@@ -107,10 +107,10 @@ def test_a_tilted_finger_dipping_behind_the_fronts_plane_is_refused_and_the_leve
     assert corner is not None and corner.point[2] > 0.6 and corner.point[0] > 0.81  # above the cup, behind
 
 
-def test_a_recessed_pull_under_a_counters_overhang_is_held_at_its_lip():
-    """A pocket 8 cm under a counter whose front face stands 3 cm out of the fronts' plane: going in as deep as the
-    pocket lets it, the hand (21 cm along the fingers' closing direction) meets the counter's face; with the pads'
-    middle on the lip, the hand stays in front of it."""
+def test_a_recessed_pull_under_a_counters_overhang_is_held_tilted_up_or_at_its_lip():
+    """A pocket 8 cm under a counter whose front face stands 3 cm out of the fronts' plane: going in level as deep as
+    the pocket lets it, the hand (21 cm along the fingers' closing direction) meets the counter's face; tilted up, the
+    hand's upper edge leans out from it; with the pads' middle on the lip, the hand stays in front of it."""
     normal = np.array([-1.0, 0.0, 0.0])
     y, z = np.meshgrid(np.arange(-0.3, 0.3, 0.005), np.arange(0.78, 0.82, 0.005))
     counter = np.column_stack([np.full(y.size, 0.755), y.ravel(), z.ravel()])
@@ -124,13 +124,32 @@ def test_a_recessed_pull_under_a_counters_overhang_is_held_at_its_lip():
             P[:3, 3] += 0.05 * (k + 1) * normal
         return [poses]
 
-    grasps = clear_grasps(pull, scene, out_along_the_normal, 0.1, 0.08)
-    assert grasps and all(np.allclose(T[:3, 3], pull.center) for T, _ in grasps)  # the tool frame on the lip
+    (up, _), *rest = clear_grasps(pull, scene, out_along_the_normal, 0.1, 0.08)
+    assert up[2, 2] > 0.2 and np.isclose((up[:3, 3] - pull.center) @ up[:3, 2], pull.depth_m)  # tilted up, deep
+    assert rest and all(np.allclose(T[:3, 3], pull.center) for T, _ in rest)  # then the tool frame on the lip
     deep = grasp_pose(pull, pitch_rad=0.0)
     touch = first_contact(scene.points, [deep], parallel_gripper(0.025, 0.08), GRAZE_M)
     assert touch is not None and touch.box == "hand"
     tab = replace(pull, found="edge pull", center=np.array([0.767, 0.0, 0.7]), open_m=0.08, thickness_m=0.017,
                   depth_m=0.008)
     with pytest.raises(EpisodeStop):  # a tab's fingers would pass the counter's lower edge: only as deep as it asks
-        clear_grasps(tab, Scene(cKDTree(counter - [0.0, 0.0, 0.04]), scene.origin, normal), out_along_the_normal, 0.1,
+        clear_grasps(tab, Scene(cKDTree(counter - [0.0, 0.0, 0.05]), scene.origin, normal), out_along_the_normal, 0.1,
                      0.08)
+
+
+def test_a_grasp_keeping_clear_of_the_scene_goes_before_one_grazing_it():
+    """A bar 5 cm under a counter's lower edge, seen as a row of points: the usual grasp's upper finger, opened fully,
+    grazes the edge (within the calibration's error, so not refused), and the edge's true line may lie up to the
+    points' spacing lower; a grasp that keeps clear of it (narrower, level or tilted up) is taken first."""
+    normal = np.array([-1.0, 0.0, 0.0])
+    edge = np.column_stack([np.full(121, 0.78), np.linspace(-0.3, 0.3, 121), np.full(121, 0.754)])
+    scene = Scene(cKDTree(edge), np.array([0.79, 0.0, 0.7]), normal)
+    bar = Handle(np.array([0.76, 0.0, 0.7]), normal, np.array([0.0, 1.0, 0.0]), 0, "bar", open_m=0.08,
+                 thickness_m=0.018)
+    grasps = clear_grasps(bar, scene, lambda T: [[T]], 0.1, 0.08)
+    usual = grasp_pose(bar)
+    assert any(np.allclose(T, usual) and opening == 0.08 for T, opening in grasps)  # a graze is not refused
+    first, opening = grasps[0]
+    assert first_contact(scene.points, [pregrasp_pose(usual, 0.1), usual], parallel_gripper(0.08, 0.08), 0.0)
+    assert first_contact(scene.points, [pregrasp_pose(first, 0.1), first], parallel_gripper(opening, 0.08),
+                         0.01) is None
