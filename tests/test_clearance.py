@@ -153,3 +153,22 @@ def test_a_grasp_keeping_clear_of_the_scene_goes_before_one_grazing_it():
     assert first_contact(scene.points, [pregrasp_pose(usual, 0.1), usual], parallel_gripper(0.08, 0.08), 0.0)
     assert first_contact(scene.points, [pregrasp_pose(first, 0.1), first], parallel_gripper(opening, 0.08),
                          0.01) is None
+
+
+def test_a_grasp_keeping_in_front_of_the_fronts_plane_goes_before_one_dipping_a_finger_behind_it():
+    """A rod 1.5 cm out of its front, the fingers opened 4 cm: tilted down, the upper finger's far corner reaches a few
+    mm behind the front (within the plane's band, so not refused: it would press the front and hold that finger off
+    the rod); level, the fingertips stay in front of it and that grasp is taken first."""
+    normal = np.array([-1.0, 0.0, 0.0])
+    scene = Scene(cKDTree(np.array([[0.0, 0.0, 0.0]])), np.array([0.8, 0.0, 0.6]), normal)
+    rod = Handle(np.array([0.785, 0.0, 0.6]), normal, np.array([0.0, 1.0, 0.0]), 0, "bar", open_m=0.04,
+                 thickness_m=0.01, depth_m=0.006)
+    gripper = parallel_gripper(0.04, 0.08)
+    tilted = grasp_pose(rod)
+    assert first_behind([tilted], gripper, scene.origin, normal, 0.0) is not None
+    assert first_behind([tilted], gripper, scene.origin, normal, 0.01) is None
+    grasps = clear_grasps(rod, scene, lambda T: [[T]], 0.1, 0.08)
+    assert any(np.allclose(T, tilted) for T, _ in grasps)
+    first, opening = grasps[0]
+    assert abs(first[2, 2]) < 1e-9 and first_behind([first], parallel_gripper(opening, 0.08), scene.origin, normal,
+                                                     0.0) is None
