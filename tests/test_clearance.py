@@ -14,7 +14,14 @@ from scipy.spatial import cKDTree
 from deploy.control.grasp import Handle, grasp_pose
 from deploy.control.scene_clearance import Scene, clear_grasps
 from deploy.control.state import EpisodeStop
-from deploy.geometry.clearance import first_behind, first_contact, parallel_gripper, swept_poses
+from deploy.geometry.clearance import (
+    clearance,
+    depth_behind,
+    first_behind,
+    first_contact,
+    parallel_gripper,
+    swept_poses,
+)
 from drivers.arm.grasping import pregrasp_pose
 
 MESHES = Path(pybullet_data.getDataPath()) / "franka_panda" / "meshes" / "collision"
@@ -172,3 +179,15 @@ def test_a_grasp_keeping_in_front_of_the_fronts_plane_goes_before_one_dipping_a_
     first, opening = grasps[0]
     assert abs(first[2, 2]) < 1e-9 and first_behind([first], parallel_gripper(opening, 0.08), scene.origin, normal,
                                                      0.0) is None
+
+
+def test_the_clearance_kept_is_the_nearest_points_distance_to_the_gripper_and_the_depth_behind_the_plane():
+    T = _level_grasp(0.5)
+    fingertips = parallel_gripper(0.04, 0.08)[0]  # 2.1 cm wide, reaching 0.7 cm past the tool frame
+    tip = T[:3, 3] + T[:3, 2] * 0.007
+    points = cKDTree(np.array([tip + [0.004, 0.0, 0.0], tip + [0.0, 0.0, 0.3]]))
+    assert np.isclose(clearance(points, [T], (fingertips,), 0.01), 0.004)
+    assert np.isclose(clearance(points, [pregrasp_pose(T, 0.1), T], (fingertips,), 0.01), 0.004)
+    assert clearance(points, [pregrasp_pose(T, 0.1)], (fingertips,), 0.01) == 0.01
+    assert np.isclose(depth_behind([T], (fingertips,), tip - [0.003, 0.0, 0.0], np.array([-1.0, 0.0, 0.0])), 0.003)
+    assert depth_behind([T], (fingertips,), tip + [0.002, 0.0, 0.0], np.array([-1.0, 0.0, 0.0])) == 0.0

@@ -16,7 +16,15 @@ from scipy.spatial import cKDTree
 
 from deploy.control.grasp import Handle, grasp_pose
 from deploy.control.state import EpisodeStop, StopReason
-from deploy.geometry.clearance import first_behind, first_contact, outside_box, parallel_gripper, standing_out
+from deploy.geometry.clearance import (
+    clearance,
+    depth_behind,
+    first_behind,
+    first_contact,
+    outside_box,
+    parallel_gripper,
+    standing_out,
+)
 from deploy.geometry.cloud import depth_to_points
 from deploy.perception.handle import EDGE_BAND_M
 from deploy.perception.handle_blobs import MAX_STANDOFF_M
@@ -26,9 +34,10 @@ from drivers.camera.base import Frame
 
 CLEARANCE_M = -0.005  # the gripper hits the scene where a scene point lies this deep inside it: nearer ones are
 # within the calibration's error (5 mm) and the depth's noise, a graze the compliant approach and pull tolerate
-KEEP_CLEAR_M = 0.01  # a grasp whose approach keeps this far from the scene (its points' spacing: a surface's edge lies
-# up to that far past its last point), and in front of the fronts' plane, goes before one that may graze them: a graze
-# pushing a finger makes the tool ease back off the handle before it closes, or holds that finger off the handle
+KEEP_CLEAR_M = 0.01  # grasps whose approach keeps this far from the scene (its points' spacing: a surface's edge lies
+# up to that far past its last point) and in front of the fronts' plane go first, then the others, those keeping
+# farthest first: a graze pushing a finger makes the tool ease back off the handle before it closes, or holds that
+# finger off the handle
 PLANE_BAND_M = 0.01  # the fronts' plane and what lies behind it: the fingers stop in front of it (the D415's noise)
 SCENE_STEP = 4  # the scene is every 4th pixel in each direction (about 1 cm apart at 1 m)
 PITCHES_RAD = (GRASP_PITCH_RAD, 0.0, -GRASP_PITCH_RAD)  # the grasps tried, in order: tilted down (the usual), level,
@@ -71,12 +80,12 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
     """The grasps (pose and finger opening) whose approach (from `approach_m` out, the fingers open) and first planned
     pull (the fingers closed on the handle) keep clear of `scene` (CLEARANCE_M), the approach in front of the fronts'
     plane too (PLANE_BAND_M deep at most; a tilted finger's far corner dips toward it; a recessed pull's pocket lies
-    behind it), in the order wanted: those whose approach keeps clear (KEEP_CLEAR_M, and in front of the fronts' plane
-    but into a pocket) before those that graze, each group as tried: a knob held as found then turned a quarter, each
-    going in as deep as the handle asks, then for a recessed pull to POCKET_DEPTH_M, each tilted down, level, then up
-    (PITCHES_RAD; level first into a recessed pull), each with the fingers opened as the handle asks, then only as
-    wide as it needs (its thickness and GRIP_MARGIN_M each side). EpisodeStop saying where the gripper would touch the
-    scene when none does."""
+    behind it), in the order wanted: those whose approach keeps KEEP_CLEAR_M from the scene and in front of the
+    fronts' plane (but into a pocket) first, then the others, the nearer to the scene or the deeper behind the plane
+    the later; ties as tried: a knob held as found then turned a quarter, each going in as deep as the handle asks,
+    then for a recessed pull to POCKET_DEPTH_M, each tilted down, level, then up (PITCHES_RAD; level first into a
+    recessed pull), each with the fingers opened as the handle asks, then only as wide as it needs (its thickness and
+    GRIP_MARGIN_M each side). EpisodeStop saying where the gripper would touch the scene when none does."""
     openings = [handle.open_m or max_opening_m]
     closed = 0.0 if handle.thickness_m is None else handle.thickness_m
     if handle.thickness_m is not None and closed + 2 * GRIP_MARGIN_M < openings[0]:
@@ -100,10 +109,10 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
             if touch is None and handle.found != "recessed pull":
                 touch = first_behind(path, gripper, scene.origin, scene.normal, PLANE_BAND_M)
             if touch is None:
-                grazes = first_contact(scene.points, path, gripper, KEEP_CLEAR_M) is not None or (
-                    handle.found != "recessed pull"
-                    and first_behind(path, gripper, scene.origin, scene.normal, 0.0) is not None)
-                clear.append((grazes, len(clear), T, opening))
+                margin = clearance(scene.points, path, gripper, KEEP_CLEAR_M)
+                if handle.found != "recessed pull" and first_behind(path, gripper, scene.origin, scene.normal, 0.0):
+                    margin = min(margin, -depth_behind(path, gripper, scene.origin, scene.normal))
+                clear.append((-margin, len(clear), T, opening))
             elif contact is None:
                 contact, during = touch, "first pull" if pull is not None else "approach"
     if clear:
