@@ -191,3 +191,35 @@ def test_the_clearance_kept_is_the_nearest_points_distance_to_the_gripper_and_th
     assert clearance(points, [pregrasp_pose(T, 0.1)], (fingertips,), 0.01) == 0.01
     assert np.isclose(depth_behind([T], (fingertips,), tip - [0.003, 0.0, 0.0], np.array([-1.0, 0.0, 0.0])), 0.003)
     assert depth_behind([T], (fingertips,), tip + [0.002, 0.0, 0.0], np.array([-1.0, 0.0, 0.0])) == 0.0
+
+
+def test_along_a_doors_arc_the_usual_tilt_goes_first_though_a_finger_dips_within_the_planes_band():
+    """The rod above on a door: its first planned pull turns the hand about a hinge 40 cm to the side, and there
+    the tilt down (which keeps the wrist off its limit as it turns) goes first, the dip within the plane's band
+    being no measured contact; a straight pull from the same grasps keeps the level one first."""
+    normal = np.array([-1.0, 0.0, 0.0])
+    scene = Scene(cKDTree(np.array([[0.0, 0.0, 0.0]])), np.array([0.8, 0.0, 0.6]), normal)
+    rod = Handle(np.array([0.785, 0.0, 0.6]), normal, np.array([0.0, 1.0, 0.0]), 0, "bar", open_m=0.04,
+                 thickness_m=0.01, depth_m=0.006)
+    hinge = np.array([0.8, 0.4, 0.6])
+
+    def arc(T: np.ndarray) -> list[list[np.ndarray]]:
+        poses = []
+        for angle in np.radians([10.0, 20.0, 30.0]):
+            c, s = np.cos(angle), np.sin(angle)
+            R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+            P = np.array(T, float)
+            P[:3, :3] = R @ P[:3, :3]
+            P[:3, 3] = hinge + R @ (P[:3, 3] - hinge)
+            poses.append(P)
+        return [poses]
+
+    def straight(T: np.ndarray) -> list[list[np.ndarray]]:
+        P = np.array(T, float)
+        P[:3, 3] += 0.1 * normal
+        return [[P]]
+
+    (first, _), *_ = clear_grasps(rod, scene, arc, 0.1, 0.08)
+    assert np.allclose(first, grasp_pose(rod))
+    (first, _), *_ = clear_grasps(rod, scene, straight, 0.1, 0.08)
+    assert abs(first[2, 2]) < 1e-9

@@ -81,11 +81,13 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
     pull (the fingers closed on the handle) keep clear of `scene` (CLEARANCE_M), the approach in front of the fronts'
     plane too (PLANE_BAND_M deep at most; a tilted finger's far corner dips toward it; a recessed pull's pocket lies
     behind it), in the order wanted: those whose approach keeps KEEP_CLEAR_M from the scene and in front of the
-    fronts' plane (but into a pocket) first, then the others, the nearer to the scene or the deeper behind the plane
-    the later; ties as tried: a knob held as found then turned a quarter, each going in as deep as the handle asks,
-    then for a recessed pull to POCKET_DEPTH_M, each tilted down, level, then up (PITCHES_RAD; level first into a
-    recessed pull), each with the fingers opened as the handle asks, then only as wide as it needs (its thickness and
-    GRIP_MARGIN_M each side). EpisodeStop saying where the gripper would touch the scene when none does."""
+    fronts' plane (but into a pocket, or where the first planned pull turns the hand: along a door's arc the tilt down
+    keeps the wrist off its limit, worth more than a dip within the plane's noise) first, then the others, the nearer
+    to the scene or the deeper behind the plane the later; ties as tried: a knob held as found then turned a
+    quarter, each going in as deep as the handle asks, then for a recessed pull to POCKET_DEPTH_M, each tilted down,
+    level, then up (PITCHES_RAD; level first into a recessed pull), each with the fingers opened as the handle asks,
+    then only as wide as it needs (its thickness and GRIP_MARGIN_M each side). EpisodeStop saying where the gripper
+    would touch the scene when none does."""
     openings = [handle.open_m or max_opening_m]
     closed = 0.0 if handle.thickness_m is None else handle.thickness_m
     if handle.thickness_m is not None and closed + 2 * GRIP_MARGIN_M < openings[0]:
@@ -101,7 +103,9 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
     for held, depth, pitch in itertools.product([handle, turned] if handle.found == "knob" else [handle],
                                                 depths, pitches):
         T = grasp_pose(held, depth, pitch)
-        pull = first_contact(scene.points, [T, *pulls(T)[0]], parallel_gripper(closed, max_opening_m), CLEARANCE_M)
+        planned = pulls(T)[0]
+        pull = first_contact(scene.points, [T, *planned], parallel_gripper(closed, max_opening_m), CLEARANCE_M)
+        turns = not np.allclose(planned[-1][:3, :3], T[:3, :3])  # a door's arc: the wrist turns with the door
         path = [pregrasp_pose(T, approach_m), T]
         for opening in openings:
             gripper = parallel_gripper(opening, max_opening_m)
@@ -110,7 +114,8 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
                 touch = first_behind(path, gripper, scene.origin, scene.normal, PLANE_BAND_M)
             if touch is None:
                 margin = clearance(scene.points, path, gripper, KEEP_CLEAR_M)
-                if handle.found != "recessed pull" and first_behind(path, gripper, scene.origin, scene.normal, 0.0):
+                if handle.found != "recessed pull" and not turns and first_behind(path, gripper, scene.origin,
+                                                                                  scene.normal, 0.0):
                     margin = min(margin, -depth_behind(path, gripper, scene.origin, scene.normal))
                 clear.append((-margin, len(clear), T, opening))
             elif contact is None:
