@@ -194,9 +194,10 @@ def test_the_clearance_kept_is_the_nearest_points_distance_to_the_gripper_and_th
 
 
 def test_along_a_doors_arc_the_usual_tilt_goes_first_though_a_finger_dips_within_the_planes_band():
-    """The rod above on a door: its first planned pull turns the hand about a hinge 40 cm to the side, and there
-    the tilt down (which keeps the wrist off its limit as it turns) goes first, the dip within the plane's band
-    being no measured contact; a straight pull from the same grasps keeps the level one first."""
+    """The rod above on a door: its first planned pull is an arc about a hinge 40 cm to the side (the hand keeping
+    its orientation, the rod turning between the pads), and there the tilt down (which keeps the wrist off its limit)
+    goes first, the dip within the plane's band being no measured contact; a straight pull from the same grasps keeps
+    the level one first."""
     normal = np.array([-1.0, 0.0, 0.0])
     scene = Scene(cKDTree(np.array([[0.0, 0.0, 0.0]])), np.array([0.8, 0.0, 0.6]), normal)
     rod = Handle(np.array([0.785, 0.0, 0.6]), normal, np.array([0.0, 1.0, 0.0]), 0, "bar", open_m=0.04,
@@ -209,7 +210,6 @@ def test_along_a_doors_arc_the_usual_tilt_goes_first_though_a_finger_dips_within
             c, s = np.cos(angle), np.sin(angle)
             R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
             P = np.array(T, float)
-            P[:3, :3] = R @ P[:3, :3]
             P[:3, 3] = hinge + R @ (P[:3, 3] - hinge)
             poses.append(P)
         return [poses]

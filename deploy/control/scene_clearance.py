@@ -81,8 +81,8 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
     pull (the fingers closed on the handle) keep clear of `scene` (CLEARANCE_M), the approach in front of the fronts'
     plane too (PLANE_BAND_M deep at most; a tilted finger's far corner dips toward it; a recessed pull's pocket lies
     behind it), in the order wanted: those whose approach keeps KEEP_CLEAR_M from the scene and in front of the
-    fronts' plane (but into a pocket, or where the first planned pull turns the hand: along a door's arc the tilt down
-    keeps the wrist off its limit, worth more than a dip within the plane's noise) first, then the others, the nearer
+    fronts' plane (but into a pocket, or where the first planned pull is an arc: along a door's the tilt down, which
+    keeps the wrist off its limit, is worth more than a dip within the plane's noise) first, then the others, the nearer
     to the scene or the deeper behind the plane the later; ties as tried: a knob held as found then turned a
     quarter, each going in as deep as the handle asks, then for a recessed pull to POCKET_DEPTH_M, each tilted down,
     level, then up (PITCHES_RAD; level first into a recessed pull), each with the fingers opened as the handle asks,
@@ -105,7 +105,9 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
         T = grasp_pose(held, depth, pitch)
         planned = pulls(T)[0]
         pull = first_contact(scene.points, [T, *planned], parallel_gripper(closed, max_opening_m), CLEARANCE_M)
-        turns = not np.allclose(planned[-1][:3, :3], T[:3, :3])  # a door's arc: the wrist turns with the door
+        chords = np.array([P[:3, 3] for P in planned]) - T[:3, 3]
+        swings = float(chords[0] @ chords[-1]) < (1 - 1e-6) * np.linalg.norm(chords[0]) * np.linalg.norm(chords[-1])
+        # the first planned pull is an arc (a door's): the hand travels sideways across the arm's workspace
         path = [pregrasp_pose(T, approach_m), T]
         for opening in openings:
             gripper = parallel_gripper(opening, max_opening_m)
@@ -114,7 +116,7 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
                 touch = first_behind(path, gripper, scene.origin, scene.normal, PLANE_BAND_M)
             if touch is None:
                 margin = clearance(scene.points, path, gripper, KEEP_CLEAR_M)
-                if handle.found != "recessed pull" and not turns and first_behind(path, gripper, scene.origin,
+                if handle.found != "recessed pull" and not swings and first_behind(path, gripper, scene.origin,
                                                                                   scene.normal, 0.0):
                     margin = min(margin, -depth_behind(path, gripper, scene.origin, scene.normal))
                 clear.append((-margin, len(clear), T, opening))
