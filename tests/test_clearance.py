@@ -193,11 +193,11 @@ def test_the_clearance_kept_is_the_nearest_points_distance_to_the_gripper_and_th
     assert depth_behind([T], (fingertips,), tip + [0.002, 0.0, 0.0], np.array([-1.0, 0.0, 0.0])) == 0.0
 
 
-def test_along_a_doors_arc_the_usual_tilt_goes_first_though_a_finger_dips_within_the_planes_band():
+def test_along_a_doors_arc_the_grasps_keep_the_order_tried_though_a_finger_dips_within_the_planes_band():
     """The rod above on a door: its first planned pull is an arc about a hinge 40 cm to the side (the hand keeping
-    its orientation, the rod turning between the pads), and there the tilt down (which keeps the wrist off its limit)
-    goes first, the dip within the plane's band being no measured contact; a straight pull from the same grasps keeps
-    the level one first."""
+    its orientation, the rod turning between the pads), and there the grasps keep the order tried, the usual tilt
+    down (which keeps the wrist off its limit) first; a straight pull from the same grasps puts the level one,
+    keeping in front of the fronts' plane, first."""
     normal = np.array([-1.0, 0.0, 0.0])
     scene = Scene(cKDTree(np.array([[0.0, 0.0, 0.0]])), np.array([0.8, 0.0, 0.6]), normal)
     rod = Handle(np.array([0.785, 0.0, 0.6]), normal, np.array([0.0, 1.0, 0.0]), 0, "bar", open_m=0.04,

@@ -17,6 +17,7 @@ from scipy.spatial import cKDTree
 from deploy.control.grasp import Handle, grasp_pose
 from deploy.control.state import EpisodeStop, StopReason
 from deploy.geometry.clearance import (
+    ToolBox,
     clearance,
     depth_behind,
     first_behind,
@@ -80,14 +81,14 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
     """The grasps (pose and finger opening) whose approach (from `approach_m` out, the fingers open) and first planned
     pull (the fingers closed on the handle) keep clear of `scene` (CLEARANCE_M), the approach in front of the fronts'
     plane too (PLANE_BAND_M deep at most; a tilted finger's far corner dips toward it; a recessed pull's pocket lies
-    behind it), in the order wanted: those whose approach keeps KEEP_CLEAR_M from the scene and in front of the
-    fronts' plane (but into a pocket, or where the first planned pull is an arc: along a door's the tilt down, which
-    keeps the wrist off its limit, is worth more than a dip within the plane's noise) first, then the others, the nearer
-    to the scene or the deeper behind the plane the later; ties as tried: a knob held as found then turned a
-    quarter, each going in as deep as the handle asks, then for a recessed pull to POCKET_DEPTH_M, each tilted down,
-    level, then up (PITCHES_RAD; level first into a recessed pull), each with the fingers opened as the handle asks,
-    then only as wide as it needs (its thickness and GRIP_MARGIN_M each side). EpisodeStop saying where the gripper
-    would touch the scene when none does."""
+    behind it), in the order wanted: where the first planned pull is straight (a drawer's), those whose approach
+    keeps KEEP_CLEAR_M from the scene and in front of the fronts' plane (but into a pocket) first, then the others,
+    the nearer to the scene or the deeper behind the plane the later; along an arc (a door's) as tried, which is
+    what the arc asks (the tilt down keeps the wrist off its limit, a knob's fingers close level as the door turns);
+    ties as tried: a knob held as found then turned a quarter, each going in as deep as the handle asks, then for a
+    recessed pull to POCKET_DEPTH_M, each tilted down, level, then up (PITCHES_RAD; level first into a recessed
+    pull), each with the fingers opened as the handle asks, then only as wide as it needs (its thickness and
+    GRIP_MARGIN_M each side). EpisodeStop saying where the gripper would touch the scene when none does."""
     openings = [handle.open_m or max_opening_m]
     closed = 0.0 if handle.thickness_m is None else handle.thickness_m
     if handle.thickness_m is not None and closed + 2 * GRIP_MARGIN_M < openings[0]:
@@ -107,7 +108,7 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
         pull = first_contact(scene.points, [T, *planned], parallel_gripper(closed, max_opening_m), CLEARANCE_M)
         chords = np.array([P[:3, 3] for P in planned]) - T[:3, 3]
         swings = float(chords[0] @ chords[-1]) < (1 - 1e-6) * np.linalg.norm(chords[0]) * np.linalg.norm(chords[-1])
-        # the first planned pull is an arc (a door's): the hand travels sideways across the arm's workspace
+        # the first planned pull is an arc (a door's)
         path = [pregrasp_pose(T, approach_m), T]
         for opening in openings:
             gripper = parallel_gripper(opening, max_opening_m)
@@ -115,11 +116,7 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
             if touch is None and handle.found != "recessed pull":
                 touch = first_behind(path, gripper, scene.origin, scene.normal, PLANE_BAND_M)
             if touch is None:
-                margin = clearance(scene.points, path, gripper, KEEP_CLEAR_M)
-                if handle.found != "recessed pull" and not swings and first_behind(path, gripper, scene.origin,
-                                                                                  scene.normal, 0.0):
-                    margin = min(margin, -depth_behind(path, gripper, scene.origin, scene.normal))
-                clear.append((-margin, len(clear), T, opening))
+                clear.append((0.0 if swings else -_kept(handle, scene, path, gripper), len(clear), T, opening))
             elif contact is None:
                 contact, during = touch, "first pull" if pull is not None else "approach"
     if clear:
@@ -128,6 +125,15 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
     raise EpisodeStop(StopReason.NO_CLEAR_PATH, f"the gripper's {contact.box} would touch the scene at ({p[0]:.2f}, "
                       f"{p[1]:.2f}, {p[2]:.2f}) m during the {during} ({_where(p, handle)}), however it approached: "
                       "clear what stands there, or move the robot so that it reaches the handle from another side")
+
+
+def _kept(handle: Handle, scene: Scene, path: list[np.ndarray], gripper: tuple[ToolBox, ...]) -> float:
+    """How far the gripper moving through `path` keeps from `scene` (KEEP_CLEAR_M at most), less how deep it reaches
+    behind the fronts' plane (but into a pocket)."""
+    margin = clearance(scene.points, path, gripper, KEEP_CLEAR_M)
+    if handle.found != "recessed pull" and first_behind(path, gripper, scene.origin, scene.normal, 0.0):
+        margin = min(margin, -depth_behind(path, gripper, scene.origin, scene.normal))
+    return margin
 
 
 def _where(point: np.ndarray, handle: Handle) -> str:
