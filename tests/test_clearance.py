@@ -14,7 +14,14 @@ from scipy.spatial import cKDTree
 from deploy.control.grasp import Handle, grasp_pose
 from deploy.control.scene_clearance import Scene, clear_grasps
 from deploy.control.state import EpisodeStop
-from deploy.geometry.clearance import first_behind, first_contact, parallel_gripper, swept_poses
+from deploy.geometry.clearance import (
+    clearance,
+    depth_behind,
+    first_behind,
+    first_contact,
+    parallel_gripper,
+    swept_poses,
+)
 from drivers.arm.grasping import pregrasp_pose
 
 MESHES = Path(pybullet_data.getDataPath()) / "franka_panda" / "meshes" / "collision"
@@ -107,10 +114,10 @@ def test_a_tilted_finger_dipping_behind_the_fronts_plane_is_refused_and_the_leve
     assert corner is not None and corner.point[2] > 0.6 and corner.point[0] > 0.81  # above the cup, behind
 
 
-def test_a_recessed_pull_under_a_counters_overhang_is_held_at_its_lip():
-    """A pocket 8 cm under a counter whose front face stands 3 cm out of the fronts' plane: going in as deep as the
-    pocket lets it, the hand (21 cm along the fingers' closing direction) meets the counter's face; with the pads'
-    middle on the lip, the hand stays in front of it."""
+def test_a_recessed_pull_under_a_counters_overhang_is_held_tilted_up_or_at_its_lip():
+    """A pocket 8 cm under a counter whose front face stands 3 cm out of the fronts' plane: going in level as deep as
+    the pocket lets it, the hand (21 cm along the fingers' closing direction) meets the counter's face; tilted up, the
+    hand's upper edge leans out from it; with the pads' middle on the lip, the hand stays in front of it."""
     normal = np.array([-1.0, 0.0, 0.0])
     y, z = np.meshgrid(np.arange(-0.3, 0.3, 0.005), np.arange(0.78, 0.82, 0.005))
     counter = np.column_stack([np.full(y.size, 0.755), y.ravel(), z.ravel()])
@@ -124,13 +131,95 @@ def test_a_recessed_pull_under_a_counters_overhang_is_held_at_its_lip():
             P[:3, 3] += 0.05 * (k + 1) * normal
         return [poses]
 
-    grasps = clear_grasps(pull, scene, out_along_the_normal, 0.1, 0.08)
-    assert grasps and all(np.allclose(T[:3, 3], pull.center) for T, _ in grasps)  # the tool frame on the lip
+    (up, _), *rest = clear_grasps(pull, scene, out_along_the_normal, 0.1, 0.08)
+    assert up[2, 2] > 0.2 and np.isclose((up[:3, 3] - pull.center) @ up[:3, 2], pull.depth_m)  # tilted up, deep
+    assert rest and all(np.allclose(T[:3, 3], pull.center) for T, _ in rest)  # then the tool frame on the lip
     deep = grasp_pose(pull, pitch_rad=0.0)
     touch = first_contact(scene.points, [deep], parallel_gripper(0.025, 0.08), GRAZE_M)
     assert touch is not None and touch.box == "hand"
     tab = replace(pull, found="edge pull", center=np.array([0.767, 0.0, 0.7]), open_m=0.08, thickness_m=0.017,
                   depth_m=0.008)
     with pytest.raises(EpisodeStop):  # a tab's fingers would pass the counter's lower edge: only as deep as it asks
-        clear_grasps(tab, Scene(cKDTree(counter - [0.0, 0.0, 0.04]), scene.origin, normal), out_along_the_normal, 0.1,
+        clear_grasps(tab, Scene(cKDTree(counter - [0.0, 0.0, 0.05]), scene.origin, normal), out_along_the_normal, 0.1,
                      0.08)
+
+
+def test_a_grasp_keeping_clear_of_the_scene_goes_before_one_grazing_it():
+    """A bar 5 cm under a counter's lower edge, seen as a row of points: the usual grasp's upper finger, opened fully,
+    grazes the edge (within the calibration's error, so not refused), and the edge's true line may lie up to the
+    points' spacing lower; a grasp that keeps clear of it (narrower, level or tilted up) is taken first."""
+    normal = np.array([-1.0, 0.0, 0.0])
+    edge = np.column_stack([np.full(121, 0.78), np.linspace(-0.3, 0.3, 121), np.full(121, 0.754)])
+    scene = Scene(cKDTree(edge), np.array([0.79, 0.0, 0.7]), normal)
+    bar = Handle(np.array([0.76, 0.0, 0.7]), normal, np.array([0.0, 1.0, 0.0]), 0, "bar", open_m=0.08,
+                 thickness_m=0.018)
+    grasps = clear_grasps(bar, scene, lambda T: [[T]], 0.1, 0.08)
+    usual = grasp_pose(bar)
+    assert any(np.allclose(T, usual) and opening == 0.08 for T, opening in grasps)  # a graze is not refused
+    first, opening = grasps[0]
+    assert first_contact(scene.points, [pregrasp_pose(usual, 0.1), usual], parallel_gripper(0.08, 0.08), 0.0)
+    assert first_contact(scene.points, [pregrasp_pose(first, 0.1), first], parallel_gripper(opening, 0.08),
+                         0.01) is None
+
+
+def test_a_grasp_keeping_in_front_of_the_fronts_plane_goes_before_one_dipping_a_finger_behind_it():
+    """A rod 1.5 cm out of its front, the fingers opened 4 cm: tilted down, the upper finger's far corner reaches a few
+    mm behind the front (within the plane's band, so not refused: it would press the front and hold that finger off
+    the rod); level, the fingertips stay in front of it and that grasp is taken first."""
+    normal = np.array([-1.0, 0.0, 0.0])
+    scene = Scene(cKDTree(np.array([[0.0, 0.0, 0.0]])), np.array([0.8, 0.0, 0.6]), normal)
+    rod = Handle(np.array([0.785, 0.0, 0.6]), normal, np.array([0.0, 1.0, 0.0]), 0, "bar", open_m=0.04,
+                 thickness_m=0.01, depth_m=0.006)
+    gripper = parallel_gripper(0.04, 0.08)
+    tilted = grasp_pose(rod)
+    assert first_behind([tilted], gripper, scene.origin, normal, 0.0) is not None
+    assert first_behind([tilted], gripper, scene.origin, normal, 0.01) is None
+    grasps = clear_grasps(rod, scene, lambda T: [[T]], 0.1, 0.08)
+    assert any(np.allclose(T, tilted) for T, _ in grasps)
+    first, opening = grasps[0]
+    assert abs(first[2, 2]) < 1e-9 and first_behind([first], parallel_gripper(opening, 0.08), scene.origin, normal,
+                                                     0.0) is None
+
+
+def test_the_clearance_kept_is_the_nearest_points_distance_to_the_gripper_and_the_depth_behind_the_plane():
+    T = _level_grasp(0.5)
+    fingertips = parallel_gripper(0.04, 0.08)[0]  # 2.1 cm wide, reaching 0.7 cm past the tool frame
+    tip = T[:3, 3] + T[:3, 2] * 0.007
+    points = cKDTree(np.array([tip + [0.004, 0.0, 0.0], tip + [0.0, 0.0, 0.3]]))
+    assert np.isclose(clearance(points, [T], (fingertips,), 0.01), 0.004)
+    assert np.isclose(clearance(points, [pregrasp_pose(T, 0.1), T], (fingertips,), 0.01), 0.004)
+    assert clearance(points, [pregrasp_pose(T, 0.1)], (fingertips,), 0.01) == 0.01
+    assert np.isclose(depth_behind([T], (fingertips,), tip - [0.003, 0.0, 0.0], np.array([-1.0, 0.0, 0.0])), 0.003)
+    assert depth_behind([T], (fingertips,), tip + [0.002, 0.0, 0.0], np.array([-1.0, 0.0, 0.0])) == 0.0
+
+
+def test_along_a_doors_arc_the_grasps_keep_the_order_tried_though_a_finger_dips_within_the_planes_band():
+    """The rod above on a door: its first planned pull is an arc about a hinge 40 cm to the side (the hand keeping
+    its orientation, the rod turning between the pads), and there the grasps keep the order tried, the usual tilt
+    down (which keeps the wrist off its limit) first; a straight pull from the same grasps puts the level one,
+    keeping in front of the fronts' plane, first."""
+    normal = np.array([-1.0, 0.0, 0.0])
+    scene = Scene(cKDTree(np.array([[0.0, 0.0, 0.0]])), np.array([0.8, 0.0, 0.6]), normal)
+    rod = Handle(np.array([0.785, 0.0, 0.6]), normal, np.array([0.0, 1.0, 0.0]), 0, "bar", open_m=0.04,
+                 thickness_m=0.01, depth_m=0.006)
+    hinge = np.array([0.8, 0.4, 0.6])
+
+    def arc(T: np.ndarray) -> list[list[np.ndarray]]:
+        poses = []
+        for angle in np.radians([10.0, 20.0, 30.0]):
+            c, s = np.cos(angle), np.sin(angle)
+            R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+            P = np.array(T, float)
+            P[:3, 3] = hinge + R @ (P[:3, 3] - hinge)
+            poses.append(P)
+        return [poses]
+
+    def straight(T: np.ndarray) -> list[list[np.ndarray]]:
+        P = np.array(T, float)
+        P[:3, 3] += 0.1 * normal
+        return [[P]]
+
+    (first, _), *_ = clear_grasps(rod, scene, arc, 0.1, 0.08)
+    assert np.allclose(first, grasp_pose(rod))
+    (first, _), *_ = clear_grasps(rod, scene, straight, 0.1, 0.08)
+    assert abs(first[2, 2]) < 1e-9

@@ -56,6 +56,24 @@ def first_contact(scene: cKDTree, poses: list[np.ndarray], boxes: tuple[ToolBox,
     """Where the gripper first touches the scene moving through `poses` (4x4 tool poses, base frame, and the motion
     between them): a scene point within `clearance_m` of a gripper box (a negative clearance: that deep inside it);
     None when the whole path keeps clear."""
+    for name, points, distance in _near_points(scene, poses, boxes, clearance_m):
+        if distance.min() <= clearance_m:
+            return Contact(name, points[np.argmin(distance)])
+    return None
+
+
+def clearance(scene: cKDTree, poses: list[np.ndarray], boxes: tuple[ToolBox, ...], up_to_m: float) -> float:
+    """How far the gripper keeps from the scene moving through `poses` (as `first_contact` checks them): the smallest
+    distance of a scene point to a gripper box (negative: that deep inside it), `up_to_m` when none lies nearer."""
+    nearest = up_to_m
+    for _, _, distance in _near_points(scene, poses, boxes, up_to_m):
+        nearest = min(nearest, float(distance.min()))
+    return nearest
+
+
+def _near_points(scene: cKDTree, poses: list[np.ndarray], boxes: tuple[ToolBox, ...], clearance_m: float):
+    """Per pose along the path (swept finely enough for `clearance_m`) and gripper box: the box's name, the scene
+    points within `clearance_m` of its bounding sphere and their distances to the box (negative inside)."""
     points = scene.data
     thinnest = 2 * min(min(box.half) for box in boxes)
     reach = max(float(np.linalg.norm(np.abs(box.centre) + box.half)) for box in boxes)
@@ -67,11 +85,8 @@ def first_contact(scene: cKDTree, poses: list[np.ndarray], boxes: tuple[ToolBox,
             if not near:
                 continue
             gap = np.abs((points[near] - p) @ R - centre) - half  # per axis: > 0 outside the box's faces
-            distance = np.where(np.all(gap <= 0, axis=1), gap.max(axis=1),  # inside: minus the depth
-                                np.linalg.norm(np.maximum(gap, 0.0), axis=1))
-            if distance.min() <= clearance_m:
-                return Contact(box.name, points[near][np.argmin(distance)])
-    return None
+            yield box.name, points[near], np.where(np.all(gap <= 0, axis=1), gap.max(axis=1),  # inside: minus depth
+                                                   np.linalg.norm(np.maximum(gap, 0.0), axis=1))
 
 
 def swept_poses(poses: list[np.ndarray], step_m: float, reach_m: float) -> list[np.ndarray]:
@@ -96,15 +111,27 @@ def first_behind(poses: list[np.ndarray], boxes: tuple[ToolBox, ...], origin: np
     """Where the gripper at one of `poses` (4x4 tool poses, base frame) reaches more than `depth_m` behind the plane
     through `origin` with outward unit `normal` (the fronts' plane, which the scene leaves out); None when it keeps in
     front of it. Moving straight between the poses, it reaches deepest at one of them."""
-    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
     for T in poses:
-        R, p = np.asarray(T, float)[:3, :3], np.asarray(T, float)[:3, 3]
         for box in boxes:
-            corners = p + (np.array(box.centre) + signs * box.half) @ R.T
+            corners = _corners(T, box)
             offset = (corners - origin) @ normal
             if offset.min() < -depth_m:
                 return Contact(box.name, corners[np.argmin(offset)])
     return None
+
+
+def depth_behind(poses: list[np.ndarray], boxes: tuple[ToolBox, ...], origin: np.ndarray, normal: np.ndarray
+                 ) -> float:
+    """How deep the gripper at `poses` reaches behind the plane of `first_behind` (m; 0 when it keeps in front)."""
+    offsets = [float(((_corners(T, box) - origin) @ normal).min()) for T in poses for box in boxes]
+    return max(0.0, -min(offsets))
+
+
+def _corners(T: np.ndarray, box: ToolBox) -> np.ndarray:
+    """The 8 corners of `box` with the tool at pose T (4x4), base frame."""
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    R, p = np.asarray(T, float)[:3, :3], np.asarray(T, float)[:3, 3]
+    return p + (np.array(box.centre) + signs * box.half) @ R.T
 
 
 def standing_out(points: np.ndarray, origin: np.ndarray, right: np.ndarray, up: np.ndarray, normal: np.ndarray,
