@@ -1,9 +1,9 @@
-"""Whether a door's arc turns the tool with the door (deploy.control.stages.door_arc)."""
+"""Whether a door's arc turns the tool with the door (deploy.control.hand.door_arc)."""
 
 import numpy as np
 import pytest
 
-from deploy.control.stages import door_arc
+from deploy.control.hand import door_arc
 from deploy.geometry.types import Axis, JointType
 from drivers.arm.grasping import grasp_pose
 

@@ -1,5 +1,5 @@
 """A door's handle held again with the hand turned back toward the robot where the arc runs out of reach
-(deploy/control/door_regrasp.py, deploy/control/stages.py `regrasp_turned`)."""
+(deploy/control/door_regrasp.py, deploy/control/out_of_reach.py `regrasp_turned`)."""
 
 import numpy as np
 import pytest

@@ -1,12 +1,12 @@
 """A handle that one finger alone presses when the gripper closes (it lies off the fingers' middle by more than half
 its thickness: each finger closes only to the middle) is centred between them before the pull
-(deploy/control/stages.py `_centre_on_handle`); without that, the one finger drags it out of the grasp."""
+(deploy/control/hand.py `centre_on_handle`); without that, the one finger drags it out of the grasp."""
 
 from __future__ import annotations
 
 import pytest
 
-import deploy.control.stages as stages
+import deploy.control.hand as hand
 from deploy.bench.open import simulate_episode
 from deploy.control.state import StopReason
 
@@ -17,13 +17,13 @@ OFF_CENTRE = [("drawer", 21, 0.1), ("door", 0, 20.0)]
 
 def _episode(monkeypatch, task: str, seed: int, target: float, centre: bool) -> tuple[dict, list[float]]:
     moves: list[float] = []
-    original = stages._centre_on_handle
+    original = hand.centre_on_handle
 
     def recorded(episode, width: float) -> float:
         moves.append(original(episode, width) if centre else 0.0)
         return moves[-1]
 
-    monkeypatch.setattr(stages, "_centre_on_handle", recorded)
+    monkeypatch.setattr(hand, "centre_on_handle", recorded)
     return simulate_episode(task, seed, split="test", target=target), moves
 
 

@@ -1,12 +1,15 @@
-"""The approach that ends with the palm pushing on the handle eases back before closing (deploy/control/stages.py)."""
+"""The approach that ends with the palm pushing on the handle eases back before closing
+(deploy/control/hand.py `ease_off_press`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
+import deploy.control.hand as hand
 import deploy.control.stages as stages
 from deploy.bench.open import simulate_episode
 from deploy.control.state import StopReason
+from drivers.arm.wrench import WrenchEstimator
 
 # Test scenario 42, placed near (0.4-0.7 m), is a door with a knob nearer than the calibrated camera sees it:
 # the approach ends with the palm pushing on the knob (about 30 N after settling).
@@ -15,29 +18,29 @@ PRESSED_DOOR_SEED = 42
 
 def _episode(monkeypatch, robot, ease: bool) -> tuple[dict, list[float]]:
     pushes: list[float] = []
-    original = stages._ease_off_press
+    original = stages.ease_off_press
 
     def recorded(episode) -> None:
         if ease:
             original(episode)
         state = episode.arm.state()
-        w = stages.WrenchEstimator(episode.kin, time_constant_s=0.0).update(state)
+        w = WrenchEstimator(episode.kin, time_constant_s=0.0).update(state)
         pushes.append(float(w[:3] @ episode.kin.fk(state.q)[:3, 2]))
 
-    monkeypatch.setattr(stages, "_ease_off_press", recorded)
+    monkeypatch.setattr(stages, "ease_off_press", recorded)  # where the grasp stage calls it
     return simulate_episode("door", PRESSED_DOOR_SEED, split="test", target=20.0, world="box",
                             robot=robot), pushes
 
 
 def test_a_pressed_handle_is_eased_off_before_closing_and_the_door_opens(near_doors, monkeypatch):
     result, pushes = _episode(monkeypatch, near_doors, ease=True)
-    assert pushes and pushes[0] < stages.PRESS_N
+    assert pushes and pushes[0] < hand.PRESS_N
     assert result["success"], result["message"]
     assert result["true_opened_deg"] >= 20.0
 
 
 def test_without_easing_off_the_first_pull_reads_the_released_push_as_resistance(near_doors, monkeypatch):
     result, pushes = _episode(monkeypatch, near_doors, ease=False)
-    assert pushes and pushes[0] > stages.PRESS_N  # the scenario does press: the test above is not vacuous
+    assert pushes and pushes[0] > hand.PRESS_N  # the scenario does press: the test above is not vacuous
     assert result["stop_reason"] == StopReason.BLOCKED
     assert np.isclose(result["true_opened_deg"], 0.0, atol=1.0)

@@ -11,8 +11,9 @@ import numpy as np
 
 from deploy.config import Config
 from deploy.control.observer import Observer
-from deploy.control.state import EpisodeState
+from deploy.control.state import EpisodeState, display_scale
 from deploy.control.view import EpisodeView
+from deploy.geometry.types import JointType
 from deploy.perception.handle import GripperSize
 from deploy.policies import OpeningPolicy
 from deploy.report.run_folder import RunFolder
@@ -29,6 +30,10 @@ SETTLE_S = 0.3  # after a motion the arm settles on its last command (a new moti
 
 ARM_VIEW_S = 0.1  # the viewer shows the arm's joints this often (arm time), besides with every frame
 FREE_SPACE_SHARE = 0.3  # free-space joint moves at this share of the robot config's limits
+OVERSHOOT = {JointType.PRISMATIC: 0.015, JointType.REVOLUTE: float(np.radians(5.0))}  # steps aim this far past
+# the target, so that an opening measured a little long still leaves the object open to the target
+GOAL_TOLERANCE = {JointType.PRISMATIC: 0.005, JointType.REVOLUTE: float(np.radians(1.0))}  # the goal is reached
+# this close to it
 
 
 @dataclass
@@ -93,6 +98,14 @@ class Episode:
     def target(self) -> float:
         """The target opening of the joint acted on (m or rad)."""
         return self.config.opening.target_for(self.state.joint_type())
+
+    def goal(self, joint: JointType) -> float:
+        """Where the steps aim: the target plus the overshoot (m or rad)."""
+        return self.target() + OVERSHOOT[joint]
+
+    def shown(self, value: float) -> float:
+        """An opening in the units users read: m for a drawer, deg for a door."""
+        return value * display_scale(self.state.joint_type())
 
     def gripping(self) -> bool:
         return holds(self.arm.state())

@@ -4,8 +4,9 @@
 
 The controller sees only what a real robot senses: camera frames and the arm (measured joints, forward
 kinematics). Progress is the grip point's travel along / about the estimated axis since the grasp. Frames are
-grabbed during motions and processed between them (`Observer`). The stages are deploy/control/stages.py, what
-they share `Episode` (deploy/control/context.py).
+grabbed during motions and processed between them (`Observer`). The stages are deploy/control/stages.py (the hand
+on the handle: hand.py; pulls past the arm's reach: out_of_reach.py), what they share `Episode`
+(deploy/control/context.py).
 """
 
 from __future__ import annotations

@@ -5,20 +5,15 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
-from dataclasses import replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from deploy.axis_pipeline import viewpoint
 from deploy.control.classify import classify_joint, front_shift_m, front_turn_deg
-from deploy.control.context import MIN_GRASP_WIDTH_M, SETTLE_S, Episode
-from deploy.control.door_regrasp import closing_push_n, door_plane, held_as, held_centre, opening_direction
+from deploy.control.context import GOAL_TOLERANCE, OVERSHOOT, SETTLE_S, Episode
 from deploy.control.grasp import (
-    REGRASP_RADIUS_M,
     Handle,
-    back_along_path,
     find_handle,
     front_normal,
     grasp_pose,
@@ -27,76 +22,47 @@ from deploy.control.grasp import (
     hinge_side_sure,
     pointed_handle,
     pregrasp_configuration,
-    pregrasp_pose,
     protruding_points,
     pull_poses,
 )
+from deploy.control.hand import (
+    checked_pull,
+    close_and_check,
+    door_arc,
+    ease_off_press,
+    measure_torque_offset,
+    turns_with_door,
+)
+from deploy.control.out_of_reach import PLANNED_ARC_STEP_RAD, line_pulls, regrasp_turned, reseat
 from deploy.control.policy import choose_axis, hinge_from_turn, opening, orient_axis, seen_opening
-from deploy.control.scene_clearance import Scene, clear_grasps, scene_tree
-from deploy.control.state import EpisodeStop, StopReason, display_scale, opening_unit
+from deploy.control.scene_clearance import clear_grasps, scene_tree
+from deploy.control.state import EpisodeStop, StopReason, opening_unit
 from deploy.control.view import step_log
 from deploy.errors import PartHiddenError, PointerError
-from deploy.geometry.cloud import depth_to_points, points_to_pixels
+from deploy.geometry.cloud import depth_to_points
 from deploy.geometry.estimators.trajectory import fit_trajectory
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 from deploy.perception.base import Pointer
-from deploy.perception.pointing import point_at
-from drivers.arm.base import ArmState
-from drivers.arm.grasping import GRASP_PITCH_RAD
 from drivers.arm.motion import (
-    Outcome,
     PathFn,
-    arc_path,
     follow_cartesian_path,
     line_path,
     move_to_joints,
-    move_to_pose,
 )
 from drivers.arm.trajectory import MotionLimits
-from drivers.arm.wrench import WrenchEstimator, torque_offset
-from drivers.camera.base import Frame
 from drivers.errors import IKError
 
 log = logging.getLogger(__name__)
 
-CLOSE_TIME_S = 0.5
-OPEN_MARGIN_M = 0.005  # a gripper within this of fully open did not close on anything
 MAX_DRAWER_LAG_M = 0.03  # how far a drawer may lag the gripper's travel (a stretched grasp)
-OVERSHOOT = {JointType.PRISMATIC: 0.015, JointType.REVOLUTE: float(np.radians(5.0))}  # steps aim this far past
-# the target, so that an opening measured a little long still leaves the object open to the target
-GOAL_TOLERANCE = {JointType.PRISMATIC: 0.005, JointType.REVOLUTE: float(np.radians(1.0))}  # the goal is reached
-# this close to it
-RETREAT_M = 0.05  # re-grasp: back off this far along the approach and come back
 ARM_TOUCH_PX = 100  # the arm's pixels touching the object's on the first frame: it may hide the handle
 CLEAR_VIEW_TURNS_RAD = (0.7, -0.7, 1.2, -1.2)  # first-joint swings tried to take the arm out of the view
 MIN_DOOR_RADIUS_M = 0.1  # the first arc's radius is taken as at least this
 MIN_SEEN_TURN_DEG = 5.0  # a door's front seen turned less than this does not place its hinge (`hinge_from_turn`)
 PLANNED_DOOR_ARCS_DEG = (45.0, 30.0, 15.0)  # a door's pre-grasp is planned for the longest of these arcs it carries
 PLANNED_DOOR_REACH_M = 0.1  # ... or else for this much straight pull
-MIN_PLANNED_PULL_M = 0.05  # straight pulls planned are halved down to this
-HINGE_ALIGNED_COS = float(np.cos(np.radians(20.0)))  # fingers closing within 20 deg of the hinge close "along" it:
-# the door turning between the pads twists the handle in them by at most a third of its turn (sin 20 deg)
-TURNING_HANDLES = ("edge pull", "cup", "bar")  # handles that may turn between the pads about the fingers' closing
-PLANNED_LINE_STEP_M, PLANNED_ARC_STEP_RAD = 0.05, float(np.radians(5.0))  # planned pulls are checked this finely
-ONE_FINGER_SHARE = 0.5  # closed, the arm feels more than this share of the grip force across the fingers: one finger
-# alone presses the handle
-CENTRING_STEP_M = 0.002  # such a handle is centred between the fingers in steps of this
-REST_READING_S = 0.1  # a force at rest is the mean of the readings over this long
-PRESS_N = 10.0  # the approach ended with the tool pushing the handle this hard: ease back before closing
-EASE_STEP_M, MAX_EASE_M = 0.004, 0.02  # easing back: step, and at most this far
-DOOR_REGRASP_YAWS_DEG = (45.0, 30.0, 15.0)  # a door's arc out of reach: its handle is held again with the hand
-# turned back toward the robot by the first of these (at most the door's turn so far) that keeps clear of the scene
-# and of the door and that the arm carries
 MAX_TURNED_REGRASPS = 2
 MAX_PRIOR_BLOCKS = 1  # a door's step blocked across its arc about the hinge prior goes on this often
-SELF_CLOSING_PROBE_RAD = float(np.radians(3.0))  # before letting a door go, the hand eases it this far back toward
-# closed and carries it open again, feeling whether it pushes toward closed by itself
-SELF_CLOSING_N = 2.0  # a door pushing its handle toward closed harder than this (four times the wrench's noise at
-# rest) is self-closing: let go, it swings shut
-HELD_SWING_SPEED_SHARE = 0.25  # the door's probe and a swing about a held handle move at this share of the arc's
-# speed: the arm's own inertia stays out of the force felt, and the admittance keeps up with a pivot off the grip
-SAME_GRASP_M, SAME_GRASP_RAD = 0.02, GRASP_PITCH_RAD / 2  # a grasp this near one the scene clearance passed is
-# that one (half the turn between its tilted and level grasps)
 MAX_RESEATS = 2  # a drawer's pull out of the arm's reach: the arm takes the handle again from another configuration
 # at most this often
 FOLLOW_CHECK_M = 0.1  # a drawer carried this far has left its place where the user pointed (depth noise at 1.5 m is
@@ -115,9 +81,9 @@ def run(episode: Episode, dry_run: bool = False) -> tuple[StopReason, str]:
     while True:
         axis, source = estimate(episode, handle.normal)
         _check_followed(episode, axis)
-        if episode.state.opened >= _goal(episode, axis) - GOAL_TOLERANCE[axis.joint_type]:
-            return StopReason.TARGET_REACHED, f"opened {_shown(episode, episode.state.opened):.3f} of " \
-                                              f"{_shown(episode, episode.target()):.3f}"
+        if episode.state.opened >= episode.goal(axis.joint_type) - GOAL_TOLERANCE[axis.joint_type]:
+            return StopReason.TARGET_REACHED, f"opened {episode.shown(episode.state.opened):.3f} of " \
+                                              f"{episode.shown(episode.target()):.3f}"
         step(episode, axis, source)
 
 
@@ -230,12 +196,12 @@ def grasp(episode: Episode, handle: Handle) -> None:
     episode.view.grasp(episode.now(), T_grasp)
     arm.set_gripper(opening)
     move_to_joints(arm, q_pre, episode.joint_limits)
-    _measure_torque_offset(episode)
+    measure_torque_offset(episode)
     open_width = arm.state().gripper_width_m
     T = episode.tool()
     follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), approach, episode.line_limits(), episode.show_arm)
-    _ease_off_press(episode)
-    _close_and_check(episode, open_width, StopReason.GRASP_FAILED)
+    ease_off_press(episode)
+    close_and_check(episode, open_width, StopReason.GRASP_FAILED)
     state.open_width_m = open_width
     state.p_grasp = episode.tool()[:3, 3]
     state.timings["grasp_s"] += time.perf_counter() - clock
@@ -245,7 +211,7 @@ def probe_and_classify(episode: Episode, handle: Handle) -> None:
     """`--joint auto`: a short straight pull, then drawer or door from how the front turned and moved."""
     state, observer = episode.state, episode.observer
     probe = episode.config.opening.probe_pull_m
-    _pull(episode, line_path(episode.tool(), handle.normal), probe, "probe pull")
+    checked_pull(episode, line_path(episode.tool(), handle.normal), probe, "probe pull")
     seen, first = observer.latest_view(), observer.first_look
     if seen is None:
         raise EpisodeStop(StopReason.TRACKING_LOST, "no frame was seen during the probe pull: check the camera")
@@ -278,8 +244,8 @@ def first_pull(episode: Episode, handle: Handle) -> None:
     if revolute and not episode.policy.straight_door(state.joint):
         length -= _door_side_pull(episode, handle, length)
         if length > 0.0:
-            _pull(episode, door_arc(episode.tool(), state.axis, handle.found), length / _door_radius(episode),
-                  "first pull", episode.arc_limits())
+            checked_pull(episode, door_arc(episode.tool(), state.axis, handle.found), length / _door_radius(episode),
+                         "first pull", episode.arc_limits())
     else:
         _drawer_pull(episode, handle.normal, length, "first pull")
 
@@ -315,7 +281,8 @@ def _door_side_pull(episode: Episode, handle: Handle, length: float) -> float:
     if hinge_side_sure(handle, first.points, first.body_box, corners):
         return 0.0
     probe = min(episode.config.opening.probe_pull_m, length)
-    _pull(episode, line_path(episode.tool(), handle.normal), probe, "first pull (straight: the hinge's side unsure)")
+    checked_pull(episode, line_path(episode.tool(), handle.normal), probe,
+                 "first pull (straight: the hinge's side unsure)")
     side = _moved_side(episode, handle, probe)
     state.axis = _prior(episode, handle, side)
     seen_side = {1.0: "its right", -1.0: "its left"}.get(side, "neither side")
@@ -409,16 +376,16 @@ def step(episode: Episode, axis: Axis, source: str) -> None:
     state, cfg = episode.state, episode.config.opening
     if state.steps >= cfg.max_steps:
         raise EpisodeStop(StopReason.MAX_STEPS, f"{cfg.max_steps} steps made, opened "
-                          f"{_shown(episode, state.opened):.3f}")
+                          f"{episode.shown(state.opened):.3f}")
     if episode.now() > cfg.timeout_s:
         raise EpisodeStop(StopReason.TIMEOUT, f"{cfg.timeout_s:.0f} s of arm time used, opened "
-                          f"{_shown(episode, state.opened):.3f}")
+                          f"{episode.shown(state.opened):.3f}")
     path, length, limits = _step_path(episode, axis)
     if axis.joint_type is JointType.PRISMATIC:
         _drawer_pull(episode, axis.direction, length, f"step {state.steps}: {source}", step=True)
         return
     try:
-        _pull(episode, path, length, f"step {state.steps}: {source}", limits, step=True)
+        checked_pull(episode, path, length, f"step {state.steps}: {source}", limits, step=True)
     except IKError as out_of_reach:
         if not _may_turn_back(episode, axis):
             raise
@@ -449,7 +416,7 @@ def _may_turn_back(episode: Episode, axis: Axis) -> bool:
     the tool with the door, the gripper still holds the handle and few such re-grasps were made."""
     state = episode.state
     return (axis.joint_type is JointType.REVOLUTE and not episode.policy.straight_door(axis.joint_type)
-            and state.handle is not None and _turns_with_door(episode.tool(), axis, state.handle.found)
+            and state.handle is not None and turns_with_door(episode.tool(), axis, state.handle.found)
             and episode.gripping() and state.turned_regrasps < MAX_TURNED_REGRASPS)
 
 
@@ -458,7 +425,7 @@ def _drawer_pull(episode: Episode, direction: np.ndarray, length: float, label: 
     arm's reach with the gripper holding the handle, the arm takes the handle again from a configuration that carries
     the rest of the pull (`reseat`)."""
     try:
-        _pull(episode, line_path(episode.tool(), direction), length, label, episode.line_limits(), step)
+        checked_pull(episode, line_path(episode.tool(), direction), length, label, episode.line_limits(), step)
     except IKError as out_of_reach:
         state = episode.state
         if state.joint_type() is not JointType.PRISMATIC or not episode.gripping() or state.reseats >= MAX_RESEATS:
@@ -466,359 +433,7 @@ def _drawer_pull(episode: Episode, direction: np.ndarray, length: float, label: 
         reseat(episode, direction, out_of_reach)
 
 
-def reseat(episode: Episode, direction: np.ndarray, out_of_reach: IKError) -> None:
-    """The drawer's pull along `direction` ran out of the arm's reach (`out_of_reach`, a joint at its limit or a
-    singularity): count the travel so far, open, back off along the approach, move to the pre-grasp joints that carry
-    the rest of the pull from the same grasp (`pregrasp_configuration`), come back and close; later travel counts
-    from the new grip. EpisodeStop("ik infeasible") when no configuration carries the rest."""
-    arm, kin, state = episode.arm, episode.kin, episode.state
-    T_hold = episode.tool()
-    state.opened = state.opened_before + max(0.0, float((T_hold[:3, 3] - state.p_grasp) @ direction))
-    rest = max(episode.target() + OVERSHOOT[JointType.PRISMATIC] - state.opened, GOAL_TOLERANCE[JointType.PRISMATIC])
-    try:
-        q = pregrasp_configuration(kin, arm.state().q, T_hold, _line_pulls(T_hold, direction, rest), RETREAT_M)
-    except IKError:
-        reach = float(np.linalg.norm(T_hold[:2, 3]))
-        raise EpisodeStop(StopReason.IK_INFEASIBLE, f"{out_of_reach}; at {state.opened:.3f} m the drawer's handle is "
-                          f"{reach:.2f} m from the arm's base axis and no arm configuration carries the rest of the "
-                          "pull from there: stand the robot farther from the cabinet or ask for a shorter opening"
-                          ) from out_of_reach
-    step_log.info("the pull is out of reach at %.3f m (%s): taking the handle again from another arm configuration",
-                  state.opened, out_of_reach)
-    arm.set_gripper(state.open_width_m)
-    episode.wait(CLOSE_TIME_S)
-    follow_cartesian_path(arm, kin, line_path(T_hold, -T_hold[:3, 2]), RETREAT_M, episode.line_limits(),
-                          episode.show_arm)
-    move_to_joints(arm, q, episode.joint_limits, episode.show_arm)
-    episode.wait(SETTLE_S)
-    T = episode.tool()
-    follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), RETREAT_M, episode.line_limits(), episode.show_arm)
-    _close_and_check(episode, state.open_width_m, StopReason.GRASP_LOST, "re-grasp after the pull ran out of reach "
-                     "failed: ")
-    state.reseats += 1
-    state.opened_before, state.p_grasp = state.opened, episode.tool()[:3, 3]
-
-
-def regrasp_turned(episode: Episode, axis: Axis, out_of_reach: IKError) -> None:
-    """The door's arc runs out of the arm's reach (`out_of_reach`) with the hand turned with the door: swing the hand
-    back toward the robot about the vertical line through the handle's grip centre (`_turned_grasp`) and count the
-    opening from the new grip. A door that stays where it is left is let go for the swing (the handle stays between
-    the open fingers) and held again after it; a self-closing one (`_closing_push`) stays held, the handle turning
-    between the fingers (`_swing_held`). EpisodeStop("ik infeasible") when no such swing keeps clear of the scene
-    and the door and carries the rest of the arc, or when a self-closing door's handle does not turn in the
-    fingers."""
-    arm, state = episode.arm, episode.state
-    plan = _turned_grasp(episode, axis)
-    if plan is None:
-        raise EpisodeStop(StopReason.IK_INFEASIBLE, f"{out_of_reach}; at {_shown(episode, state.opened):.0f} deg "
-                          "the door's handle cannot be held again with the hand turned back toward the robot either "
-                          "(no such grasp keeps clear of the scene and the door and carries the rest of the arc): "
-                          "stand the robot nearer the door's hinge side or ask for a smaller opening")
-    swing, yaw = plan
-    push = _closing_push(episode, axis)
-    if push is not None and push[0] > SELF_CLOSING_N:
-        step_log.info("the arc is out of reach at %.1f deg (%s): the door pushes the handle toward closed with "
-                      "%.1f N (friction %.1f N), so the hand stays closed on it and turns back %.0f deg about it",
-                      _shown(episode, state.opened), out_of_reach, *push, np.degrees(yaw))
-        _swing_held(episode, swing, yaw, push[0])
-    else:
-        step_log.info("the arc is out of reach at %.1f deg (%s): holding the handle again with the hand turned back "
-                      "%.0f deg", _shown(episode, state.opened), out_of_reach, np.degrees(yaw))
-        arm.set_gripper(state.open_width_m)
-        episode.wait(CLOSE_TIME_S)
-        open_width = arm.state().gripper_width_m
-        T = episode.tool()
-        episode.view.grasp(episode.now(), swing(T)(yaw))
-        follow_cartesian_path(arm, episode.kin, swing(T), yaw, episode.arc_limits(), episode.show_arm)
-        _close_and_check(episode, open_width, StopReason.GRASP_LOST, "re-grasp with the hand turned back failed: ")
-    state.turned_regrasps += 1
-    state.opened_before, state.p_grasp = state.opened, episode.tool()[:3, 3]
-
-
-def _closing_push(episode: Episode, axis: Axis) -> tuple[float, float] | None:
-    """(push, friction), N: how hard the held door pushes its handle toward closed by itself and the friction it
-    moves against (`closing_push_n`), from the force the hand applies along the door's opening direction while it
-    eases the door SELF_CLOSING_PROBE_RAD back toward closed and then carries it open again. None when the arm
-    measures no joint torques."""
-    closing = _force_along_arc(episode, axis, -1.0)
-    opening_n = None if closing is None else _force_along_arc(episode, axis, 1.0)
-    if closing is None or opening_n is None:
-        return None
-    return closing_push_n(opening_n, closing), (opening_n - closing) / 2.0
-
-
-def _force_along_arc(episode: Episode, axis: Axis, sign: float) -> float | None:
-    """The mean force (N) the hand applies along the door's opening direction while it carries the door
-    SELF_CLOSING_PROBE_RAD along its arc (`sign` 1: open, -1: toward closed), slowly (`_slow_arc`) and compliant as
-    a pull is, over the whole motion (the arm's inertia speeding up and slowing down cancels). None without measured
-    torques."""
-    arm, kin, handle = episode.arm, episode.kin, episode.state.handle
-    compliance = episode.compliance.with_force_limit(episode.config.opening.pull_force_limit_n)
-    wrench = WrenchEstimator(kin, compliance.filter_time_constant_s, compliance.torque_offset)
-    along: list[float] = []
-
-    def on_tick(state: ArmState, _t: float) -> bool:
-        w = wrench.update(state)
-        if w is not None:
-            along.append(float(w[:3] @ opening_direction(axis, held_centre(kin.fk(state.q), handle))))
-        episode.show_arm(state)
-        return True
-
-    path = door_arc(episode.tool(), replace(axis, direction=sign * np.asarray(axis.direction)), handle.found)
-    arm.set_compliance(True)
-    try:
-        follow_cartesian_path(arm, kin, path, SELF_CLOSING_PROBE_RAD, _slow_arc(episode), on_tick,
-                              compliance=compliance)
-    finally:
-        arm.set_compliance(False)
-    return float(np.mean(along)) if along else None
-
-
-def _held_swing_limit(episode: Episode) -> float | None:
-    """The force bound of a swing about a held handle: a pull's, plus the grip's squeeze, which moves onto one finger
-    as the pads turn about the handle (the arm then feels it across the fingers, as in `_centre_on_handle`)."""
-    limit = episode.config.opening.pull_force_limit_n
-    return None if limit is None else limit + episode.grip_force_n
-
-
-def _slow_arc(episode: Episode) -> MotionLimits:
-    """The arc's limits at HELD_SWING_SPEED_SHARE of its speed (and of its acceleration and jerk)."""
-    limits = episode.arc_limits()
-    return MotionLimits(*(HELD_SWING_SPEED_SHARE * np.asarray(x) for x in (limits.v_max, limits.a_max, limits.j_max)))
-
-
-def _swing_held(episode: Episode, swing: Callable[[np.ndarray], PathFn], yaw: float, push_n: float) -> None:
-    """Swing the hand back by `yaw` about the handle's vertical line still closed on it, slowly, compliant and
-    force-bounded (`_held_swing_limit`): a round bar turns between the pads. EpisodeStop("ik infeasible") when the
-    swing stops short (the handle does not turn in the fingers) or the grip slips: the door stays held where it
-    stands."""
-    arm, kin, state = episode.arm, episode.kin, episode.state
-    T = episode.tool()
-    episode.view.grasp(episode.now(), swing(T)(yaw))
-    arm.set_compliance(True)
-    try:
-        result = follow_cartesian_path(arm, kin, swing(T), yaw, _slow_arc(episode), episode.show_arm,
-                                       compliance=episode.compliance.with_force_limit(_held_swing_limit(episode)))
-    finally:
-        arm.set_compliance(False)
-    if result.outcome is not Outcome.COMPLETED or not episode.gripping():
-        raise EpisodeStop(StopReason.IK_INFEASIBLE, f"the door's arc is out of the arm's reach at "
-                          f"{_shown(episode, state.opened):.0f} deg, and the door closes by itself (it pushes the "
-                          f"handle toward closed with {push_n:.1f} N) so it cannot be let go to hold it again, and its "
-                          f"handle did not turn in the fingers ({result.reason}): stand the robot nearer the door's "
-                          "hinge side or ask for a smaller opening")
-
-
-def _turned_grasp(episode: Episode, axis: Axis) -> tuple[Callable[[np.ndarray], PathFn], float] | None:
-    """How to swing the hand back toward the robot (a pose -> its swing about the vertical line through the handle's
-    grip centre, where the arm holds it now) and how far (rad): the first of DOOR_REGRASP_YAWS_DEG (at most the opening
-    so far) whose grasp keeps clear of the first frame's scene and of the door where it now stands (`clear_grasps` on
-    the handle as that grasp holds it, `held_as`) and from which the arm follows, without changing branch, the swing
-    and the rest of the arc, or half of it; None when none does, or without a pointed part (no scene to
-    check)."""
-    state, pointed, kin = episode.state, episode.observer.pointed, episode.kin
-    if pointed is None:
-        return None
-    handle, T, q = state.handle, episode.tool(), episode.arm.state().q
-    centre = held_centre(T, handle)
-    remaining = _goal(episode, axis) - state.opened
-    origin, normal = door_plane(handle, centre, axis, state.opened, pointed.handle.relief_m)
-    door = replace(scene_tree(episode.observer.first_look.frame, pointed), origin=origin, normal=normal)
-
-    def swing(T_from: np.ndarray) -> PathFn:
-        return arc_path(T_from, centre, -axis.direction)
-
-    def pulls(T_grasp: np.ndarray) -> list[list[np.ndarray]]:
-        path = door_arc(T_grasp, axis, handle.found)
-        return [pull_poses(path, arc, PLANNED_ARC_STEP_RAD) for arc in (remaining, remaining / 2)]
-
-    for yaw in np.radians(DOOR_REGRASP_YAWS_DEG):
-        T_grasp = swing(T)(yaw)
-        if yaw > state.opened or not _clears(held_as(T_grasp, handle), door, T_grasp, pulls,
-                                             episode.gripper.max_opening_m):
-            continue
-        for pull in pulls(T_grasp):
-            try:
-                kin.solve_path([T, *pull_poses(swing(T), yaw, PLANNED_ARC_STEP_RAD), *pull], q)
-            except IKError:
-                continue
-            return swing, float(yaw)
-    return None
-
-
-def _clears(handle: Handle, door: Scene, T_grasp: np.ndarray, pulls: Callable, max_opening_m: float) -> bool:
-    """Whether the scene clearance lets the gripper hold `handle` near `T_grasp`: one of its clear grasps lies within
-    SAME_GRASP_M and SAME_GRASP_RAD of it (the arm's grasp follows the door's estimated turns, the handle the
-    estimated opening)."""
-    try:
-        grips = clear_grasps(handle, door, pulls, RETREAT_M, max_opening_m)
-    except EpisodeStop:
-        return False
-    return any(np.linalg.norm(T[:3, 3] - T_grasp[:3, 3]) < SAME_GRASP_M
-               and Rotation.from_matrix(T[:3, :3].T @ T_grasp[:3, :3]).magnitude() < SAME_GRASP_RAD
-               for T, _ in grips)
-
-
-def regrasp(episode: Episode) -> None:
-    """Open, back off along the approach, find the handle again in a fresh frame near where it was held or,
-    released, gone back along the estimated path (a door swinging shut), approach it and close. The opening is
-    the one measured before the slipping pull (its share is not counted: the arm errs toward opening further),
-    or less where the handle is found gone back; later travel counts from the new grip."""
-    arm, kin, state = episode.arm, episode.kin, episode.state
-    held = episode.tool()[:3, 3]
-    arm.set_gripper(state.open_width_m)
-    episode.wait(CLOSE_TIME_S)
-    T = episode.tool()
-    follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), RETREAT_M, episode.line_limits(), episode.show_arm)
-    frame, points, robot = episode.observer.look(arm.state())
-    handle = _slipped_handle(episode, frame, points, robot, held)
-    if handle is None:
-        raise EpisodeStop(StopReason.GRASP_LOST, f"the handle slipped out of the gripper and was not found again "
-                          f"within {REGRASP_RADIUS_M * 100:.0f} cm of where it was held or of the estimated path "
-                          "back to the start: check the view of the handle")
-    T_grasp = grasp_pose(handle)
-    episode.view.grasp(episode.now(), T_grasp)
-    move_to_pose(arm, kin, pregrasp_pose(T_grasp, RETREAT_M), episode.joint_limits)
-    episode.wait(SETTLE_S)
-    T = episode.tool()
-    follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), RETREAT_M, episode.line_limits(), episode.show_arm)
-    _close_and_check(episode, state.open_width_m, StopReason.GRASP_LOST, "re-grasp after a slip failed: ")
-    p_new = episode.tool()[:3, 3]
-    if state.axis is not None:
-        state.opened = min(state.opened, state.opened_before + opening(state.axis, state.p_grasp, p_new))
-    state.opened_before, state.p_grasp = state.opened, p_new
-
-
-def _slipped_handle(episode: Episode, frame: Frame, points: np.ndarray, robot: np.ndarray, held: np.ndarray
-                    ) -> Handle | None:
-    """The handle found near where it was `held`, else near where the part would be gone back by some of its
-    opening along the estimated axis (every REGRASP_RADIUS_M of the path, nearest first): on the pointed front
-    seen there when the user pointed, else the points protruding from the front there."""
-    state, eye = episode.state, viewpoint(frame)
-    travel = 0.0 if state.axis is None else \
-        max(state.opened, state.opened_before + opening(state.axis, state.p_grasp, held))
-    for near in back_along_path(state.axis, held, travel, REGRASP_RADIUS_M):
-        handle = _pointed_near(episode, frame, robot, near) if episode.observer.pointed is not None else None
-        if handle is None:
-            handle = find_handle(protruding_points(points, near, eye), points, episode.observer.first_look.body_box,
-                                 eye, state.joint_type() is JointType.REVOLUTE)
-        if handle is not None:
-            return handle
-    return None
-
-
-def _pointed_near(episode: Episode, frame: Frame, robot: np.ndarray, near: np.ndarray) -> Handle | None:
-    """The handle of the front seen at `near` (base frame) in `frame`, pointed at as the user did on the first
-    frame, when it lies within REGRASP_RADIUS_M of `near`: the same front, moved; None otherwise."""
-    u, v = points_to_pixels(near, frame.intrinsics.K, frame.T_base_camera)[0]
-    if not Pointer(u, v).inside(*frame.depth_m.shape[::-1]):  # behind the camera (NaN) or off the image
-        return None
-    try:
-        found = point_at(frame, robot, Pointer(u, v), gripper=episode.gripper)
-    except PointerError:
-        return None
-    handle = pointed_handle(found.handle, episode.state.joint_type() is JointType.REVOLUTE)
-    close = np.linalg.norm(handle.center - near) < REGRASP_RADIUS_M and found.handle.graspability > 0.0
-    return handle if close else None
-
-
 # --- helpers ---------------------------------------------------------------------------------------------
-
-
-def _pull(episode: Episode, path: PathFn, length: float, label: str, limits: MotionLimits | None = None,
-          step: bool = False) -> None:
-    """A pull, then its checks: a slip re-grasps once (a second one is "grasp lost"); a blocked motion stops."""
-    result = episode.pull(path, length, label, limits, step)
-    if not episode.gripping():
-        if episode.state.regrasped:
-            raise EpisodeStop(StopReason.GRASP_LOST, f"the handle slipped out of the gripper again during "
-                              f"{label}, after one re-grasp: the pull needs more force than the grasp holds")
-        episode.state.regrasped = True
-        regrasp(episode)
-    elif result.outcome is Outcome.BLOCKED:
-        raise EpisodeStop(StopReason.BLOCKED, f"no more motion during {label} ({result.reason}): the joint is at "
-                          "its limit or locked, or the object presses on the arm itself (a door's sweep): check "
-                          "the arm's clearance")
-
-
-def _measure_torque_offset(episode: Episode) -> None:
-    """At the pre-grasp pose, touching nothing: the joint torques' own offset (motor-current torque sensing reads
-    a few percent of each motor's peak torque there), the mean over SETTLE_S once the arm has settled, which every
-    later force reading of the episode subtracts (`Compliance.torque_offset`)."""
-    episode.wait(SETTLE_S)
-    states = []
-    for _ in range(round(SETTLE_S / episode.arm.control_period_s)):
-        episode.arm.sync()
-        states.append(episode.arm.state())
-    episode.compliance = episode.compliance.with_torque_offset(torque_offset(episode.kin, states))
-
-
-def _ease_off_press(episode: Episode) -> None:
-    """A handle nearer than seen (a short knob, the calibration's error) leaves the palm pushing on it at the
-    approach's end. The first pull would start by releasing that push, which its force bound reads as resistance
-    (a pull held still at 0 deg): back off along the approach, before closing, until the tool no longer pushes.
-    Arms that measure no joint torques skip this."""
-    arm, kin = episode.arm, episode.kin
-    wrench = WrenchEstimator(kin, 0.0, episode.compliance.torque_offset)
-    for _ in range(round(MAX_EASE_M / EASE_STEP_M)):
-        state = arm.state()
-        w = wrench.update(state)
-        T = kin.fk(state.q)
-        if w is None or w[:3] @ T[:3, 2] < PRESS_N:
-            return
-        follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), EASE_STEP_M, episode.line_limits(),
-                              episode.show_arm)
-        episode.wait(SETTLE_S)
-
-
-def _close_and_check(episode: Episode, open_width: float, failure: StopReason, context: str = "") -> None:
-    """Close on the handle; when one finger alone pressed it, centre it (`_centre_on_handle`), open and close again
-    so that both fingers squeeze it. EpisodeStop(`failure`) when the gripper closed on nothing."""
-    width = _close(episode, open_width, failure, context)
-    moved = _centre_on_handle(episode, width)
-    if moved:
-        log.info("one finger alone pressed the handle (closed to %.1f mm): the tool moved %.1f mm toward it and "
-                 "closed again", width * 1e3, moved * 1e3)
-        episode.arm.set_gripper(open_width)
-        episode.wait(CLOSE_TIME_S)
-        _close(episode, open_width, failure, context)
-
-
-def _close(episode: Episode, open_width: float, failure: StopReason, context: str) -> float:
-    """Close the gripper; the width it stopped at. EpisodeStop(`failure`) when it closed on nothing."""
-    episode.arm.set_gripper(0.0, episode.grip_force_n)
-    episode.wait(CLOSE_TIME_S)
-    width = episode.arm.state().gripper_width_m
-    if not MIN_GRASP_WIDTH_M < width < open_width - OPEN_MARGIN_M:
-        raise EpisodeStop(failure, f"{context}gripper closed to {width * 1e3:.1f} mm (open {open_width * 1e3:.1f} "
-                          "mm): it missed the handle; check the handle detection and the camera calibration")
-    return width
-
-
-def _centre_on_handle(episode: Episode, width: float) -> float:
-    """How far (m) the tool moved to centre the handle between the closed fingers. Each finger closes to the
-    gripper's middle: a handle lying off it by more than half its thickness stops one finger while the other closes
-    short of it, and the arm then feels that finger's squeeze across the fingers (the tool pushes the handle toward
-    the middle). Still squeezing, the tool moves toward the touching finger in CENTRING_STEP_M steps until the other
-    finger presses too (the force across them drops), at most the closed `width` (the touching finger is no farther
-    from the middle). Arms that measure no joint torques do not move."""
-    arm, kin = episode.arm, episode.kin
-    moved = 0.0
-    while moved < width:
-        wrench = WrenchEstimator(kin, 0.0, episode.compliance.torque_offset)
-        states = []
-        for _ in range(round(REST_READING_S / arm.control_period_s)):
-            arm.sync()
-            states.append(arm.state())
-        w = wrench.start(states)
-        T = kin.fk(states[-1].q)
-        across = 0.0 if w is None else float(w[:3] @ T[:3, 1])
-        if abs(across) < ONE_FINGER_SHARE * episode.grip_force_n:
-            break
-        follow_cartesian_path(arm, kin, line_path(T, -np.sign(across) * T[:3, 1]), CENTRING_STEP_M,
-                              episode.line_limits(), episode.show_arm)
-        moved += CENTRING_STEP_M
-    return moved
 
 
 def _grasp_plan(episode: Episode, handle: Handle) -> tuple[np.ndarray, float, np.ndarray]:
@@ -854,18 +469,7 @@ def _planned_pulls(episode: Episode, handle: Handle, T_grasp: np.ndarray) -> lis
                   for arc in PLANNED_DOOR_ARCS_DEG]
     length = PLANNED_DOOR_REACH_M if revolute else \
         episode.config.opening.target_distance_m + OVERSHOOT[JointType.PRISMATIC]
-    return pulls + _line_pulls(T_grasp, handle.normal, length)
-
-
-def _line_pulls(T_grasp: np.ndarray, direction: np.ndarray, length: float) -> list[list[np.ndarray]]:
-    """Straight pulls from the grasp pose along `direction`, `length` and halves of it down to MIN_PLANNED_PULL_M (or
-    `length` alone when shorter), each as tool poses every PLANNED_LINE_STEP_M."""
-    pulls = []
-    while True:
-        pulls.append(pull_poses(line_path(T_grasp, direction), length, PLANNED_LINE_STEP_M))
-        if length <= MIN_PLANNED_PULL_M:
-            return pulls
-        length /= 2
+    return pulls + line_pulls(T_grasp, handle.normal, length)
 
 
 def _prior(episode: Episode, handle: Handle, side: float = 0.0) -> Axis:
@@ -915,7 +519,7 @@ def _check_followed(episode: Episode, axis: Axis) -> None:
 
 def _log_estimate(episode: Episode, axis: Axis, source: str) -> None:
     state, vision = episode.state, episode.observer.latest_axis()
-    shown = _shown(episode, state.opened)
+    shown = episode.shown(state.opened)
     state.opening_curve.append((episode.now(), state.opened))
     episode.view.axis(episode.now(), axis, shown, source)
     _show_step(episode)
@@ -944,7 +548,7 @@ def _step_path(episode: Episode, axis: Axis) -> tuple[PathFn, float, MotionLimit
     """The next step: a line along a drawer, an arc about a door's axis, or for a policy that pulls doors
     straight a line along the arc's tangent (its steps in metres)."""
     state = episode.state
-    remaining = _goal(episode, axis) - state.opened
+    remaining = episode.goal(axis.joint_type) - state.opened
     size = episode.policy.step_size(axis.joint_type, state.steps, episode.config.opening)
     T = episode.tool()
     if axis.joint_type is JointType.PRISMATIC:
@@ -957,26 +561,5 @@ def _step_path(episode: Episode, axis: Axis) -> tuple[PathFn, float, MotionLimit
     return door_arc(T, axis, kind), min(size, remaining), episode.arc_limits()
 
 
-def door_arc(T: np.ndarray, axis: Axis, kind: str) -> PathFn:
-    """The tool's arc about a door's axis from pose T, holding a handle of `kind` (`Handle.found`). Fingers closing
-    along the hinge across a horizontal handle that lies along their pads (TURNING_HANDLES: a tab, a cup, a bar) let
-    it turn between the pads as the door swings: the tool keeps its orientation, sparing the wrist the door's turn.
-    Otherwise the tool turns with the door: a vertical bar (the hand's width lies in the swing), a knob (its stem
-    would swing into the fingers), a pocket (its walls would)."""
-    return arc_path(T, axis.origin, axis.direction, turn=_turns_with_door(T, axis, kind))
 
 
-def _turns_with_door(T: np.ndarray, axis: Axis, kind: str) -> bool:
-    """Whether the tool at pose T holding a handle of `kind` turns with the door (`door_arc`)."""
-    along_hinge = abs(float(T[:3, 1] @ axis.direction)) >= HINGE_ALIGNED_COS
-    return not (along_hinge and kind in TURNING_HANDLES)
-
-
-def _goal(episode: Episode, axis: Axis) -> float:
-    """Where the steps aim: the target plus the overshoot (m or rad)."""
-    return episode.target() + OVERSHOOT[axis.joint_type]
-
-
-def _shown(episode: Episode, value: float) -> float:
-    """An opening in the units users read: m for a drawer, deg for a door."""
-    return value * display_scale(episode.state.joint_type())

@@ -1,0 +1,223 @@
+"""The hand on the handle: closing on it and checking the grip (one finger alone pressing it: centre it), easing off
+a press before closing, the torque offset at rest, a pull with its checks (a slip re-grasps once, a block stops) and
+the re-grasp after a slip; a door's arc as the hand follows it."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from deploy.axis_pipeline import viewpoint
+from deploy.control.context import MIN_GRASP_WIDTH_M, SETTLE_S, Episode
+from deploy.control.grasp import (
+    REGRASP_RADIUS_M,
+    Handle,
+    back_along_path,
+    find_handle,
+    grasp_pose,
+    pointed_handle,
+    pregrasp_pose,
+    protruding_points,
+)
+from deploy.control.policy import opening
+from deploy.control.state import EpisodeStop, StopReason
+from deploy.errors import PointerError
+from deploy.geometry.cloud import points_to_pixels
+from deploy.geometry.types import Axis, JointType
+from deploy.perception.base import Pointer
+from deploy.perception.pointing import point_at
+from drivers.arm.motion import Outcome, PathFn, arc_path, follow_cartesian_path, line_path, move_to_pose
+from drivers.arm.trajectory import MotionLimits
+from drivers.arm.wrench import WrenchEstimator, torque_offset
+from drivers.camera.base import Frame
+
+log = logging.getLogger(__name__)
+
+CLOSE_TIME_S = 0.5
+OPEN_MARGIN_M = 0.005  # a gripper within this of fully open did not close on anything
+RETREAT_M = 0.05  # re-grasp: back off this far along the approach and come back
+HINGE_ALIGNED_COS = float(np.cos(np.radians(20.0)))  # fingers closing within 20 deg of the hinge close "along" it:
+# the door turning between the pads twists the handle in them by at most a third of its turn (sin 20 deg)
+TURNING_HANDLES = ("edge pull", "cup", "bar")  # handles that may turn between the pads about the fingers' closing
+ONE_FINGER_SHARE = 0.5  # closed, the arm feels more than this share of the grip force across the fingers: one finger
+# alone presses the handle
+CENTRING_STEP_M = 0.002  # such a handle is centred between the fingers in steps of this
+REST_READING_S = 0.1  # a force at rest is the mean of the readings over this long
+PRESS_N = 10.0  # the approach ended with the tool pushing the handle this hard: ease back before closing
+EASE_STEP_M, MAX_EASE_M = 0.004, 0.02  # easing back: step, and at most this far
+
+
+def checked_pull(episode: Episode, path: PathFn, length: float, label: str, limits: MotionLimits | None = None,
+                 step: bool = False) -> None:
+    """A pull, then its checks: a slip re-grasps once (a second one is "grasp lost"); a blocked motion stops."""
+    result = episode.pull(path, length, label, limits, step)
+    if not episode.gripping():
+        if episode.state.regrasped:
+            raise EpisodeStop(StopReason.GRASP_LOST, f"the handle slipped out of the gripper again during "
+                              f"{label}, after one re-grasp: the pull needs more force than the grasp holds")
+        episode.state.regrasped = True
+        regrasp(episode)
+    elif result.outcome is Outcome.BLOCKED:
+        raise EpisodeStop(StopReason.BLOCKED, f"no more motion during {label} ({result.reason}): the joint is at "
+                          "its limit or locked, or the object presses on the arm itself (a door's sweep): check "
+                          "the arm's clearance")
+
+
+def regrasp(episode: Episode) -> None:
+    """Open, back off along the approach, find the handle again in a fresh frame near where it was held or,
+    released, gone back along the estimated path (a door swinging shut), approach it and close. The opening is
+    the one measured before the slipping pull (its share is not counted: the arm errs toward opening further),
+    or less where the handle is found gone back; later travel counts from the new grip."""
+    arm, kin, state = episode.arm, episode.kin, episode.state
+    held = episode.tool()[:3, 3]
+    arm.set_gripper(state.open_width_m)
+    episode.wait(CLOSE_TIME_S)
+    T = episode.tool()
+    follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), RETREAT_M, episode.line_limits(), episode.show_arm)
+    frame, points, robot = episode.observer.look(arm.state())
+    handle = _slipped_handle(episode, frame, points, robot, held)
+    if handle is None:
+        raise EpisodeStop(StopReason.GRASP_LOST, f"the handle slipped out of the gripper and was not found again "
+                          f"within {REGRASP_RADIUS_M * 100:.0f} cm of where it was held or of the estimated path "
+                          "back to the start: check the view of the handle")
+    T_grasp = grasp_pose(handle)
+    episode.view.grasp(episode.now(), T_grasp)
+    move_to_pose(arm, kin, pregrasp_pose(T_grasp, RETREAT_M), episode.joint_limits)
+    episode.wait(SETTLE_S)
+    T = episode.tool()
+    follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), RETREAT_M, episode.line_limits(), episode.show_arm)
+    close_and_check(episode, state.open_width_m, StopReason.GRASP_LOST, "re-grasp after a slip failed: ")
+    p_new = episode.tool()[:3, 3]
+    if state.axis is not None:
+        state.opened = min(state.opened, state.opened_before + opening(state.axis, state.p_grasp, p_new))
+    state.opened_before, state.p_grasp = state.opened, p_new
+
+
+def _slipped_handle(episode: Episode, frame: Frame, points: np.ndarray, robot: np.ndarray, held: np.ndarray
+                    ) -> Handle | None:
+    """The handle found near where it was `held`, else near where the part would be gone back by some of its
+    opening along the estimated axis (every REGRASP_RADIUS_M of the path, nearest first): on the pointed front
+    seen there when the user pointed, else the points protruding from the front there."""
+    state, eye = episode.state, viewpoint(frame)
+    travel = 0.0 if state.axis is None else \
+        max(state.opened, state.opened_before + opening(state.axis, state.p_grasp, held))
+    for near in back_along_path(state.axis, held, travel, REGRASP_RADIUS_M):
+        handle = _pointed_near(episode, frame, robot, near) if episode.observer.pointed is not None else None
+        if handle is None:
+            handle = find_handle(protruding_points(points, near, eye), points, episode.observer.first_look.body_box,
+                                 eye, state.joint_type() is JointType.REVOLUTE)
+        if handle is not None:
+            return handle
+    return None
+
+
+def _pointed_near(episode: Episode, frame: Frame, robot: np.ndarray, near: np.ndarray) -> Handle | None:
+    """The handle of the front seen at `near` (base frame) in `frame`, pointed at as the user did on the first
+    frame, when it lies within REGRASP_RADIUS_M of `near`: the same front, moved; None otherwise."""
+    u, v = points_to_pixels(near, frame.intrinsics.K, frame.T_base_camera)[0]
+    if not Pointer(u, v).inside(*frame.depth_m.shape[::-1]):  # behind the camera (NaN) or off the image
+        return None
+    try:
+        found = point_at(frame, robot, Pointer(u, v), gripper=episode.gripper)
+    except PointerError:
+        return None
+    handle = pointed_handle(found.handle, episode.state.joint_type() is JointType.REVOLUTE)
+    close = np.linalg.norm(handle.center - near) < REGRASP_RADIUS_M and found.handle.graspability > 0.0
+    return handle if close else None
+
+
+def measure_torque_offset(episode: Episode) -> None:
+    """At the pre-grasp pose, touching nothing: the joint torques' own offset (motor-current torque sensing reads
+    a few percent of each motor's peak torque there), the mean over SETTLE_S once the arm has settled, which every
+    later force reading of the episode subtracts (`Compliance.torque_offset`)."""
+    episode.wait(SETTLE_S)
+    states = []
+    for _ in range(round(SETTLE_S / episode.arm.control_period_s)):
+        episode.arm.sync()
+        states.append(episode.arm.state())
+    episode.compliance = episode.compliance.with_torque_offset(torque_offset(episode.kin, states))
+
+
+def ease_off_press(episode: Episode) -> None:
+    """A handle nearer than seen (a short knob, the calibration's error) leaves the palm pushing on it at the
+    approach's end. The first pull would start by releasing that push, which its force bound reads as resistance
+    (a pull held still at 0 deg): back off along the approach, before closing, until the tool no longer pushes.
+    Arms that measure no joint torques skip this."""
+    arm, kin = episode.arm, episode.kin
+    wrench = WrenchEstimator(kin, 0.0, episode.compliance.torque_offset)
+    for _ in range(round(MAX_EASE_M / EASE_STEP_M)):
+        state = arm.state()
+        w = wrench.update(state)
+        T = kin.fk(state.q)
+        if w is None or w[:3] @ T[:3, 2] < PRESS_N:
+            return
+        follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), EASE_STEP_M, episode.line_limits(),
+                              episode.show_arm)
+        episode.wait(SETTLE_S)
+
+
+def close_and_check(episode: Episode, open_width: float, failure: StopReason, context: str = "") -> None:
+    """Close on the handle; when one finger alone pressed it, centre it (`centre_on_handle`), open and close again
+    so that both fingers squeeze it. EpisodeStop(`failure`) when the gripper closed on nothing."""
+    width = _close(episode, open_width, failure, context)
+    moved = centre_on_handle(episode, width)
+    if moved:
+        log.info("one finger alone pressed the handle (closed to %.1f mm): the tool moved %.1f mm toward it and "
+                 "closed again", width * 1e3, moved * 1e3)
+        episode.arm.set_gripper(open_width)
+        episode.wait(CLOSE_TIME_S)
+        _close(episode, open_width, failure, context)
+
+
+def _close(episode: Episode, open_width: float, failure: StopReason, context: str) -> float:
+    """Close the gripper; the width it stopped at. EpisodeStop(`failure`) when it closed on nothing."""
+    episode.arm.set_gripper(0.0, episode.grip_force_n)
+    episode.wait(CLOSE_TIME_S)
+    width = episode.arm.state().gripper_width_m
+    if not MIN_GRASP_WIDTH_M < width < open_width - OPEN_MARGIN_M:
+        raise EpisodeStop(failure, f"{context}gripper closed to {width * 1e3:.1f} mm (open {open_width * 1e3:.1f} "
+                          "mm): it missed the handle; check the handle detection and the camera calibration")
+    return width
+
+
+def centre_on_handle(episode: Episode, width: float) -> float:
+    """How far (m) the tool moved to centre the handle between the closed fingers. Each finger closes to the
+    gripper's middle: a handle lying off it by more than half its thickness stops one finger while the other closes
+    short of it, and the arm then feels that finger's squeeze across the fingers (the tool pushes the handle toward
+    the middle). Still squeezing, the tool moves toward the touching finger in CENTRING_STEP_M steps until the other
+    finger presses too (the force across them drops), at most the closed `width` (the touching finger is no farther
+    from the middle). Arms that measure no joint torques do not move."""
+    arm, kin = episode.arm, episode.kin
+    moved = 0.0
+    while moved < width:
+        wrench = WrenchEstimator(kin, 0.0, episode.compliance.torque_offset)
+        states = []
+        for _ in range(round(REST_READING_S / arm.control_period_s)):
+            arm.sync()
+            states.append(arm.state())
+        w = wrench.start(states)
+        T = kin.fk(states[-1].q)
+        across = 0.0 if w is None else float(w[:3] @ T[:3, 1])
+        if abs(across) < ONE_FINGER_SHARE * episode.grip_force_n:
+            break
+        follow_cartesian_path(arm, kin, line_path(T, -np.sign(across) * T[:3, 1]), CENTRING_STEP_M,
+                              episode.line_limits(), episode.show_arm)
+        moved += CENTRING_STEP_M
+    return moved
+
+
+def door_arc(T: np.ndarray, axis: Axis, kind: str) -> PathFn:
+    """The tool's arc about a door's axis from pose T, holding a handle of `kind` (`Handle.found`). Fingers closing
+    along the hinge across a horizontal handle that lies along their pads (TURNING_HANDLES: a tab, a cup, a bar) let
+    it turn between the pads as the door swings: the tool keeps its orientation, sparing the wrist the door's turn.
+    Otherwise the tool turns with the door: a vertical bar (the hand's width lies in the swing), a knob (its stem
+    would swing into the fingers), a pocket (its walls would)."""
+    return arc_path(T, axis.origin, axis.direction, turn=turns_with_door(T, axis, kind))
+
+
+def turns_with_door(T: np.ndarray, axis: Axis, kind: str) -> bool:
+    """Whether the tool at pose T holding a handle of `kind` turns with the door (`door_arc`)."""
+    along_hinge = abs(float(T[:3, 1] @ axis.direction)) >= HINGE_ALIGNED_COS
+    return not (along_hinge and kind in TURNING_HANDLES)
+
