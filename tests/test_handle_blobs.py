@@ -35,7 +35,7 @@ def _frame(bar_u: tuple[int, int], bar_depth: float = 0.0, ledge: bool = False) 
     return Frame(0, 0.0, color, depth, K, T)
 
 
-def _bars(bar_u: tuple[int, int], bar_depth: float = 0.0, ledge: bool = False, length_m: float = 0.35) -> list:
+def _blobs(bar_u: tuple[int, int], bar_depth: float = 0.0, ledge: bool = False) -> list:
     frame = _frame(bar_u, bar_depth, ledge)
     plane = PlaneFrame.facing(np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]), np.zeros(3))
     view = rectify(frame, np.zeros((480, 640), bool), plane, (-0.35, 0.35), (-0.25, 0.25), 1.0 / K.fx)
@@ -43,8 +43,11 @@ def _bars(bar_u: tuple[int, int], bar_depth: float = 0.0, ledge: bool = False, l
     z = (K.cy - np.array(FRONT_V)) / K.fy
     extent = Extent(int(view.row(z[0])) + 1, int(view.row(z[1])) - 1, int(view.col(s[0])) + 1, int(view.col(s[1])) - 1,
                     dict.fromkeys(("top", "bottom", "left", "right"), "gap"))
-    blobs = handle_blobs(view, extent, frame.T_base_camera, K.K)
-    return [b for b in blobs if b.firm and b.inside and b.length_m > length_m]
+    return handle_blobs(view, extent, frame.T_base_camera, K.K)
+
+
+def _bars(bar_u: tuple[int, int], bar_depth: float = 0.0, length_m: float = 0.35) -> list:
+    return [b for b in _blobs(bar_u, bar_depth) if b.firm and b.inside and b.length_m > length_m]
 
 
 def test_a_long_bar_beside_the_side_edges_shadow_is_one_handle():
@@ -58,12 +61,5 @@ def test_a_bar_standing_out_across_a_drawers_whole_width_is_its_handle():
 
 
 def test_a_ledge_running_on_past_the_fronts_ends_is_no_handle():
-    frame = _frame((FRONT_U[0] + 20, FRONT_U[1] - 40), ledge=True)
-    plane = PlaneFrame.facing(np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]), np.zeros(3))
-    view = rectify(frame, np.zeros((480, 640), bool), plane, (-0.35, 0.35), (-0.25, 0.25), 1.0 / K.fx)
-    s = (np.array(FRONT_U) - K.cx) / K.fx
-    z = (K.cy - np.array(FRONT_V)) / K.fy
-    extent = Extent(int(view.row(z[0])) + 1, int(view.row(z[1])) - 1, int(view.col(s[0])) + 1, int(view.col(s[1])) - 1,
-                    dict.fromkeys(("top", "bottom", "left", "right"), "gap"))
-    blobs = handle_blobs(view, extent, frame.T_base_camera, K.K)
+    blobs = _blobs((FRONT_U[0] + 20, FRONT_U[1] - 40), ledge=True)
     assert not [b for b in blobs if b.relief_m > 0.02 and b.length_m > 0.35]
