@@ -40,6 +40,7 @@ class FileLink:
 
     def prepare(self, device):
         assert device.get_info(rs.camera_info.serial_number) == SERIAL
+        device.as_playback().set_real_time(False)  # every frame delivered, however loaded the machine
         self.prepared += 1
 
     def reset(self):
