@@ -56,7 +56,6 @@ def opening_direction(axis: Axis, point: np.ndarray) -> np.ndarray:
     return moving / np.linalg.norm(moving)
 
 
-
 def closing_push_n(opening_n: float, closing_n: float) -> float:
     """The force (N) a door pushes its handle toward closed with by itself (a self-closing hinge's spring), from the
     force the hand applies along the door's opening direction while it carries the door open and while it eases it

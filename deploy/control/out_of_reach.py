@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from deploy.control.context import GOAL_TOLERANCE, OVERSHOOT, SETTLE_S, Episode
+from deploy.control.context import GOAL_TOLERANCE, SETTLE_S, Episode
 from deploy.control.door_regrasp import closing_push_n, door_plane, held_as, held_centre, opening_direction
 from deploy.control.grasp import Handle, pregrasp_configuration, pull_poses
 from deploy.control.hand import CLOSE_TIME_S, RETREAT_M, close_and_check, door_arc
@@ -48,7 +48,7 @@ def reseat(episode: Episode, direction: np.ndarray, out_of_reach: IKError) -> No
     arm, kin, state = episode.arm, episode.kin, episode.state
     T_hold = episode.tool()
     state.opened = state.opened_before + max(0.0, float((T_hold[:3, 3] - state.p_grasp) @ direction))
-    rest = max(episode.target() + OVERSHOOT[JointType.PRISMATIC] - state.opened, GOAL_TOLERANCE[JointType.PRISMATIC])
+    rest = max(episode.goal(JointType.PRISMATIC) - state.opened, GOAL_TOLERANCE[JointType.PRISMATIC])
     try:
         q = pregrasp_configuration(kin, arm.state().q, T_hold, line_pulls(T_hold, direction, rest), RETREAT_M)
     except IKError:

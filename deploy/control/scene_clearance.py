@@ -131,9 +131,8 @@ def _kept(handle: Handle, scene: Scene, path: list[np.ndarray], gripper: tuple[T
     """How far the gripper moving through `path` keeps from `scene` (KEEP_CLEAR_M at most), less how deep it reaches
     behind the fronts' plane (but into a pocket)."""
     margin = clearance(scene.points, path, gripper, KEEP_CLEAR_M)
-    if handle.found != "recessed pull" and first_behind(path, gripper, scene.origin, scene.normal, 0.0):
-        margin = min(margin, -depth_behind(path, gripper, scene.origin, scene.normal))
-    return margin
+    depth = 0.0 if handle.found == "recessed pull" else depth_behind(path, gripper, scene.origin, scene.normal)
+    return min(margin, -depth) if depth > 0 else margin
 
 
 def _where(point: np.ndarray, handle: Handle) -> str:

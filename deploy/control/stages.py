@@ -310,7 +310,7 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
         _follow_vision_alone(episode, vision, pull)
         # once a step about the hinge prior was blocked across its arc (`_may_go_on_blocked`), the grip's path mostly
         # followed the prior: while the pulls strain, the front's turn shows the hinge
-        turned = _hinge_seen_turning(episode, pull) if strained and state.prior_blocks and not state.estimated \
+        turned = _hinge_seen_turning(episode) if strained and state.prior_blocks and not state.estimated \
             else None
         state.estimated |= chosen is not None and turned is None
         if turned is not None:
@@ -327,7 +327,7 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
     return chosen, source
 
 
-def _hinge_seen_turning(episode: Episode, pull: np.ndarray) -> Axis | None:
+def _hinge_seen_turning(episode: Episode) -> Axis | None:
     """The door's hinge where the closed front meets the front as the camera sees it turned around the grip now
     (`hinge_from_turn`; the hinge prior gives the closed front's plane); None when the front turned too little to
     tell, or for a policy acting on vision alone."""
@@ -339,7 +339,8 @@ def _hinge_seen_turning(episode: Episode, pull: np.ndarray) -> Axis | None:
     frame, mask = seen
     grip = episode.tool()[:3, 3]
     normal = front_normal(observer.points(frame, mask), grip, first.body_box, viewpoint(frame))
-    return hinge_from_turn(state.axis.origin, state.handle.center, grip, pull, normal, MIN_SEEN_TURN_DEG)
+    return hinge_from_turn(state.axis.origin, state.handle.center, grip, state.handle.normal, normal,
+                           MIN_SEEN_TURN_DEG)
 
 
 def _grip_path_axis(poses: np.ndarray, joint: JointType | None) -> AxisResult:
@@ -403,7 +404,7 @@ def _may_go_on_blocked(episode: Episode, axis: Axis) -> bool:
     state = episode.state
     if axis.joint_type is not JointType.REVOLUTE or state.estimated or state.prior_blocks >= MAX_PRIOR_BLOCKS \
             or state.across_force_n < episode.config.opening.force_cue_n or not episode.gripping() \
-            or state.handle is None or _hinge_seen_turning(episode, state.handle.normal) is None:
+            or state.handle is None or _hinge_seen_turning(episode) is None:
         return False
     state.prior_blocks += 1
     step_log.info("step %d blocked %.0f N across its arc about the hinge prior: the front turned otherwise, going on "
