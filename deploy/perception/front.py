@@ -41,6 +41,9 @@ FLOOR_SHARE = 0.02  # ... when they fill at least this share of the view (more t
 WEAK_GAP_SHARE = 0.25  # between two handles a line showing a gap along this share of its length is the gap
 HANDLE_CLEARANCE_M = 0.02  # ... at least this far from either handle (its edge, its shadow)
 MAX_FRONT_WIDTH_M = 1.2  # the widest drawer or door fronts of real furniture
+WIDE_FRONT_M = 1.0  # fronts are rarely wider: a rectangle wider than this is looked over for the faint gaps of
+# fronts side by side
+NARROW_FRONT_M = 0.1  # ... each at least this wide (the narrowest drawer or door)
 MAX_FRONT_HEIGHT_M = 2.4  # the tallest (a tall unit's door)
 
 
@@ -230,6 +233,7 @@ def find_front(frame: Frame, robot: np.ndarray, u: int, v: int,
     view = rectify(frame, robot, plane, s_range, z_range, res_m)
     seed = (int(view.row(0.0)), int(view.col(0.0)))
     extent = front_extent(view, seed, enclosed_pockets(view))  # a pull's pocket is crossed like a handle
+    extent = split_wide(view, extent)
     extent = split_by_handles(view, extent, handle_blobs(view, extent, frame.T_base_camera, frame.intrinsics.K))
     if box is not None:
         extent = _clipped(frame, view, extent, box)
@@ -327,6 +331,29 @@ def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Exte
         elif side == "bottom" and line < bottom:
             bottom, ended["bottom"] = line, "handle"
     return Extent(top, bottom, left, right, ended)
+
+
+def split_wide(view: PlaneView, extent: Extent) -> Extent:
+    """The rectangle, while wider than WIDE_FRONT_M, cut at the column most of whose length shows a faint gap (at
+    least WEAK_GAP_SHARE of it), keeping the seed's side: fronts side by side whose gaps showed too faintly to end the
+    rectangle (a slit narrower than a cell, a grain across it). Cuts leave at least NARROW_FRONT_M either side."""
+    seed = int(view.col(0.0))
+    left, right, ended = extent.left, extent.right, dict(extent.ended)
+    judged = view.on_plane | view.no_depth  # the surface, and cells without depth (patches, a slit)
+    rows = slice(max(extent.top, 0), extent.bottom + 1)
+    shares = gap_line_shares(view.gray[rows].T, judged[rows].T, view.res_m)
+    keep = int(round(NARROW_FRONT_M / view.res_m))
+    while (right - left) * view.res_m > WIDE_FRONT_M:
+        lines = np.arange(left + keep, right - keep + 1)
+        lines = lines[np.abs(lines - seed) >= keep // 2]
+        if len(lines) == 0 or shares[lines].max() < WEAK_GAP_SHARE:
+            break
+        line = int(lines[np.argmax(shares[lines])])
+        if line > seed:
+            right, ended["right"] = line - 1, "gap"
+        else:
+            left, ended["left"] = line + 1, "gap"
+    return Extent(extent.top, extent.bottom, left, right, ended)
 
 
 def _standing_bar(blob: Blob, view: PlaneView, extent: Extent) -> bool:
