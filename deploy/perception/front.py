@@ -370,18 +370,19 @@ def _handle_cuts(view: PlaneView, extent: Extent, own: Blob, other: Blob,
     column): across the direction the handles lie farther apart along, then, for handles apart both ways (fronts
     diagonal to each other), across the other. With no gap seen, side by side fronts are cut midway; stacked ones,
     where the lower handle sits as far below its front's top as the topmost handle sits below the rectangle's seen
-    top edge (`drop`; handles sit alike on a stack's fronts, centred or near the top), at most midway."""
+    top edge (`drop`; handles sit alike on a stack's fronts, centred or near the top), at most midway. A cut lies
+    between the seed (the view's origin, on `own`'s front) and `other`, never between the seed and `own`."""
     s0, s1, z0, z1 = bounds(own, view)
     o0, o1, p0, p1 = bounds(other, view)
     mid = (own.centre + other.centre) / 2
     apart_s, apart_z = max(o0 - s1, s0 - o1), max(p0 - z1, z0 - p1)
     right = other.centre[0] > own.centre[0]
-    col = _cut(view, (extent.top, extent.bottom), (s1, o0) if right else (o1, s0), mid[0], 1)
+    col = _cut(view, (extent.top, extent.bottom), (max(s1, 0.0), o0) if right else (o1, min(s0, 0.0)), mid[0], 1)
     beside = ("right" if right else "left"), col
     above = other.centre[1] > own.centre[1]
     lower = min(own.centre[1], other.centre[1])
     guess = mid[1] if drop is None else min(lower + drop, mid[1])
-    row = _cut(view, (extent.left, extent.right), (p0, z1) if above else (z0, p1), guess, 0)
+    row = _cut(view, (extent.left, extent.right), (p0, max(z1, 0.0)) if above else (min(z0, 0.0), p1), guess, 0)
     stacked = ("top" if above else "bottom"), row
     cuts = [beside, stacked] if apart_s >= apart_z else [stacked, beside]
     return cuts if min(apart_s, apart_z) > 0 else cuts[:1]
