@@ -65,14 +65,6 @@ def _stack_frame(line_v: int | None, bars_at: int = 30) -> Frame:
     return Frame(0, 0.0, color, depth, K, T)
 
 
-def test_the_cut_between_stacked_drawers_lies_between_the_pixel_and_the_other_drawers_handle():
-    """The pixel is on the upper drawer, under its bar; a faint line between that bar and the pixel is not the gap
-    (it would leave the pixel below the upper drawer): the cut is looked for between the pixel and the lower bar."""
-    front = find_front(_stack_frame(165), np.zeros((480, 640), bool), 320, 200)
-    assert front.height_m == pytest.approx(150 / K.fy, abs=0.02)
-    assert front.ended["bottom"] == "handle"
-
-
 def test_stacked_drawers_with_bars_on_their_top_edges_are_cut_at_the_lower_bar():
     """Bars on the drawers' top edges (the upper one's standing over the rectangle's top), the gap between the
     drawers not seen, the pixel in the upper drawer a little nearer the lower bar: the gap lies at the lower bar, as

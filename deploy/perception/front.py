@@ -15,7 +15,7 @@ import numpy as np
 from deploy.errors import PointerError
 from deploy.geometry.cloud import depth_to_points
 from deploy.geometry.planes import dominant_plane
-from deploy.perception.front_extent import Extent, front_extent, gap_line_shares
+from deploy.perception.front_extent import Extent, front_extent, gap_line_shares, long_gap_line_shares
 from deploy.perception.handle import EDGE_BAND_M, spills_over_edge, tab_over_top
 from deploy.perception.handle_blobs import (
     MAX_POCKET_M,
@@ -334,13 +334,13 @@ def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Exte
 
 def split_wide(view: PlaneView, extent: Extent) -> Extent:
     """The rectangle, while wider than WIDE_FRONT_M, cut at the column most of whose length shows a faint gap (at
-    least WEAK_GAP_SHARE of it), keeping the seed's side: fronts side by side whose gaps showed too faintly to end the
+    least WEAK_GAP_SHARE of it, in more than one stretch), keeping the seed's side: fronts side by side whose gaps showed too faintly to end the
     rectangle (a slit narrower than a cell, a grain across it). Cuts leave at least NARROW_FRONT_M either side."""
     seed = int(view.col(0.0))
     left, right, ended = extent.left, extent.right, dict(extent.ended)
     judged = view.on_plane | view.no_depth  # the surface, and cells without depth (patches, a slit)
     rows = slice(max(extent.top, 0), extent.bottom + 1)
-    shares = gap_line_shares(view.gray[rows].T, judged[rows].T, view.res_m)
+    shares = long_gap_line_shares(view.gray[rows].T, judged[rows].T, view.res_m)
     keep = int(round(NARROW_FRONT_M / view.res_m))
     while (right - left) * view.res_m > WIDE_FRONT_M:
         lines = np.arange(left + keep, right - keep + 1)
@@ -369,20 +369,19 @@ def _handle_cuts(view: PlaneView, extent: Extent, own: Blob, other: Blob,
     column): across the direction the handles lie farther apart along, then, for handles apart both ways (fronts
     diagonal to each other), across the other. With no gap seen, side by side fronts are cut midway; stacked ones,
     where the lower handle sits as far below its front's top as the topmost handle sits below the rectangle's seen
-    top edge (`drop`; handles sit alike on a stack's fronts, centred or near the top), at most midway. A cut lies
-    between the seed (the view's origin, on `own`'s front) and `other`, never between the seed and `own`."""
+    top edge (`drop`; handles sit alike on a stack's fronts, centred or near the top), at most midway."""
     s0, s1, z0, z1 = bounds(own, view)
     o0, o1, p0, p1 = bounds(other, view)
     mid = (own.centre + other.centre) / 2
     apart_s, apart_z = max(o0 - s1, s0 - o1), max(p0 - z1, z0 - p1)
     right = other.centre[0] > own.centre[0]
-    col = _cut(view, (extent.top, extent.bottom), (max(s1, 0.0), o0) if right else (o1, min(s0, 0.0)), mid[0], 1,
+    col = _cut(view, (extent.top, extent.bottom), (s1, o0) if right else (o1, s0), mid[0], 1,
                mid[0] * other.centre[0] < 0)
     beside = ("right" if right else "left"), col
     above = other.centre[1] > own.centre[1]
     lower = min(own.centre[1], other.centre[1])
     guess = mid[1] if drop is None else min(lower + drop, mid[1])
-    row = _cut(view, (extent.left, extent.right), (p0, max(z1, 0.0)) if above else (min(z0, 0.0), p1), guess, 0,
+    row = _cut(view, (extent.left, extent.right), (p0, z1) if above else (z0, p1), guess, 0,
                guess * other.centre[1] < 0)
     stacked = ("top" if above else "bottom"), row
     cuts = [beside, stacked] if apart_s >= apart_z else [stacked, beside]

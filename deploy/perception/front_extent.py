@@ -186,6 +186,13 @@ def gap_line_shares(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.n
     return _gap_stretches(grey, surface, res_m)[0]
 
 
+def long_gap_line_shares(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
+    """As `gap_line_shares`, 0 for lines shown along fewer than GAP_MIN_STRETCHES stretches (a handle's end, a
+    knob's shadow)."""
+    shares, shown, _ = _gap_stretches(grey, surface, res_m)
+    return np.where(shown >= GAP_MIN_STRETCHES, shares, 0.0)
+
+
 def _gap_stretches(grey: np.ndarray, surface: np.ndarray, res_m: float) -> tuple[np.ndarray, np.ndarray, int]:
     """(per line: the best share of judged stretches showing a gap line, how many stretches show it at that share;
     the number of stretches along a line): see `gap_line_shares`."""
