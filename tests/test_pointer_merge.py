@@ -66,10 +66,10 @@ def _stack_frame(line_v: int | None, bars_at: int = 30) -> Frame:
 
 
 def test_stacked_drawers_with_bars_on_their_top_edges_are_cut_at_the_lower_bar():
-    """Bars on the drawers' top edges (the upper one's standing over the rectangle's top), the gap between the
-    drawers not seen, the pixel in the upper drawer a little nearer the lower bar: the gap lies at the lower bar, as
-    the upper bar lies at the upper drawer's top, so the pixel is the upper drawer's."""
-    frame = _stack_frame(None, bars_at=0)
-    front = find_front(frame, np.zeros((480, 640), bool), 320, 182)
-    assert front.mask[182, 320] and not front.mask[300, 320]
+    """Bars standing over the drawers' top edges (1 cm above), the gap between the drawers not seen, the pixel in
+    the upper drawer nearer the lower bar: the gap lies at the lower bar, as the upper bar lies at the upper drawer's
+    top, so the pixel is the upper drawer's."""
+    frame = _stack_frame(None, bars_at=-6)
+    front = find_front(frame, np.zeros((480, 640), bool), 320, 200)
+    assert front.mask[200, 320] and not front.mask[300, 320]
     assert 0.18 < front.height_m < 0.27
