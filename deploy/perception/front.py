@@ -334,8 +334,8 @@ def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Exte
 
 def split_wide(view: PlaneView, extent: Extent) -> Extent:
     """The rectangle, while wider than WIDE_FRONT_M, cut at the column most of whose length shows a faint gap (at
-    least WEAK_GAP_SHARE of it, in more than one stretch), keeping the seed's side: fronts side by side whose gaps showed too faintly to end the
-    rectangle (a slit narrower than a cell, a grain across it). Cuts leave at least NARROW_FRONT_M either side."""
+    least WEAK_GAP_SHARE of it, in more than one stretch), keeping the seed's side: fronts side by side whose gaps
+    showed too faintly to end the rectangle (a slit narrower than a cell). Cuts leave NARROW_FRONT_M either side."""
     seed = int(view.col(0.0))
     left, right, ended = extent.left, extent.right, dict(extent.ended)
     judged = view.on_plane | view.no_depth  # the surface, and cells without depth (patches, a slit)
