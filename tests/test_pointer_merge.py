@@ -1,7 +1,6 @@
 """The pointed front not merged with its neighbours, on synthetic D415 frames: two fronts side by side, coplanar,
 whose gap shows too faintly along their height to end the front's rectangle, are parted at it when together they are
-wider than a front is; a wide front with no gap line stays whole; stacked drawers whose bars stand over their top
-edges are cut at the lower bar."""
+wider than a front is; a wide front with no gap line stays whole."""
 
 from __future__ import annotations
 
@@ -48,27 +47,3 @@ def test_a_wide_front_without_a_gap_line_stays_whole():
     front = _front((130, 510), None, 200)  # 1.27 m
     assert front.width_m == pytest.approx(380 * DEPTH_M / K.fx, abs=0.03)
 
-
-def _stack_frame(bars_at: int) -> Frame:
-    """Two drawers 1 m ahead, one above the other (rows 100-250 and 250-400, 0.25 m tall each), their gap not seen,
-    each with a bar standing out 3 cm, `bars_at` pixels under its top (negative: over it), before a wall 1.3 m
-    away."""
-    depth = np.full((480, 640), 1.3, np.float32)
-    color = np.full((480, 640, 3), 210, np.uint8)
-    depth[100:400, 170:470], color[100:400, 170:470] = 1.0, (150, 100, 60)
-    for top in (100, 250):
-        bar = (slice(top + bars_at, top + bars_at + 6), slice(245, 395))
-        depth[bar], color[bar] = 0.97, (128, 128, 128)
-    T = np.eye(4)
-    T[:3, :3] = np.column_stack([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
-    return Frame(0, 0.0, color, depth, K, T)
-
-
-def test_stacked_drawers_with_bars_on_their_top_edges_are_cut_at_the_lower_bar():
-    """Bars standing over the drawers' top edges (1 cm above), the gap between the drawers not seen, the pixel in
-    the upper drawer nearer the lower bar: the gap lies at the lower bar, as the upper bar lies at the upper drawer's
-    top, so the pixel is the upper drawer's."""
-    frame = _stack_frame(bars_at=-6)
-    front = find_front(frame, np.zeros((480, 640), bool), 320, 200)
-    assert front.mask[200, 320] and not front.mask[300, 320]
-    assert 0.18 < front.height_m < 0.27

@@ -309,9 +309,10 @@ def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Exte
         return extent
     seed = np.zeros(2)
     ranked = sorted(inside, key=lambda b: segment_distance(b, seed))
-    drop = None  # how far below a seen top edge the topmost handle sits (0 over it: handles on the fronts' tops)
+    drop = None  # how far below a seen top edge the topmost handle sits (none above it: not a tab over the edge)
     if extent.ended.get("top") in ("surface", "gap"):
-        drop = max(float(view.z(extent.top)) - max(float(b.centre[1]) for b in inside), 0.0)
+        drop = float(view.z(extent.top)) - max(float(b.centre[1]) for b in inside)
+        drop = drop if drop > 0 else None
     for own in ranked:
         cuts = [_seed_cut(view, _handle_cuts(view, extent, own, other, drop)) for other in inside if other is not own]
         if all(cut is not None for cut in cuts):
@@ -375,14 +376,12 @@ def _handle_cuts(view: PlaneView, extent: Extent, own: Blob, other: Blob,
     mid = (own.centre + other.centre) / 2
     apart_s, apart_z = max(o0 - s1, s0 - o1), max(p0 - z1, z0 - p1)
     right = other.centre[0] > own.centre[0]
-    col = _cut(view, (extent.top, extent.bottom), (s1, o0) if right else (o1, s0), mid[0], 1,
-               mid[0] * other.centre[0] < 0)
+    col = _cut(view, (extent.top, extent.bottom), (s1, o0) if right else (o1, s0), mid[0], 1)
     beside = ("right" if right else "left"), col
     above = other.centre[1] > own.centre[1]
     lower = min(own.centre[1], other.centre[1])
     guess = mid[1] if drop is None else min(lower + drop, mid[1])
-    row = _cut(view, (extent.left, extent.right), (p0, z1) if above else (z0, p1), guess, 0,
-               guess * other.centre[1] < 0)
+    row = _cut(view, (extent.left, extent.right), (p0, z1) if above else (z0, p1), guess, 0)
     stacked = ("top" if above else "bottom"), row
     cuts = [beside, stacked] if apart_s >= apart_z else [stacked, beside]
     return cuts if min(apart_s, apart_z) > 0 else cuts[:1]
@@ -399,20 +398,17 @@ def _seed_side(view: PlaneView, side: str, line: int) -> bool:
     return {"right": col < line, "left": col > line, "top": row > line, "bottom": row < line}[side]
 
 
-def _cut(view: PlaneView, band: tuple[int, int], between: tuple[float, float], guess: float, axis: int,
-         past_seed: bool) -> int:
+def _cut(view: PlaneView, band: tuple[int, int], between: tuple[float, float], guess: float, axis: int) -> int:
     """Where to cut between two handles: the line (a row for axis 0, a column for 1, over the cells `band` across
     it) between the handles' facing edges (`between`, plane coordinates) most of whose length shows a gap, at least
-    WEAK_GAP_SHARE of it; else the line through `guess` (plane coordinate), kept off the handles, or, when the guess
-    lies `past_seed` (on the far side of the seed from the other handle), through it: the seed is on the other's
-    front."""
+    WEAK_GAP_SHARE of it; else the line through `guess` (plane coordinate), kept off the handles."""
     index = view.row if axis == 0 else view.col
     a, b = sorted(int(i) for i in index(np.array(between)))
     margin = max(int(round(HANDLE_CLEARANCE_M / view.res_m)), 1)  # not a handle's own edge or shadow
     a, b = a + margin, b - margin
     if b <= a:
         return int(index(guess))
-    fallback = int(index(guess)) if past_seed else int(np.clip(index(guess), a, b))
+    fallback = int(np.clip(index(guess), a, b))
     lo, hi = max(band[0], 0), band[1] + 1
     judged = view.on_plane | view.no_depth  # the surface, and cells without depth (patches, a slit)
     surface = judged[:, lo:hi] if axis == 0 else judged[lo:hi].T
