@@ -37,8 +37,11 @@ MIN_POINTS = 8  # a candidate with fewer measured points is seen in colour only
 RELIEF_NOISE = 1.2  # ... and at least this many times the depth noise band there (points just outside the band
 # are noise as often as not)
 FIRM_LENGTH_M = 0.025  # the smallest real knob's diameter
+KNOB_ELONGATION = 3.0  # a candidate shorter than this many times its width is no bar: a knob, a cup or a pull
 MIN_POCKET_ACROSS_M = 0.02  # a pull's pocket takes a fingertip (real ones 25-80 mm across): a narrower slit sunk
 # into the front is a seam, a gap between fronts or the depth's noise
+RECESS_SHARE = 0.5  # a pocket's cells join through cells sunk beyond this share of the noise band: a recessed panel
+# (a microwave's window, a frame's field) sunk about as deep as the noise band shows in pieces, each of a pull's size
 RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured,
 # and, for one measured standing out, not the room seen past the front's top or bottom edge) is the front's surface
 
@@ -76,7 +79,9 @@ class Blob:
         colour where depth has a hole."""
         relief = self.seen_in_colour_only or abs(self.relief_m) >= max(MIN_RELIEF_M, RELIEF_NOISE * self.noise_m)
         slit = self.relief_m < 0 and self.across_m < MIN_POCKET_ACROSS_M
-        return self.length_m >= FIRM_LENGTH_M and relief and not slit and self.rim >= RIM_SHARE
+        sliver = self.elongation < KNOB_ELONGATION and self.across_m < MIN_SIZE_M  # too short for a bar, too thin
+        # for a knob's head: the depth's noise or a seam
+        return self.length_m >= FIRM_LENGTH_M and relief and not slit and not sliver and self.rim >= RIM_SHARE
 
     @property
     def elongation(self) -> float:
@@ -104,6 +109,8 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     with np.errstate(invalid="ignore"):
         out = (offset > tolerance) & (offset <= MAX_STANDOFF_M)
         pocket = inside & (offset < -tolerance) & (offset >= -MAX_POCKET_M)
+        pocket &= ~_recessed_panels(inside & (offset < -RECESS_SHARE * tolerance) & (offset >= -MAX_POCKET_M),
+                                    view.res_m)
     other = view.no_depth[sl] & (colour_distance(view.lab[sl], front_colour(view, extent)) > COLOUR_DELTA_E)  # a
     # hole of another colour than the front's: a handle the D415 lost (shadows keep their depth on the plane)
     inner_edge = inside & ~cv2.erode(inside.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
@@ -219,6 +226,15 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
     r, c = int(view.row(centre[1])), int(view.col(centre[0]))
     inside = extent.top <= r <= extent.bottom and extent.left <= c <= extent.right
     return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)))
+
+
+def _recessed_panels(shallow: np.ndarray, res_m: float) -> np.ndarray:
+    """The cells of `shallow` (sunk into the front, if only by part of the noise band) in pieces wider and taller than
+    a pull's pocket (MAX_ACROSS_M): a recessed panel, whose deeper patches are no pulls."""
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(shallow.astype(np.uint8), connectivity=8)
+    large = np.zeros(count, bool)
+    large[1:] = np.minimum(stats[1:, cv2.CC_STAT_WIDTH], stats[1:, cv2.CC_STAT_HEIGHT]) * res_m > MAX_ACROSS_M
+    return large[labels]
 
 
 def _within_rows(shape: tuple[int, int], top: int, bottom: int) -> np.ndarray:
