@@ -40,8 +40,9 @@ FIRM_LENGTH_M = 0.025  # the smallest real knob's diameter
 KNOB_ELONGATION = 3.0  # a candidate shorter than this many times its width is no bar: a knob, a cup or a pull
 MIN_POCKET_ACROSS_M = 0.02  # a pull's pocket takes a fingertip (real ones 25-80 mm across): a narrower slit sunk
 # into the front is a seam, a gap between fronts or the depth's noise
-RECESS_SHARE = 0.5  # a pocket's cells join through cells sunk beyond this share of the noise band: a recessed panel
-# (a microwave's window, a frame's field) sunk about as deep as the noise band shows in pieces, each of a pull's size
+RECESS_SHARE = 0.67  # a pocket's cells join through cells sunk beyond this share of the noise band (two of its three
+# sigmas: the front's own noise rarely reaches it, and never in runs): a recessed panel (a microwave's window) sunk
+# about as deep as the noise band shows in pieces, each of a pull's size
 RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured,
 # and, for one measured standing out, not the room seen past the front's top or bottom edge) is the front's surface
 
