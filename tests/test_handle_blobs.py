@@ -2,8 +2,7 @@
 colour only) whose end nearly touches the depth hole along the front's side edge (the IR shadow a D415 leaves beside
 a depth edge) is still one handle, not part of a shape too large for one; a bar standing out across a drawer's whole
 width is a handle, a ledge running on past the front's ends is not; a sliver too short for a bar and too thin for a
-knob is no firm handle, a knob is; the deeper patches of a recessed panel sunk about as deep as the depth's noise band
-(a microwave's window) are no pulls, a pull's pocket is."""
+knob is no firm handle, a knob is."""
 
 from __future__ import annotations
 
@@ -93,15 +92,3 @@ def test_a_sliver_too_short_for_a_bar_and_too_thin_for_a_knob_is_no_firm_handle(
     knob = [(slice(v - 8, v + 9), slice(u - 8, u + 9), 0.98)]
     assert not _firm_at(_blobs_of(_plain_frame(sliver)), u, v)
     assert len(_firm_at(_blobs_of(_plain_frame(knob)), u, v)) == 1
-
-
-def test_the_deeper_patches_of_a_recessed_panel_are_no_pulls():
-    """A 24 x 15 cm window sunk 6 mm, deeper (12 mm) in 4 cm patches: each patch alone is of a pull's size and depth,
-    but the panel joins them; a 5 x 3 cm pocket 12 mm deep in the plain front is a pull."""
-    u, v = 320, 240
-    panel = [(slice(v - 45, v + 45), slice(u - 72, u + 72), 1.006)]
-    panel += [(slice(v + dv - 12, v + dv + 12), slice(u + du - 12, u + du + 12), 1.012)
-              for dv in (-24, 24) for du in (-48, 0, 48)]
-    assert not [b for b in _blobs_of(_plain_frame(panel)) if b.firm and b.relief_m < 0]
-    pull = [(slice(v - 9, v + 9), slice(u - 15, u + 15), 1.012)]
-    assert len([b for b in _blobs_of(_plain_frame(pull)) if b.firm and b.relief_m < 0]) == 1

@@ -40,9 +40,6 @@ FIRM_LENGTH_M = 0.025  # the smallest real knob's diameter
 KNOB_ELONGATION = 3.0  # a candidate shorter than this many times its width is no bar: a knob, a cup or a pull
 MIN_POCKET_ACROSS_M = 0.02  # a pull's pocket takes a fingertip (real ones 25-80 mm across): a narrower slit sunk
 # into the front is a seam, a gap between fronts or the depth's noise
-RECESS_SHARE = 0.67  # a pocket's cells join through cells sunk beyond this share of the noise band (two of its three
-# sigmas: the front's own noise rarely reaches it, and never in runs): a recessed panel (a microwave's window) sunk
-# about as deep as the noise band shows in pieces, each of a pull's size
 RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured,
 # and, for one measured standing out, not the room seen past the front's top or bottom edge) is the front's surface
 
@@ -110,8 +107,6 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     with np.errstate(invalid="ignore"):
         out = (offset > tolerance) & (offset <= MAX_STANDOFF_M)
         pocket = inside & (offset < -tolerance) & (offset >= -MAX_POCKET_M)
-        pocket &= ~_recessed_panels(inside & (offset < -RECESS_SHARE * tolerance) & (offset >= -MAX_POCKET_M),
-                                    view.res_m)
     other = view.no_depth[sl] & (colour_distance(view.lab[sl], front_colour(view, extent)) > COLOUR_DELTA_E)  # a
     # hole of another colour than the front's: a handle the D415 lost (shadows keep their depth on the plane)
     inner_edge = inside & ~cv2.erode(inside.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
@@ -227,15 +222,6 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
     r, c = int(view.row(centre[1])), int(view.col(centre[0]))
     inside = extent.top <= r <= extent.bottom and extent.left <= c <= extent.right
     return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)))
-
-
-def _recessed_panels(shallow: np.ndarray, res_m: float) -> np.ndarray:
-    """The cells of `shallow` (sunk into the front, if only by part of the noise band) in pieces wider and taller than
-    a pull's pocket (MAX_ACROSS_M): a recessed panel, whose deeper patches are no pulls."""
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(shallow.astype(np.uint8), connectivity=8)
-    large = np.zeros(count, bool)
-    large[1:] = np.minimum(stats[1:, cv2.CC_STAT_WIDTH], stats[1:, cv2.CC_STAT_HEIGHT]) * res_m > MAX_ACROSS_M
-    return large[labels]
 
 
 def _within_rows(shape: tuple[int, int], top: int, bottom: int) -> np.ndarray:
