@@ -1,7 +1,8 @@
 """Handle candidates on a front's rectified view, on a synthetic D415 frame: a long thin bar the D415 lost (seen in
 colour only) whose end nearly touches the depth hole along the front's side edge (the IR shadow a D415 leaves beside
 a depth edge) is still one handle, not part of a shape too large for one; a bar standing out across a drawer's whole
-width is a handle, a ledge running on past the front's ends is not."""
+width is a handle, a ledge running on past the front's ends is not; a sliver too short for a bar and too thin for a
+knob is no firm handle, a knob is."""
 
 from __future__ import annotations
 
@@ -36,7 +37,10 @@ def _frame(bar_u: tuple[int, int], bar_depth: float = 0.0, ledge: bool = False) 
 
 
 def _blobs(bar_u: tuple[int, int], bar_depth: float = 0.0, ledge: bool = False) -> list:
-    frame = _frame(bar_u, bar_depth, ledge)
+    return _blobs_of(_frame(bar_u, bar_depth, ledge))
+
+
+def _blobs_of(frame: Frame) -> list:
     plane = PlaneFrame.facing(np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]), np.zeros(3))
     view = rectify(frame, np.zeros((480, 640), bool), plane, (-0.35, 0.35), (-0.25, 0.25), 1.0 / K.fx)
     s = (np.array(FRONT_U) - K.cx) / K.fx
@@ -63,3 +67,28 @@ def test_a_bar_standing_out_across_a_drawers_whole_width_is_its_handle():
 def test_a_ledge_running_on_past_the_fronts_ends_is_no_handle():
     blobs = _blobs((FRONT_U[0] + 20, FRONT_U[1] - 40), ledge=True)
     assert not [b for b in blobs if b.relief_m > 0.02 and b.length_m > 0.35]
+
+
+def _plain_frame(patches: list[tuple[slice, slice, float]]) -> Frame:
+    """A brown front 1 m ahead before a wall 1.3 m away, with `patches` (rows, columns, depth) of the same colour."""
+    frame = _frame((FRONT_U[0] + 20, FRONT_U[0] + 21))
+    depth, color = frame.depth_m.copy(), frame.color.copy()
+    depth[FRONT_V[0] + 24:FRONT_V[0] + 30, FRONT_U[0] + 20:FRONT_U[0] + 21] = 1.0  # no bar
+    color[slice(*FRONT_V), slice(*FRONT_U)] = (150, 100, 60)
+    for rows, cols, d in patches:
+        depth[rows, cols] = d
+    return Frame(0, 0.0, color, depth, K, frame.T_base_camera)
+
+
+def _firm_at(blobs: list, u: int, v: int) -> list:
+    """The firm candidates centred within 3 cm of pixel (u, v)'s point on the front."""
+    at = np.array([(u - K.cx) / K.fx, (K.cy - v) / K.fy])
+    return [b for b in blobs if b.firm and np.linalg.norm(b.centre - at) < 0.03]
+
+
+def test_a_sliver_too_short_for_a_bar_and_too_thin_for_a_knob_is_no_firm_handle():
+    u, v = 320, 240  # 2.6 x 1.0 cm standing 1.5 cm out (a noise ridge or a seam); a 2.8 cm knob head 2 cm out
+    sliver = [(slice(v - 3, v + 4), slice(u - 9, u + 10), 0.985)]
+    knob = [(slice(v - 8, v + 9), slice(u - 8, u + 9), 0.98)]
+    assert not _firm_at(_blobs_of(_plain_frame(sliver)), u, v)
+    assert len(_firm_at(_blobs_of(_plain_frame(knob)), u, v)) == 1

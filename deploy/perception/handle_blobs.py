@@ -37,6 +37,7 @@ MIN_POINTS = 8  # a candidate with fewer measured points is seen in colour only
 RELIEF_NOISE = 1.2  # ... and at least this many times the depth noise band there (points just outside the band
 # are noise as often as not)
 FIRM_LENGTH_M = 0.025  # the smallest real knob's diameter
+KNOB_ELONGATION = 3.0  # a candidate shorter than this many times its width is no bar: a knob, a cup or a pull
 MIN_POCKET_ACROSS_M = 0.02  # a pull's pocket takes a fingertip (real ones 25-80 mm across): a narrower slit sunk
 # into the front is a seam, a gap between fronts or the depth's noise
 RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured,
@@ -76,7 +77,9 @@ class Blob:
         colour where depth has a hole."""
         relief = self.seen_in_colour_only or abs(self.relief_m) >= max(MIN_RELIEF_M, RELIEF_NOISE * self.noise_m)
         slit = self.relief_m < 0 and self.across_m < MIN_POCKET_ACROSS_M
-        return self.length_m >= FIRM_LENGTH_M and relief and not slit and self.rim >= RIM_SHARE
+        sliver = self.elongation < KNOB_ELONGATION and self.across_m < MIN_SIZE_M  # too short for a bar, too thin
+        # for a knob's head: the depth's noise or a seam
+        return self.length_m >= FIRM_LENGTH_M and relief and not slit and not sliver and self.rim >= RIM_SHARE
 
     @property
     def elongation(self) -> float:
