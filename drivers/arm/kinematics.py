@@ -11,7 +11,7 @@ import numpy as np
 import pinocchio as pin
 
 from drivers.arm.robots import RobotSpec, panda
-from drivers.errors import ArmError, IKError
+from drivers.errors import ArmError, IKError, JointSpeedError
 
 IK_STEP_LIMIT = 1.0  # rad: largest joint change per iteration, keeps early steps from overshooting
 IK_DAMPING = 1e-6  # damped least squares J^T (J J^T + lambda I)^-1: lambda away from singularities ...
@@ -161,7 +161,7 @@ class Kinematics:
         speed relative to its limit, so that this step starts and stops with the motion). This keeps the
         redundancy from drifting tick after tick. Then damped least squares within the limits and the step
         box. Raises IKError starting with "ik:" when the pose is not reached, or only with a joint moving
-        onto a position limit or at its step limit.
+        onto a position limit or at its step limit (JointSpeedError: a slower path may pass).
         """
         oMdes = self._target(T_target)
         q_prev = np.asarray(q_prev, float)
@@ -187,7 +187,8 @@ class Kinematics:
                    f"{np.degrees(rot_err):.4f} deg left)")
         else:
             return q
-        raise IKError(
+        error = JointSpeedError if (at_step.any() and not at_limit.any()) else IKError
+        raise error(
             f"ik: the tool pose {why}: the path passes near a singularity or a joint limit; slow the motion "
             "down, start from another arm configuration or shorten the path"
         )
