@@ -25,7 +25,8 @@ PATH_MAX_JOINT_STEP_RAD = 0.5  # a larger jump between path waypoints means IK s
 GENERIC_SEEDS = 8  # well_conditioned_start on an arm of another layout: seeds drawn around its start ...
 GENERIC_SPREAD_RAD = 0.4  # ... this far (std per joint)
 SIDEWAYS_TURN_RAD, SIDEWAYS_LEAN_RAD, SIDEWAYS_TWIST_RAD = 1.2, 1.0, 2.0  # the elbow swung out to a side: joint 1
-# turned off the target, joint 2 leaning that way, joint 3 turned back (`_sideways_seeds`)
+# turned off the target, joint 2 leaning that way, joint 3 turned back (`_sideways_seeds`), ...
+SIDEWAYS_WRIST_RAD = ((1.8, 2.6), (-1.8, 2.6))  # ... the wrist's joints 5 and 6 as the template's or these
 
 
 class Kinematics:
@@ -365,11 +366,15 @@ def _start_seeds(kin: Kinematics, first: np.ndarray, q_template: np.ndarray) -> 
 def _sideways_seeds(kin: Kinematics, first: np.ndarray, q_template: np.ndarray) -> list[np.ndarray]:
     """Seeds of the Panda's layout (`_start_seeds`) with the elbow swung out to either side: the first joint
     SIDEWAYS_TURN_RAD off the line toward `first`, the second leaning SIDEWAYS_LEAN_RAD that way and the third turned
-    SIDEWAYS_TWIST_RAD back. The second joint then stays clear of zero, where the first and third joints' axes
-    line up (the shoulder's singularity that a point ahead and above the shoulder brings the usual seeds near)."""
+    SIDEWAYS_TWIST_RAD back, the wrist (joints 5 and 6) as in the template or bent at SIDEWAYS_WRIST_RAD either way.
+    The second joint then stays clear of zero, where the first and third joints' axes line up (the shoulder's
+    singularity that a point ahead and above the shoulder brings the usual seeds near)."""
     seeds = []
-    for side in (1.0, -1.0):
-        seeds += _within_limits(kin, q_template, [(side * SIDEWAYS_LEAN_RAD, -1.9)], first,
+    for side, wrist in itertools.product((1.0, -1.0), (None, *SIDEWAYS_WRIST_RAD)):
+        template = q_template.copy()
+        if wrist is not None:
+            template[4:6] = wrist
+        seeds += _within_limits(kin, template, [(side * SIDEWAYS_LEAN_RAD, -1.9)], first,
                                 side * SIDEWAYS_TURN_RAD, -side * SIDEWAYS_TWIST_RAD)
     return seeds
 
