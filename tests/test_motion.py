@@ -157,8 +157,8 @@ def test_unsolvable_paths_raise_before_any_motion():
     with pytest.raises(ArmError, match=lost):
         follow_cartesian_path(arm, kin, line_path(T0, [1, 0, 0]), 1.0, LINE_LIMITS)
     assert arm.state().t == 0.0 and np.array_equal(arm.state().q, q0)
-    with pytest.raises(ArmError, match=r"^ik: .* needs joint panda_joint\d at its velocity limit"):
-        follow_cartesian_path(arm, kin, line_path(T0, [0, 0, -1]), 0.3, MotionLimits(3.0, 30.0, 300.0))
+    with pytest.raises(ArmError, match=r"^ik: .* needs joint panda_joint\d at its velocity limit"):  # even slowed
+        follow_cartesian_path(arm, kin, line_path(T0, [0, 0, -1]), 0.3, MotionLimits(100.0, 1000.0, 10000.0))
     assert arm.state().t == 0.0 and np.array_equal(arm.state().q, q0)
     far = T0.copy()
     far[2, 3] += 0.05
