@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -379,8 +379,8 @@ def _sideways_seeds(kin: Kinematics, first: np.ndarray, q_template: np.ndarray) 
     return seeds
 
 
-def _within_limits(kin: Kinematics, q_template: np.ndarray, shoulder_elbow, first: np.ndarray, turn: float,
-                   twist: float) -> list[np.ndarray]:
+def _within_limits(kin: Kinematics, q_template: np.ndarray, shoulder_elbow: Iterable[tuple[float, float]],
+                   first: np.ndarray, turn: float, twist: float) -> list[np.ndarray]:
     """The template with joints 1-4 at (the direction of `first` + turn, q2, twist, q4) for each (q2, q4), those
     within the joint limits."""
     seeds = []
