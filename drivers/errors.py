@@ -21,6 +21,11 @@ class IKError(ArmError):
     """No joint configuration reaches a pose or follows a path (out of reach, a joint limit, a singularity)."""
 
 
+class JointSpeedError(IKError):
+    """A path's next pose needs a joint to move faster than its velocity limit allows (near a singularity): the
+    same path followed more slowly may pass."""
+
+
 class CalibrationError(DriverError):
     """A calibration that cannot be computed, loaded or trusted: board, views, pose set, solve or file."""
 

@@ -157,8 +157,8 @@ def test_unsolvable_paths_raise_before_any_motion():
     with pytest.raises(ArmError, match=lost):
         follow_cartesian_path(arm, kin, line_path(T0, [1, 0, 0]), 1.0, LINE_LIMITS)
     assert arm.state().t == 0.0 and np.array_equal(arm.state().q, q0)
-    with pytest.raises(ArmError, match=r"^ik: .* needs joint panda_joint\d at its velocity limit"):
-        follow_cartesian_path(arm, kin, line_path(T0, [0, 0, -1]), 0.3, MotionLimits(3.0, 30.0, 300.0))
+    with pytest.raises(ArmError, match=r"^ik: .* needs joint panda_joint\d at its velocity limit"):  # even slowed
+        follow_cartesian_path(arm, kin, line_path(T0, [0, 0, -1]), 0.3, MotionLimits(100.0, 1000.0, 10000.0))
     assert arm.state().t == 0.0 and np.array_equal(arm.state().q, q0)
     far = T0.copy()
     far[2, 3] += 0.05
@@ -354,3 +354,30 @@ def test_a_cartesian_plan_whose_joints_would_accelerate_past_the_limits_is_slowe
     assert np.all(_plan_accelerations(qs, q0, dt) <= ACCELERATION_SHARE * a_max + 1e-9)
     with pytest.raises(ArmError, match=r"^ik: the path needs joint panda_joint\d to accelerate at"):
         _plan_within_acceleration(track, profile, dt, q0, needed / 1000.0)
+
+
+def test_a_cartesian_plan_that_needs_a_joint_past_its_speed_limit_is_slowed_down():
+    """A door's arc from a configuration with joint 2 near zero (joints 1 and 3 almost coaxial, where the first arc
+    of a door 0.7 m ahead leaves the Panda): at 12 deg/s the per-tick IK needs a joint faster than its limit; at a
+    slower pace the same arc passes."""
+    from drivers.arm.motion import POSTURE_GAIN_PER_S, Tracker
+    from drivers.arm.trajectory import PathProfile
+    from drivers.errors import JointSpeedError
+
+    q0 = np.array([0.718, 0.081, -0.638, -1.529, 1.514, 3.363, 0.893])
+    arm = IdealArm.panda(q0, control_period_s=1.0 / 240)
+    kin, dt = arm.kin, arm.control_period_s
+    assert np.linalg.svd(kin.jacobian(q0), compute_uv=False)[-1] < 0.01  # near a singularity
+    T0 = kin.fk(q0)
+    hinge = T0[:3, 3] + [0.15, 0.47, 0.0]  # a door's hinge 0.47 m to the grip's left, its front 15 cm ahead
+    arc, length, speed = arc_path(T0, hinge, [0.0, 0.0, -1.0], turn=False), np.radians(12.0), np.radians(12.0)
+    limits = MotionLimits(speed, 4 * speed, 40 * speed)
+    track = Tracker(kin, arc, length, q0, kin.v_max * dt, POSTURE_GAIN_PER_S * dt, speed * dt)
+    with pytest.raises(JointSpeedError, match=r"^ik: lost the Cartesian path at s = .*velocity limit"):
+        track.plan(PathProfile(length, *(float(x[0]) for x in limits.arrays(1))), dt, q0)
+
+    result, qs, dqs = _follow(arm, arc, length, limits)
+    assert result.reason == "completed"
+    assert arm.state().t > 1.5 * length / speed  # slowed down
+    assert np.linalg.norm(kin.fk(arm.state().q)[:3, 3] - arc(length)[:3, 3]) < 1e-3
+    assert np.all(np.abs(dqs) <= kin.v_max)

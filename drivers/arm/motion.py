@@ -21,7 +21,7 @@ from drivers.arm.base import Arm, ArmState
 from drivers.arm.kinematics import Kinematics
 from drivers.arm.trajectory import JointTrajectory, MotionLimits, OnlineRetargeter, PathProfile, joint_trajectory
 from drivers.arm.wrench import WrenchEstimator
-from drivers.errors import ArmError, IKError
+from drivers.errors import ArmError, IKError, JointSpeedError
 
 OnTick = Callable[[ArmState, float], bool | None]
 PathFn = Callable[[float], np.ndarray]
@@ -190,23 +190,35 @@ def follow_cartesian_path(
 def _plan_within_acceleration(track: Tracker, profile: PathProfile, dt: float, q: np.ndarray, a_max: np.ndarray
                               ) -> tuple[PathProfile, np.ndarray, np.ndarray]:
     """(profile, s, joints) of the path's ticks from joints q at rest: the profile as given, or slowed by half up to
-    RETIME_TRIES times while the per-tick IK's joints would accelerate past ACCELERATION_SHARE of `a_max` (near a
-    singularity they do, though the path's own profile is smooth: the arm's safety layer would stop the motion).
-    IKError naming the joint when even the slowest exceeds it."""
+    RETIME_TRIES times while the per-tick IK's joints would accelerate past ACCELERATION_SHARE of `a_max` or move
+    faster than their velocity limits (JointSpeedError): near a singularity they do, though the path's own profile is
+    smooth, and the arm's safety layer would stop the motion. IKError naming the joint when even the slowest exceeds
+    them."""
     for attempt in range(RETIME_TRIES + 1):
-        s, qs = track.plan(profile, dt, q)
+        try:
+            s, qs = track.plan(profile, dt, q)
+        except JointSpeedError:
+            if attempt == RETIME_TRIES:
+                raise
+            profile = _slower(profile)
+            continue
         velocity = np.diff(np.vstack([q, q, qs]), axis=0) / dt  # from rest
         ratio = np.abs(np.diff(velocity, axis=0)) / (dt * ACCELERATION_SHARE * np.asarray(a_max, float))
         if len(qs) == 0 or ratio.max() <= 1.0:
             return profile, s, qs
         if attempt < RETIME_TRIES:
-            v, a, j = (float(x) for x in (profile.limits.v_max, profile.limits.a_max, profile.limits.j_max))
-            profile = PathProfile(profile.length, v / 2, a / 4, j / 8)
+            profile = _slower(profile)
     k, j = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
     needed = ratio[k, j] * ACCELERATION_SHARE * a_max[j]
     raise IKError(f"ik: the path needs joint {track.kin.joint_names[j]} to accelerate at {needed:.1f} rad/s^2 "
                   f"(limit {a_max[j]:.1f}) at s = {s[k]:.4f} of {track.length:.4f}, even at 1/{2 ** RETIME_TRIES} of "
                   "its speed: it passes near a singularity; start from another arm configuration or shorten the path")
+
+
+def _slower(profile: PathProfile) -> PathProfile:
+    """The same path at half the speed (a quarter of the acceleration, an eighth of the jerk: the same shape)."""
+    v, a, j = (float(x) for x in (profile.limits.v_max, profile.limits.a_max, profile.limits.j_max))
+    return PathProfile(profile.length, v / 2, a / 4, j / 8)
 
 
 class PathMotion(Protocol):
@@ -321,7 +333,7 @@ class Tracker:
                                   self.posture_gain, speed, TRACKING_TOL_POS_M, TRACKING_TOL_ROT_RAD)
         except IKError as exc:
             where = f"ik: lost the Cartesian path at s = {s:.4f} of {self.length:.4f}"
-            raise IKError(f"{where}: {str(exc).removeprefix('ik: ')}") from exc
+            raise type(exc)(f"{where}: {str(exc).removeprefix('ik: ')}") from exc
 
     def plan(self, profile: PathProfile, dt: float, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(s, joints) at every control tick of `profile` (t = dt, 2 dt, ... up to its end), from joints q."""
