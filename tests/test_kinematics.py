@@ -233,26 +233,3 @@ def test_near_singular_targets_give_finite_bounded_steps(kin):
         T[:3, 3] += 0.01 * direction
         q = kin.ik(T, Q_SINGULAR, restarts=0)
         assert np.all(np.isfinite(q)) and np.abs(q - Q_SINGULAR).max() < 0.5
-
-
-def test_a_handle_ahead_and_above_the_shoulder_is_planned_with_the_elbow_swung_out(kin):
-    """A level grasp 0.72 m ahead and 0.43 m above the Panda's shoulder, approached and pulled 10 cm straight: the
-    usual elbow seeds bring joint 2 near zero (joints 1 and 3 in line), where the path changes IK branch; the elbow
-    swung out to a side carries it clear of the joint limits and of singularities."""
-    from drivers.arm.kinematics import IK_SINGULAR_VALUE, well_conditioned_start
-
-    out = np.array([0.926, -0.378, 0.0])
-    z, y = out / np.linalg.norm(out), np.array([0.0, 0.0, -1.0])
-    T = _pose([0.67, -0.269, 0.763], np.column_stack([np.cross(y, z), y, z]))
-    path = []
-    for d in np.linspace(-0.1, 0.1, 9):  # the approach from 10 cm before the handle, then the pull
-        P = T.copy()
-        P[:3, 3] -= abs(d) * z
-        path.append(P)
-    q_start = np.array([0.034, -1.236, 0.068, -2.669, -0.006, 3.02, 0.83])  # an arm's start (its wrist as the sim's)
-    q = well_conditioned_start(kin, path, q_start, 0.1)
-    assert q is not None
-    qs = kin.solve_path(path, q, restarts=0)
-    assert np.all(qs > kin.q_min + 0.1) and np.all(qs < kin.q_max - 0.1)
-    assert min(np.linalg.svd(kin.jacobian(x), compute_uv=False)[-1] for x in qs) > IK_SINGULAR_VALUE
-    assert np.all(np.abs(qs[:, 1]) > 0.3)  # joint 2 clear of zero

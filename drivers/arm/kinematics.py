@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -24,9 +24,6 @@ IK_STALL_WINDOW, IK_STALL_RATIO = 20, 0.9  # give up when 20 iterations shrink t
 PATH_MAX_JOINT_STEP_RAD = 0.5  # a larger jump between path waypoints means IK switched branch
 GENERIC_SEEDS = 8  # well_conditioned_start on an arm of another layout: seeds drawn around its start ...
 GENERIC_SPREAD_RAD = 0.4  # ... this far (std per joint)
-SIDEWAYS_TURN_RAD, SIDEWAYS_LEAN_RAD, SIDEWAYS_TWIST_RAD = 1.2, 1.0, 2.0  # the elbow swung out to a side: joint 1
-# turned off the target, joint 2 leaning that way, joint 3 turned back (`_sideways_seeds`), ...
-SIDEWAYS_WRIST_RAD = ((1.8, 2.6), (-1.8, 2.6))  # ... the wrist's joints 5 and 6 as the template's or these
 
 
 class Kinematics:
@@ -320,24 +317,9 @@ def well_conditioned_start(
     """Joints at poses[0] from which every pose of the sequence is reached continuously, clear of the joint
     limits by `margin_rad`, choosing among a few seeds (`_start_seeds`) the one whose path stays farthest from
     singularities (largest smallest singular value of the Jacobian). A redundant arm needs this: per-tick IK
-    started near a singularity turns joints 1 and 3 fast. When the best of them passes within IK_SINGULAR_VALUE of
-    one, or none carries the path, the elbow swung out sideways (`_sideways_seeds`) is tried too. None when no seed
-    works."""
-    first, q_template = poses[0][:3, 3], np.array(q_template, float)
-    best, score = _best_start(kin, poses, _start_seeds(kin, first, q_template), margin_rad)
-    if score < IK_SINGULAR_VALUE:
-        sideways, sideways_score = _best_start(kin, poses, _sideways_seeds(kin, first, q_template), margin_rad)
-        if sideways_score > score:
-            best = sideways
-    return best
-
-
-def _best_start(kin: Kinematics, poses: Sequence[np.ndarray], seeds: Sequence[np.ndarray], margin_rad: float
-                ) -> tuple[np.ndarray | None, float]:
-    """Of the paths through `poses` solved from each seed and clear of the joint limits by `margin_rad`, the start of
-    the one whose smallest singular value along it is largest, and that value (None, -inf when none)."""
+    started near a singularity turns joints 1 and 3 fast. None when no seed works."""
     best, best_score = None, -np.inf
-    for seed in seeds:
+    for seed in _start_seeds(kin, poses[0][:3, 3], np.array(q_template, float)):
         try:
             qs = kin.solve_path(poses, seed, restarts=0)
         except ArmError:
@@ -347,7 +329,7 @@ def _best_start(kin: Kinematics, poses: Sequence[np.ndarray], seeds: Sequence[np
         score = min(np.linalg.svd(kin.jacobian(q), compute_uv=False)[-1] for q in qs)
         if score > best_score:
             best, best_score = qs[0], score
-    return best, best_score
+    return best
 
 
 def _start_seeds(kin: Kinematics, first: np.ndarray, q_template: np.ndarray) -> list[np.ndarray]:
@@ -356,40 +338,16 @@ def _start_seeds(kin: Kinematics, first: np.ndarray, q_template: np.ndarray) -> 
     -2.6 or -1.9 rad), those of them that lie within the joint limits; when none does (another layout, such as
     OpenArm's shoulder), the template and GENERIC_SEEDS fixed draws around it (GENERIC_SPREAD_RAD per joint, within
     the limits): postures like the arm's own start, not whatever IK reaches first."""
-    seeds = _within_limits(kin, q_template, itertools.product((-0.6, 0.0, 0.6), (-2.6, -1.9)), first, 0.0, 0.0)
+    seeds = []
+    for q2, q4 in itertools.product((-0.6, 0.0, 0.6), (-2.6, -1.9)):
+        seed = q_template.copy()
+        seed[:4] = np.arctan2(first[1], first[0]), q2, 0.0, q4
+        if np.all(seed >= kin.q_min) and np.all(seed <= kin.q_max):
+            seeds.append(seed)
     if seeds:
         return seeds
     draws = np.random.default_rng(0).normal(0.0, GENERIC_SPREAD_RAD, (GENERIC_SEEDS, kin.dof))
     return [q_template, *np.clip(q_template + draws, kin.q_min, kin.q_max)]
-
-
-def _sideways_seeds(kin: Kinematics, first: np.ndarray, q_template: np.ndarray) -> list[np.ndarray]:
-    """Seeds of the Panda's layout (`_start_seeds`) with the elbow swung out to either side: the first joint
-    SIDEWAYS_TURN_RAD off the line toward `first`, the second leaning SIDEWAYS_LEAN_RAD that way and the third turned
-    SIDEWAYS_TWIST_RAD back, the wrist (joints 5 and 6) as in the template or bent at SIDEWAYS_WRIST_RAD either way.
-    The second joint then stays clear of zero, where the first and third joints' axes line up (the shoulder's
-    singularity that a point ahead and above the shoulder brings the usual seeds near)."""
-    seeds = []
-    for side, wrist in itertools.product((1.0, -1.0), (None, *SIDEWAYS_WRIST_RAD)):
-        template = q_template.copy()
-        if wrist is not None:
-            template[4:6] = wrist
-        seeds += _within_limits(kin, template, [(side * SIDEWAYS_LEAN_RAD, -1.9)], first,
-                                side * SIDEWAYS_TURN_RAD, -side * SIDEWAYS_TWIST_RAD)
-    return seeds
-
-
-def _within_limits(kin: Kinematics, q_template: np.ndarray, shoulder_elbow: Iterable[tuple[float, float]],
-                   first: np.ndarray, turn: float, twist: float) -> list[np.ndarray]:
-    """The template with joints 1-4 at (the direction of `first` + turn, q2, twist, q4) for each (q2, q4), those
-    within the joint limits."""
-    seeds = []
-    for q2, q4 in shoulder_elbow:
-        seed = q_template.copy()
-        seed[:4] = np.arctan2(first[1], first[0]) + turn, q2, twist, q4
-        if np.all(seed >= kin.q_min) and np.all(seed <= kin.q_max):
-            seeds.append(seed)
-    return seeds
 
 
 def _is_pose(T: np.ndarray) -> bool:
