@@ -81,13 +81,16 @@ class KitchenScenario:
         """A kitchen scenario, deterministic from (task, seed, split) and the arguments. `part`: the `--part` text
         (default: the seed picks a reachable part of the task's kind that opens at least `opening`, m or rad: the
         task's target); `target`: the furniture to open (default: a
-        procedural unit of the split's family, drawn again until it has that part within reach); `style`: every
-        procedural unit's handle style (default: drawn); `reach`: the arm's (default: the Panda's). SceneError when
+        procedural unit of the split's family, drawn again until it has that part within the usual bands of reach);
+        `style`: every procedural unit's handle style (default: drawn); `reach`: the arm's (default: the Panda's; a
+        given `target` with no part in its usual bands is placed in its bands from above). SceneError when
         the part is not there or out of reach."""
         if condition not in CONDITIONS or task not in KINDS or split not in SPLITS:
             raise SceneError(f"kitchen scenario {task!r}/{split!r}/{condition!r}: the task is one of {KINDS}, the "
                              f"split one of {SPLITS}, the condition one of {CONDITIONS}")
         rng = np.random.default_rng([SPLITS.index(split), KINDS.index(task), seed, 2])
+        reach = reach if target is not None else reach.usual()  # a unit with no part at a comfortable height is
+        # drawn again rather than grasped from above
         source = f"procedural {split} {seed}"
         error: SceneError | None = None
         for _ in range(ATTEMPTS):
@@ -96,8 +99,8 @@ class KitchenScenario:
                 (role_of(target), target)
             room = random_room(furniture, role, split, look, rng, source)
             try:
-                chosen = _choose_part(room, task, part, rng, reach, opening)
-                return _park(cls, task, seed, split, room, chosen, condition, reach, opening)
+                chosen, part_reach = _choose_part(room, task, part, rng, reach, opening)
+                return _park(cls, task, seed, split, room, chosen, condition, part_reach, opening)
             except PartError as exc:
                 if target is not None:  # another kitchen would not change its parts nor their heights
                     raise
@@ -108,21 +111,33 @@ class KitchenScenario:
 
 
 def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Generator,
-                 reach: Reach, opening: float) -> PartGeometry:
-    """The target part: the one `text` names, else one of the task's kind within `reach` that opens at least
-    `opening`, drawn from `rng`."""
+                 reach: Reach, opening: float) -> tuple[PartGeometry, Reach]:
+    """The target part and the reach it is placed in (`placing_reach`): the one `text` names, else one of the task's
+    kind within that reach that opens at least `opening`, drawn from `rng`."""
     placed = room.furniture[room.target]
     geometry = measure_parts(placed.furniture)
+    placing = placing_reach(placed, geometry, task, reach, opening)
     if text is not None:
         chosen = resolve(placed.furniture, geometry, task, text)
-        if base_heights(_grip_height(placed, chosen), task, reach) is None:
+        if base_heights(_grip_height(placed, chosen), task, placing) is None:
             raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} is out of the robot's "
                              f"reach: {_reach(placed, [chosen], task, reach)}")
-        return chosen
-    reachable = reachable_parts(placed, geometry, task, reach, opening)
+        return chosen, placing
+    reachable = reachable_parts(placed, geometry, task, placing, opening)
     if not reachable:
         raise PartError(_no_part(placed, geometry, task, reach, opening))
-    return reachable[int(rng.integers(len(reachable)))]
+    return reachable[int(rng.integers(len(reachable)))], placing
+
+
+def placing_reach(placed: Placed, geometry: list[PartGeometry], task: PartKind, reach: Reach,
+                  opening: float = 0.0) -> Reach:
+    """The reach the furniture's parts are placed in: `reach` when some part of the task's kind that opens at least
+    `opening` lies in its usual bands, else its reach from above (a user grasps a low handle from above only when
+    nothing is at a comfortable height), else `reach`."""
+    low = reach.from_above(task)
+    if low is None or reachable_parts(placed, geometry, task, reach, opening):
+        return reach
+    return low
 
 
 def reach_problem(furniture: Furniture, task: PartKind, reach: Reach = PANDA_REACH, opening: float = 0.0) -> str | None:
@@ -130,7 +145,7 @@ def reach_problem(furniture: Furniture, task: PartKind, reach: Reach = PANDA_REA
     `standing_height`), has no part of the task's kind that opens at least `opening` (m or rad) and an arm of
     `reach` can reach (one line); None when it has one."""
     placed, geometry = Placed(furniture, (0.0, 0.0, standing_height(furniture), 0.0)), measure_parts(furniture)
-    if reachable_parts(placed, geometry, task, reach, opening):
+    if reachable_parts(placed, geometry, task, placing_reach(placed, geometry, task, reach, opening), opening):
         return None
     return _no_part(placed, geometry, task, reach, opening)
 
@@ -165,7 +180,15 @@ def _reach(placed: Placed, parts: list[PartGeometry], task: str, reach: Reach) -
     (low, high), (base_low, base_high) = reach.height(task), BASE_HEIGHT_M
     return (f"its grips stand above the floor at {heights}; the robot reaches {task} grips {low + base_low:.2f}-"
             f"{high + base_high:.2f} m above the floor (its base {base_low:g}-{base_high:g} m up, the grip "
-            f"{low:g}-{high:g} m above the base): name another part, or give another seed")
+            f"{low:g}-{high:g} m above the base){_from_above(reach, task)}: name another part, or give another seed")
+
+
+def _from_above(reach: Reach, task: str) -> str:
+    low = reach.from_above(task)
+    if low is None:
+        return ""
+    (lo, hi), (base_low, base_high) = low.height(task), BASE_HEIGHT_M
+    return f", and from above {lo + base_low:.2f}-{hi + base_high:.2f} m when no grip is in that band"
 
 
 def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, room: Room, part: PartGeometry,

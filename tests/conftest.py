@@ -21,7 +21,8 @@ def near_doors(tmp_path):
     """A simulated Panda's robot config whose scenes place doors 0.4-0.7 m from it, where some swing into the arm's
     own column or are grasped pressed (its `reach`)."""
     path = tmp_path / "panda_near_doors.toml"
-    path.write_text(PANDA_SIM_CONFIG.read_text() + f"\n[reach]\ndoor_distance_m = {list(NEAR_DOORS_M)}\n")
+    near = f"[reach]\ndoor_distance_m = {list(NEAR_DOORS_M)}\n"
+    path.write_text(PANDA_SIM_CONFIG.read_text().replace("[reach]\n", near))
     return path
 
 

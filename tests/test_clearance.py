@@ -223,3 +223,16 @@ def test_along_a_doors_arc_the_grasps_keep_the_order_tried_though_a_finger_dips_
     assert np.allclose(first, grasp_pose(rod))
     (first, _), *_ = clear_grasps(rod, scene, straight, 0.1, 0.08)
     assert abs(first[2, 2]) < 1e-9
+
+
+def test_the_grasps_from_above_come_after_every_usual_grasp():
+    """A bar 5 cm out of a low drawer with nothing around it: every usual grasp (tilted down, level, up, each finger
+    opening) keeps clear and goes first, then those tilted steeply down (a low handle grasped from above) whose
+    fingers keep in front of the fronts' plane (0.7 rad down; at 1.1 rad the lower finger's tip reaches behind it)."""
+    normal = np.array([-1.0, 0.0, 0.0])
+    scene = Scene(cKDTree(np.array([[0.0, 0.0, 0.0]])), np.array([0.8, 0.0, 0.4]), normal)
+    bar = Handle(np.array([0.75, 0.0, 0.4]), normal, np.array([0.0, 1.0, 0.0]), 0, "bar", open_m=0.08,
+                 thickness_m=0.018)
+    pitches = [float(np.arcsin(-T[2, 2])) for T, _ in clear_grasps(bar, scene, lambda T: [[T]], 0.1, 0.08)]
+    assert sorted(np.round(pitches[:6], 6)) == sorted(np.round([0.25, 0.0, -0.25] * 2, 6))
+    assert np.allclose(pitches[6:], [0.7, 0.7])

@@ -17,12 +17,24 @@ LOW = Reach(drawer_distance_m=(0.62, 0.66), drawer_height_m=(0.5, 0.56), door_di
 def test_a_robot_config_without_reach_has_the_pandas_and_one_with_it_its_own(tmp_path):
     assert load_robot_config(PANDA_SIM_CONFIG).robot_spec().reach == PANDA_REACH
     path = tmp_path / "low.toml"
-    path.write_text(PANDA_SIM_CONFIG.read_text() + "\n[reach]\ndrawer_height_m = [0.42, 0.46]\n")
-    reach = load_robot_config(path).robot_spec().reach
+
+    def reach_with(lines: str) -> Reach:
+        path.write_text(PANDA_SIM_CONFIG.read_text().replace("[reach]\n", f"[reach]\n{lines}\n"))
+        return load_robot_config(path).robot_spec().reach
+
+    reach = reach_with("drawer_height_m = [0.42, 0.46]")
     assert reach.drawer_height_m == (0.42, 0.46) and reach.door_height_m == PANDA_REACH.door_height_m
-    path.write_text(PANDA_SIM_CONFIG.read_text() + "\n[reach]\ndrawer_height_m = [0.6, 0.4]\n")
     with pytest.raises(Exception, match="reach.drawer_height_m"):
+        reach_with("drawer_height_m = [0.6, 0.4]")
+    bare = "\n".join(line for line in PANDA_SIM_CONFIG.read_text().splitlines() if not line.startswith("low_"))
+    path.write_text(bare)  # no bands from above: the usual ones are the Panda's, none from above
+    reach = load_robot_config(path).robot_spec().reach
+    assert reach.drawer_height_m == PANDA_REACH.drawer_height_m and reach.from_above("drawer") is None
+    path.write_text(bare.replace("[reach]\n", "[reach]\nlow_door_height_m = [0.3, 0.5]\n"))
+    with pytest.raises(Exception, match="low_door_distance_m and low_door_height_m come together"):
         load_robot_config(path)
+    low = PANDA_REACH.from_above("drawer")
+    assert low.drawer_height_m == PANDA_REACH.low_drawer_height_m and low.door_height_m == PANDA_REACH.door_height_m
 
 
 @pytest.mark.parametrize("world", ["kitchen", "box"])

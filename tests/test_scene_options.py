@@ -7,18 +7,22 @@ import json
 import numpy as np
 import pytest
 from cli_run import one_line, run, small_recording
-from partnet_objects import DRAWER_OVER_DOOR, Front, write_object
+from partnet_objects import Front, write_object
 
 from deploy.control.session import OpenRequest, open_object
 from deploy.errors import PerceptionError
 from deploy.perception.base import Pointer
 from deploy.perception.rgbd import RGBDSegmenter
+from drivers.arm.robots import PANDA_REACH
 from drivers.camera.base import Frame, Intrinsics
 from sim_fallback.camera_scenes import look_along_x
 
 # a drawer beside a door, both within the robot's reach once sized as a real refrigerator
 SIDE_BY_SIDE = (Front("drawer", (-0.48, -0.01), (0.25, 0.58), label="drawer"),
                 Front("door", (0.01, 0.48), (0.0, 0.58), label="rotation_door"))
+
+LOW_DRAWER_UNDER_DOOR = (Front("drawer", (-0.48, 0.48), (-0.58, -0.3), label="drawer"),
+                         Front("door", (-0.48, 0.48), (-0.25, 0.58), label="rotation_door"))
 
 
 @pytest.fixture(autouse=True)
@@ -28,10 +32,11 @@ def cache(tmp_path, monkeypatch):
 
 @pytest.fixture
 def assets(tmp_path):
-    """A folder of two objects: 12 with a drawer and a door in reach, 40 whose parts all stand too low."""
+    """A folder of two objects: 12 with a drawer and a door in reach, 40 whose drawer stands too low for any grasp
+    and whose door stands below the usual reach but within the reach from above."""
     folder = tmp_path / "assets"
     write_object(folder / "12", fronts=SIDE_BY_SIDE, category="Refrigerator")
-    write_object(folder / "40", fronts=DRAWER_OVER_DOOR)
+    write_object(folder / "40", fronts=LOW_DRAWER_UNDER_DOOR)
     return folder
 
 
@@ -98,6 +103,16 @@ def test_sim_show_lists_the_objects_parts_and_renders_the_one_asked_for(capsys, 
     assert list(listed["40"]["unusable_for"]) == ["drawer"]
     assert "partnet 40 has no drawer within the robot's reach: its grips stand above the floor" in (
         listed["40"]["unusable_for"]["drawer"])
+
+
+def test_an_object_with_no_part_in_the_usual_reach_is_usable_when_the_arm_grasps_it_from_above(assets):
+    from sim_fallback.scenes import task_objects
+
+    assert task_objects(assets, "door").usable == ("12", "40")
+    low = task_objects(assets, "door", reach=PANDA_REACH.usual())
+    assert low.usable == ("12",) and "partnet 40 has no door within the robot's reach" in low.problems["40"]
+    assert "and from above" not in low.problems["40"]
+    assert "and from above 0.40-1.70 m when no grip is in that band" in task_objects(assets, "drawer").problems["40"]
 
 
 def test_a_kitchen_recording_of_a_partnet_object_opens_the_named_part(capsys, tmp_path, assets):

@@ -246,8 +246,32 @@ def test_the_seed_picks_a_reachable_part_and_named_parts_out_of_reach_are_refuse
     names = [g.name for g in ordered(measure_parts(chest), "drawer")]
     picked = {KitchenScenario.make("drawer", seed, "train", target=chest).part for seed in range(4)}
     assert picked == {names[0]}  # only the top drawer's handle stands high enough above a base on the floor
-    with pytest.raises(PartError, match="out of the robot's reach"):
-        KitchenScenario.make("drawer", 0, "train", part="bottom drawer", target=chest)
+    with pytest.raises(PartError, match="out of the robot's reach"):  # though below the usual bands: the chest has
+        KitchenScenario.make("drawer", 0, "train", part="bottom drawer", target=chest)  # a part in them
+    assert PANDA_REACH.from_above("drawer") is not None
+
+
+def test_furniture_with_no_part_in_the_usual_bands_is_placed_for_a_grasp_from_above():
+    """An arm whose usual drawer band no base height brings the chest's handles into, but which grasps a low drawer
+    from above: the seed's drawer and a named one are placed with their grips in the band from above; an arm without
+    that band refuses them."""
+    rng = np.random.default_rng(5)
+    look = random_look("train", rng, "bar")
+    chest = random_unit("base", "drawers", 0.5, random_carcass("train", "base", rng), look, "train", rng,
+                        "stack").furniture()
+    high = replace(PANDA_REACH, drawer_height_m=(1.9, 2.0), low_drawer_distance_m=(0.70, 0.75),
+                   low_drawer_height_m=(0.2, 0.7))
+    names = [g.name for g in ordered(measure_parts(chest), "drawer")]
+    for seed, part in ((0, None), (1, None), (0, names[1])):
+        sc = KitchenScenario.make("drawer", seed, "train", target=chest, reach=high, part=part)
+        placed = sc.kitchen.target_furniture
+        [g] = [g for g in measure_parts(placed.furniture) if g.name == sc.part]
+        grip = (placed.T @ [*g.grip, 1.0])[:3]
+        assert 0.70 - 1e-6 <= float(np.hypot(*grip[:2])) <= 0.75 + 1e-6 and 0.2 - 1e-6 <= grip[2] <= 0.7 + 1e-6
+        assert part is None or sc.part == part
+    no_low = replace(high, low_drawer_distance_m=None, low_drawer_height_m=None)
+    with pytest.raises(PartError, match="no drawer within the robot's reach"):
+        KitchenScenario.make("drawer", 0, "train", target=chest, reach=no_low)
 
 
 def test_train_and_test_families_are_disjoint():

@@ -3,7 +3,8 @@ neighbour's handle or front, a wall beside the unit (deploy/geometry/clearance.p
 depth (the arm's pixels removed) in the base frame, less the pointed front and its handle, which move with the
 gripper; the grasps tried are the usual one, the one approaching level (no downward tilt), the one tilted up (from
 under an overhang), all again with the fingers opened only as wide as the handle needs, into a recessed pull all of
-these again going in less deep (the hand farther out of the front), and for a knob all of these turned a quarter."""
+these again going in less deep (the hand farther out of the front), and for a knob all of these turned a quarter;
+after all of them, the same tilted steeply down (a low handle grasped from above)."""
 
 from __future__ import annotations
 
@@ -43,6 +44,8 @@ PLANE_BAND_M = 0.01  # the fronts' plane and what lies behind it: the fingers st
 SCENE_STEP = 4  # the scene is every 4th pixel in each direction (about 1 cm apart at 1 m)
 PITCHES_RAD = (GRASP_PITCH_RAD, 0.0, -GRASP_PITCH_RAD)  # the grasps tried, in order: tilted down (the usual), level,
 # then tilted up (the hand, 21 cm along the fingers' closing direction, leans its upper edge out from an overhang)
+FROM_ABOVE_RAD = (0.7, 1.1)  # then tilted steeply down, tried after every usual grasp: a handle below the arm's usual
+# reach grasped from above (the arm's low reach bands, drivers/arm/robots.py Reach, are where these pull it)
 POCKET_DEPTH_M = 0.0  # a recessed pull the usual depth keeps from clearing the scene is held with the pads' middle
 # on the lip its pocket's mouth shows, the hand farther out of the front (under a counter's overhang)
 GRIP_MARGIN_M = 0.015  # fingers opened only as wide as a handle needs clear it by this much each side: the pointed
@@ -88,7 +91,8 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
     ties as tried: a knob held as found then turned a quarter, each going in as deep as the handle asks, then for a
     recessed pull to POCKET_DEPTH_M, each tilted down, level, then up (PITCHES_RAD; level first into a recessed
     pull), each with the fingers opened as the handle asks, then only as wide as it needs (its thickness and
-    GRIP_MARGIN_M each side). EpisodeStop saying where the gripper would touch the scene when none does."""
+    GRIP_MARGIN_M each side); the grasps from above (FROM_ABOVE_RAD) after all of those. EpisodeStop saying where
+    the gripper would touch the scene when none does."""
     openings = [handle.open_m or max_opening_m]
     closed = 0.0 if handle.thickness_m is None else handle.thickness_m
     if handle.thickness_m is not None and closed + 2 * GRIP_MARGIN_M < openings[0]:
@@ -97,6 +101,7 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
     clear, contact, during = [], None, ""
     pitches = (0.0, *PITCHES_RAD[::2]) if handle.found == "recessed pull" else PITCHES_RAD  # into a pocket, level
     # first: tilted, the fingers' outer faces climb toward its walls as they go in
+    pitches = (*pitches, *FROM_ABOVE_RAD)
     depths = [handle.depth_m]
     if handle.found == "recessed pull" and handle.depth_m > POCKET_DEPTH_M:  # not a tab's or a bar's: their fingers
         # pass a counter's lower edge, which the scene's points miss by up to their spacing
@@ -116,11 +121,12 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
             if touch is None and handle.found != "recessed pull":
                 touch = first_behind(path, gripper, scene.origin, scene.normal, PLANE_BAND_M)
             if touch is None:
-                clear.append((0.0 if swings else -_kept(handle, scene, path, gripper), len(clear), T, opening))
+                kept = 0.0 if swings else -_kept(handle, scene, path, gripper)
+                clear.append((pitch in FROM_ABOVE_RAD, kept, len(clear), T, opening))
             elif contact is None:
                 contact, during = touch, "first pull" if pull is not None else "approach"
     if clear:
-        return [(T, opening) for *_, T, opening in sorted(clear, key=lambda c: c[:2])]
+        return [(T, opening) for *_, T, opening in sorted(clear, key=lambda c: c[:3])]
     p = contact.point
     raise EpisodeStop(StopReason.NO_CLEAR_PATH, f"the gripper's {contact.box} would touch the scene at ({p[0]:.2f}, "
                       f"{p[1]:.2f}, {p[2]:.2f}) m during the {during} ({_where(p, handle)}), however it approached: "

@@ -80,18 +80,30 @@ class ComplianceConfig(StrictModel):
 
 class ReachConfig(StrictModel):
     """Where simulated scenes put the grip of the part to open, in the base frame (m): its horizontal distance from
-    the base and its height above it, per task (`drivers.arm.robots.Reach`; defaults: the Panda's)."""
+    the base and its height above it, per task (`drivers.arm.robots.Reach`; defaults: the Panda's usual bands); the
+    `low_*` bands where the arm grasps a low handle from above (default: none)."""
 
     drawer_distance_m: tuple[float, float] = Reach.drawer_distance_m
     drawer_height_m: tuple[float, float] = Reach.drawer_height_m
     door_distance_m: tuple[float, float] = Reach.door_distance_m
     door_height_m: tuple[float, float] = Reach.door_height_m
+    low_drawer_distance_m: tuple[float, float] | None = None
+    low_drawer_height_m: tuple[float, float] | None = None
+    low_door_distance_m: tuple[float, float] | None = None
+    low_door_height_m: tuple[float, float] | None = None
 
     @model_validator(mode="after")
     def _bands(self) -> ReachConfig:
-        for key, (lo, hi) in self:
+        for key, band in self:
+            if band is None:
+                continue
+            lo, hi = band
             if lo > hi:
                 raise ValueError(f"reach.{key}: the band's low end {lo:g} is above its high end {hi:g}")
+        for task in ("drawer", "door"):
+            if (getattr(self, f"low_{task}_distance_m") is None) != (getattr(self, f"low_{task}_height_m") is None):
+                raise ValueError(f"reach: low_{task}_distance_m and low_{task}_height_m come together (the bands where "
+                                 f"the arm grasps a low {task} from above): give both, or neither")
         return self
 
     def reach(self) -> Reach:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -14,12 +14,19 @@ class Reach:
     """Where an arm grasps a handle and pulls it comfortably, in its base frame (m): per task, the grip's horizontal
     distance from the base and its height above the base. Simulated scenes park the robot so that the target's grip
     falls in these bands, as a user parks an arm in front of what it must open (`scripts/reach_scan.py` maps an
-    arm's). The defaults are the Panda's: a 45 cm drawer pull and a door's swing stay clear of its joint limits."""
+    arm's). The defaults are the Panda's: a 45 cm drawer pull and a door's swing stay clear of its joint limits.
+
+    `low_*`: the bands where the arm grasps a low handle from above (the approach tilted steeply down) and pulls it,
+    for furniture with no part in the usual bands (None: the arm has none measured for that task)."""
 
     drawer_distance_m: tuple[float, float] = (0.55, 0.68)
     drawer_height_m: tuple[float, float] = (0.72, 0.86)
     door_distance_m: tuple[float, float] = (0.5, 0.85)
     door_height_m: tuple[float, float] = (0.62, 0.78)
+    low_drawer_distance_m: tuple[float, float] | None = None
+    low_drawer_height_m: tuple[float, float] | None = None
+    low_door_distance_m: tuple[float, float] | None = None
+    low_door_height_m: tuple[float, float] | None = None
 
     def distance(self, task: str) -> tuple[float, float]:
         return self.drawer_distance_m if task == "drawer" else self.door_distance_m
@@ -27,8 +34,25 @@ class Reach:
     def height(self, task: str) -> tuple[float, float]:
         return self.drawer_height_m if task == "drawer" else self.door_height_m
 
+    def from_above(self, task: str) -> Reach | None:
+        """The reach whose `task` bands are this arm's from above (its low ones); None when it has none."""
+        distance, height = ((self.low_drawer_distance_m, self.low_drawer_height_m) if task == "drawer" else
+                            (self.low_door_distance_m, self.low_door_height_m))
+        if distance is None or height is None:
+            return None
+        return replace(self, **{f"{task}_distance_m": distance, f"{task}_height_m": height})
 
-PANDA_REACH = Reach()
+    def usual(self) -> Reach:
+        """This reach without its bands from above."""
+        return replace(self, low_drawer_distance_m=None, low_drawer_height_m=None, low_door_distance_m=None,
+                       low_door_height_m=None)
+
+
+# The Panda's, from above: a low bar grasped with the approach tilted 0.7 or 1.1 rad down (deploy/control/
+# scene_clearance.py FROM_ABOVE_RAD), a drawer's pulled 45 cm and a door's swung 45 deg (drivers/arm/configs/
+# panda_sim.toml says the same, with the scans).
+PANDA_REACH = Reach(low_drawer_distance_m=(0.70, 0.75), low_drawer_height_m=(0.40, 0.70),
+                    low_door_distance_m=(0.60, 0.75), low_door_height_m=(0.25, 0.62))
 
 
 @dataclass(frozen=True)
