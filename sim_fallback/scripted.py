@@ -18,7 +18,7 @@ import numpy as np
 import pybullet as pb
 
 from drivers.arm.base import ArmState
-from drivers.arm.grasping import GRASP_DEPTH_M, LIMIT_MARGIN_RAD, pregrasp_pose
+from drivers.arm.grasping import FROM_ABOVE_RAD, GRASP_DEPTH_M, GRASP_PITCH_RAD, LIMIT_MARGIN_RAD, pregrasp_pose
 from drivers.arm.grasping import grasp_pose as bar_grasp_pose
 from drivers.arm.kinematics import Kinematics, well_conditioned_start
 from drivers.arm.motion import (
@@ -55,15 +55,16 @@ OPENED_SHARE = 0.5  # a recording whose part opened less than this share of the 
 OPEN_LIMITS = {"drawer": MotionLimits(0.10, 0.3, 3.0), "door": MotionLimits(0.25, 0.6, 6.0)}  # m or rad
 
 
-def grasp_pose(world: SimWorld) -> np.ndarray:
-    """Tool pose grasping the target part's true handle from the front, fingers across its bar (base frame), as deep
-    as its handle leaves room for: the fingertips stop FINGERTIP_CLEARANCE_M short of the surface behind it."""
+def grasp_pose(world: SimWorld, pitch_rad: float = GRASP_PITCH_RAD) -> np.ndarray:
+    """Tool pose grasping the target part's true handle from the front tilted down by `pitch_rad`, fingers across its
+    bar (base frame), as deep as its handle leaves room for: the fingertips stop FINGERTIP_CLEARANCE_M short of the
+    surface behind it."""
     centre, bar, normal = world.target_handle()
     handle = world.target.part.handle
     depth = GRASP_DEPTH_M
     if handle is not None and handle.clear_behind_m is not None:
         depth = min(depth, handle.clear_behind_m - FINGERTIPS_PAST_TOOL_M - FINGERTIP_CLEARANCE_M)
-    return bar_grasp_pose(centre, normal, bar, depth_m=depth)
+    return bar_grasp_pose(centre, normal, bar, depth_m=depth, pitch_rad=pitch_rad)
 
 
 def pregrasp_width(world: SimWorld) -> float:
@@ -81,19 +82,22 @@ def opening_path(T_start: np.ndarray, truth: JointTruth) -> PathFn:
     return arc_path(T_start, truth.origin, truth.direction)
 
 
-def pregrasp_configuration(
-    kin: Kinematics, T_grasp: np.ndarray, opening: PathFn, length: float
-) -> np.ndarray:
-    """Joint positions at the pre-grasp pose from which the approach and the opening path stay farthest
-    from singularities (largest smallest singular value of the Jacobian along them); the Panda is
-    redundant and per-tick IK near a singularity spins joints 1 and 3."""
-    poses = [pregrasp_pose(T_grasp, PREGRASP_M), T_grasp, *(opening(s) for s in np.linspace(0.0, length, 12)[1:])]
-    best = well_conditioned_start(kin, poses, Q_START, LIMIT_MARGIN_RAD)
-    if best is None:
-        raise ArmError(f"scripted grasp: no arm configuration reaches the handle and follows the opening "
-                       f"by {length:.3f} (m or rad) clear of joint limits and singularities; try another "
-                       "seed or a smaller target")
-    return best
+def pregrasp_configuration(kin: Kinematics, world: SimWorld, length: float) -> tuple[np.ndarray, np.ndarray]:
+    """(grasp pose, joint positions at its pre-grasp pose) from which the approach and the opening path along the
+    true axis stay farthest from singularities (largest smallest singular value of the Jacobian along them; the Panda
+    is redundant and per-tick IK near a singularity spins joints 1 and 3): the usual grasp, else one from above
+    (FROM_ABOVE_RAD, a low handle)."""
+    truth = world.truth()
+    for pitch in (GRASP_PITCH_RAD, *FROM_ABOVE_RAD):
+        T_grasp = grasp_pose(world, pitch)
+        opening = opening_path(T_grasp, truth)
+        poses = [pregrasp_pose(T_grasp, PREGRASP_M), T_grasp, *(opening(s) for s in np.linspace(0.0, length, 12)[1:])]
+        best = well_conditioned_start(kin, poses, Q_START, LIMIT_MARGIN_RAD)
+        if best is not None:
+            return T_grasp, best
+    raise ArmError(f"scripted grasp: no arm configuration reaches the handle and follows the opening "
+                   f"by {length:.3f} (m or rad) clear of joint limits and singularities, whether from the front or "
+                   "from above; try another seed or a smaller target")
 
 
 def grasp_handle(
@@ -102,8 +106,7 @@ def grasp_handle(
     """Move to the pre-grasp pose, approach along the gripper axis and close on the handle (ground truth).
     `target` is the opening that follows, used to pick an arm configuration that can make it. ArmError when no arm
     configuration makes it, or when the fingers closed on something else than the handle."""
-    T_grasp = grasp_pose(world)
-    q_pre = pregrasp_configuration(arm.kin, T_grasp, opening_path(T_grasp, world.truth()), target)
+    T_grasp, q_pre = pregrasp_configuration(arm.kin, world, target)
     arm.set_gripper(pregrasp_width(world))
     move_to_joints(arm, q_pre, limits, on_tick)
     approach = T_grasp[:3, 2]

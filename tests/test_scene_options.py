@@ -128,6 +128,16 @@ def test_a_kitchen_recording_of_a_partnet_object_opens_the_named_part(capsys, tm
     assert truth["joint_type"] == "prismatic" and truth["joint_values"][-1] > 0.19
 
 
+def test_a_low_door_is_recorded_grasped_from_above(capsys, tmp_path, assets):
+    """Object 40's door stands below the arm's usual reach: the scripted grasp takes it from above and opens it."""
+    out = tmp_path / "rec"
+    code, printed, err = run(capsys, "sim", "record", "--assets", assets, "--object", "40", "--part", "door",
+                             "--fps", "2", "--out", out, "--json")
+    assert code == 0, err
+    truth = json.loads((out / "truth.json").read_text())
+    assert truth["joint_type"] == "revolute" and truth["joint_values"][-1] > 0.4
+
+
 def test_bench_open_reports_per_object_and_part_with_the_scene_and_sensors(tmp_path, assets):
     from deploy.bench.open import bench_open
 

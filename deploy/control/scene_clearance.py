@@ -31,7 +31,7 @@ from deploy.geometry.cloud import depth_to_points
 from deploy.perception.handle import EDGE_BAND_M
 from deploy.perception.handle_blobs import MAX_STANDOFF_M
 from deploy.perception.pointing import PointedPart
-from drivers.arm.grasping import GRASP_PITCH_RAD, pregrasp_pose
+from drivers.arm.grasping import FROM_ABOVE_RAD, GRASP_PITCH_RAD, pregrasp_pose
 from drivers.camera.base import Frame
 
 CLEARANCE_M = -0.005  # the gripper hits the scene where a scene point lies this deep inside it: nearer ones are
@@ -44,8 +44,6 @@ PLANE_BAND_M = 0.01  # the fronts' plane and what lies behind it: the fingers st
 SCENE_STEP = 4  # the scene is every 4th pixel in each direction (about 1 cm apart at 1 m)
 PITCHES_RAD = (GRASP_PITCH_RAD, 0.0, -GRASP_PITCH_RAD)  # the grasps tried, in order: tilted down (the usual), level,
 # then tilted up (the hand, 21 cm along the fingers' closing direction, leans its upper edge out from an overhang)
-FROM_ABOVE_RAD = (0.7, 1.1)  # then tilted steeply down, tried after every usual grasp: a handle below the arm's usual
-# reach grasped from above (the arm's low reach bands, drivers/arm/robots.py Reach, are where these pull it)
 POCKET_DEPTH_M = 0.0  # a recessed pull the usual depth keeps from clearing the scene is held with the pads' middle
 # on the lip its pocket's mouth shows, the hand farther out of the front (under a counter's overhang)
 GRIP_MARGIN_M = 0.015  # fingers opened only as wide as a handle needs clear it by this much each side: the pointed

@@ -8,6 +8,8 @@ import numpy as np
 UP = np.array([0.0, 0.0, 1.0])
 GRASP_DEPTH_M = 0.01  # tool frame this far past the grip centre: the bar sits inside the finger pads
 GRASP_PITCH_RAD = 0.25  # approach tilted down: keeps the Panda's wrist (joint 6) off its upper limit
+FROM_ABOVE_RAD = (0.7, 1.1)  # tilted steeply down, tried after the usual grasps: a handle below the arm's usual reach
+# grasped from above (the arm's low reach bands, drivers/arm/robots.py Reach, are where these pull it)
 LIMIT_MARGIN_RAD = 0.1  # planned configurations stay this far inside the joint limits
 
 
