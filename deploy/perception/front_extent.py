@@ -174,10 +174,12 @@ def _walk(share: np.ndarray, lines: np.ndarray, start: int, step: int, res_m: fl
 
 
 def gap_lines(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
-    """Bool per line (row of `grey`): a gap line runs along it (see GAP_*). `surface`: the cells of the front's
-    surface, the only ones judged."""
-    shares, shown, stretches = _gap_stretches(grey, surface, res_m)
-    return (shares >= GAP_SHARE) & (shown >= min(GAP_MIN_STRETCHES, stretches))
+    """Bool per line (row of `grey`): a gap line runs along it (see GAP_*) and reaches one end of it (the first or
+    last stretch judged): a gap runs along a front's whole side, while the end of a recessed pull's slot or a
+    panel's groove, however long, stops short of both. `surface`: the cells of the front's surface, the only ones
+    judged."""
+    shares, shown, stretches, at_end = _gap_stretches(grey, surface, res_m)
+    return (shares >= GAP_SHARE) & (shown >= min(GAP_MIN_STRETCHES, stretches)) & at_end
 
 
 def gap_line_shares(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
@@ -189,13 +191,15 @@ def gap_line_shares(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.n
 def long_gap_line_shares(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
     """As `gap_line_shares`, 0 for lines shown along fewer than GAP_MIN_STRETCHES stretches (a handle's end, a
     knob's shadow)."""
-    shares, shown, _ = _gap_stretches(grey, surface, res_m)
+    shares, shown, _, _ = _gap_stretches(grey, surface, res_m)
     return np.where(shown >= GAP_MIN_STRETCHES, shares, 0.0)
 
 
-def _gap_stretches(grey: np.ndarray, surface: np.ndarray, res_m: float) -> tuple[np.ndarray, np.ndarray, int]:
+def _gap_stretches(grey: np.ndarray, surface: np.ndarray,
+                   res_m: float) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
     """(per line: the best share of judged stretches showing a gap line, how many stretches show it at that share;
-    the number of stretches along a line): see `gap_line_shares`."""
+    the number of stretches along a line; per line, whether the first or last judged stretch shows it at that
+    share): see `gap_line_shares`."""
     n_lines, length = grey.shape
     widest = max(int(round(GAP_LINE_M / res_m)), 1)
     segment = max(int(round(GAP_SEGMENT_M / res_m)), 4)
@@ -205,7 +209,7 @@ def _gap_stretches(grey: np.ndarray, surface: np.ndarray, res_m: float) -> tuple
     judged = cv2.erode(surface.astype(np.uint8), np.ones((2 * reach + 1, 1), np.uint8)).astype(bool)
     g = np.where(surface, grey, np.nan)[:, :usable]
     g_judged = judged[:, :usable]
-    best, best_shown = np.zeros(n_lines), np.zeros(n_lines, int)
+    best, best_shown, best_end = np.zeros(n_lines), np.zeros(n_lines, int), np.zeros(n_lines, bool)
     for k in range(1, widest + 1):  # the line's half-width plus one: its sides are k lines away
         before, after = np.full_like(g, np.nan), np.full_like(g, np.nan)
         before[k:], after[:-k] = g[:-k], g[k:]
@@ -216,9 +220,26 @@ def _gap_stretches(grey: np.ndarray, surface: np.ndarray, res_m: float) -> tuple
                 shown = np.sum(per_segment >= GAP_CONTRAST, axis=1)
                 judged_segments = np.sum(~np.isnan(per_segment), axis=1)
             share = shown / np.maximum(judged_segments, 1)
+            at_end = _shown_at_an_end(response, per_segment, n_seg)
             better = share > best
             best, best_shown = np.where(better, share, best), np.where(better, shown, best_shown)
-    return best, best_shown, n_seg
+            best_end = np.where(better, at_end, best_end)
+    return best, best_shown, n_seg, best_end
+
+
+def _shown_at_an_end(response: np.ndarray, per_segment: np.ndarray, n_seg: int) -> np.ndarray:
+    """Per line: whether the line shows along most of the first or the last of its judged stretches (the median
+    response there at least GAP_CONTRAST: a line ending inside that stretch does not reach the end)."""
+    n_lines, length = response.shape
+    judged = ~np.isnan(per_segment)
+    lines = np.arange(n_lines)
+    parts = response.reshape(n_lines, n_seg, length // n_seg)
+    shown = np.zeros(n_lines, bool)
+    for end in (np.argmax(judged, axis=1), n_seg - 1 - np.argmax(judged[:, ::-1], axis=1)):
+        with warnings.catch_warnings(), np.errstate(invalid="ignore"):
+            warnings.simplefilter("ignore", RuntimeWarning)  # lines with no judged cell there
+            shown |= np.nanmedian(parts[lines, end], axis=1) >= GAP_CONTRAST
+    return shown
 
 
 def _segment_means(response: np.ndarray, n_seg: int) -> np.ndarray:
