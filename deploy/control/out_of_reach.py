@@ -20,7 +20,15 @@ from deploy.control.view import step_log
 from deploy.geometry.types import Axis, JointType
 from drivers.arm.base import ArmState
 from drivers.arm.grasping import GRASP_PITCH_RAD
-from drivers.arm.motion import Outcome, PathFn, arc_path, follow_cartesian_path, line_path, move_to_joints
+from drivers.arm.motion import (
+    Outcome,
+    PathFn,
+    arc_path,
+    follow_cartesian_path,
+    line_path,
+    move_to_joints,
+    move_to_pose,
+)
 from drivers.arm.trajectory import MotionLimits
 from drivers.arm.wrench import WrenchEstimator
 from drivers.errors import IKError
@@ -61,8 +69,7 @@ def reseat(episode: Episode, direction: np.ndarray, out_of_reach: IKError) -> No
                   state.opened, out_of_reach)
     arm.set_gripper(state.open_width_m)
     episode.wait(CLOSE_TIME_S)
-    follow_cartesian_path(arm, kin, line_path(T_hold, -T_hold[:3, 2]), RETREAT_M, episode.line_limits(),
-                          episode.show_arm)
+    _back_off(episode, T_hold)
     move_to_joints(arm, q, episode.joint_limits, episode.show_arm)
     episode.wait(SETTLE_S)
     T = episode.tool()
@@ -71,6 +78,18 @@ def reseat(episode: Episode, direction: np.ndarray, out_of_reach: IKError) -> No
                     "failed: ")
     state.reseats += 1
     state.opened_before, state.p_grasp = state.opened, episode.tool()[:3, 3]
+
+
+def _back_off(episode: Episode, T_hold: np.ndarray) -> None:
+    """The open hand backs off the handle RETREAT_M along its approach: in a straight line, or, where the pose the
+    pull lost its path at leaves no straight line (a singularity, a joint limit), by a joint move to the pose there
+    (a few centimetres: the hand stays about on the line)."""
+    arm, kin = episode.arm, episode.kin
+    back = line_path(T_hold, -T_hold[:3, 2])
+    try:
+        follow_cartesian_path(arm, kin, back, RETREAT_M, episode.line_limits(), episode.show_arm)
+    except IKError:
+        move_to_pose(arm, kin, back(RETREAT_M), episode.joint_limits, episode.show_arm)
 
 
 def regrasp_turned(episode: Episode, axis: Axis, out_of_reach: IKError) -> None:
