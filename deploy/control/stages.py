@@ -3,6 +3,7 @@ episode by raising `EpisodeStop` with a `StopReason`."""
 
 from __future__ import annotations
 
+import itertools
 import logging
 import time
 
@@ -440,18 +441,20 @@ def _drawer_pull(episode: Episode, direction: np.ndarray, length: float, label: 
 def _grasp_plan(episode: Episode, handle: Handle) -> tuple[np.ndarray, float, np.ndarray]:
     """The grasp pose, how wide the fingers open for it and the pre-grasp joints: with a pointed part, the first
     grasp whose approach and first pull keep clear of the scene the first frame showed and that the arm carries
-    (EpisodeStop when none keeps clear, IKError when the arm carries none); else the usual one, fully open."""
+    (EpisodeStop when none keeps clear, IKError when the arm carries none); else the usual one, fully open. Every
+    grasp is tried with the arm's usual postures before any with the elbow swung out sideways (an unusual posture,
+    sweeping more of the room on its way, is no better where a usual one carries a grasp)."""
     pointed, widest, kin = episode.observer.pointed, episode.gripper.max_opening_m, episode.kin
     approach, q = episode.config.opening.approach_m, episode.arm.state().q
     if pointed is None:
-        T = grasp_pose(handle)
-        opening = widest if handle.open_m is None else handle.open_m
-        return T, opening, pregrasp_configuration(kin, q, T, _planned_pulls(episode, handle, T), approach)
-    scene = scene_tree(episode.observer.first_look.frame, pointed)
+        grasps = [(grasp_pose(handle), widest if handle.open_m is None else handle.open_m)]
+    else:
+        scene = scene_tree(episode.observer.first_look.frame, pointed)
+        grasps = clear_grasps(handle, scene, lambda T: _planned_pulls(episode, handle, T), approach, widest)
     refused = None
-    for T, opening in clear_grasps(handle, scene, lambda T: _planned_pulls(episode, handle, T), approach, widest):
+    for swung, (T, width) in itertools.product((False, True), grasps):
         try:
-            return T, opening, pregrasp_configuration(kin, q, T, _planned_pulls(episode, handle, T), approach)
+            return T, width, pregrasp_configuration(kin, q, T, _planned_pulls(episode, handle, T), approach, swung)
         except IKError as e:
             refused = refused or e
     raise refused
