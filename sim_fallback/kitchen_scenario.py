@@ -12,6 +12,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from drivers.arm.robots import PANDA_REACH, Reach
+from sim_fallback.covered import covering_part
 from sim_fallback.errors import PartError, SceneError
 from sim_fallback.furniture import Finish, Furniture, PartKind
 from sim_fallback.furniture_body import PartGeometry, measure_parts
@@ -119,6 +120,10 @@ def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Ge
     placing = placing_reach(placed, geometry, task, reach, opening)
     if text is not None:
         chosen = resolve(placed.furniture, geometry, task, text)
+        cover = covering_part(chosen, geometry)
+        if cover is not None:
+            raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} stands behind its {cover}'s "
+                            f"front: a pull from outside cannot reach it; name another part")
         if base_heights(_grip_height(placed, chosen), task, placing) is None:
             raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} is out of the robot's "
                              f"reach: {_reach(placed, [chosen], task, reach)}")
@@ -152,14 +157,15 @@ def reach_problem(furniture: Furniture, task: PartKind, reach: Reach = PANDA_REA
 
 def reachable_parts(placed: Placed, geometry: list[PartGeometry], task: PartKind, reach: Reach,
                     opening: float = 0.0) -> list[PartGeometry]:
-    """The parts of the task's kind (in a user's order) that open at least `opening` (m or rad) and whose grip some
-    robot base height brings into `reach`."""
+    """The parts of the task's kind (in a user's order) that open at least `opening` (m or rad), stand behind no
+    other part's front (`covering_part`) and whose grip some robot base height brings into `reach`."""
     return [g for g in ordered(geometry, task) if placed.furniture.part(g.name).upper >= opening
-            and base_heights(_grip_height(placed, g), task, reach) is not None]
+            and covering_part(g, geometry) is None and base_heights(_grip_height(placed, g), task, reach) is not None]
 
 
 def _no_part(placed: Placed, geometry: list[PartGeometry], task: PartKind, reach: Reach, opening: float) -> str:
-    """Why no part serves: none opens as far as asked, else none is within reach."""
+    """Why no part serves: none opens as far as asked, else all that do stand behind another part's front, else
+    none is within reach."""
     parts = [placed.furniture.part(g.name) for g in ordered(geometry, task)]
     if parts and all(p.upper < opening for p in parts):
         most = max(p.upper for p in parts)
@@ -167,6 +173,12 @@ def _no_part(placed: Placed, geometry: list[PartGeometry], task: PartKind, reach
             (f"{np.degrees(most):.0f} deg", f"{np.degrees(opening):.0f} deg")
         return (f"{placed.furniture.source}: its {task}s open at most {far}, less than the {asked} asked: ask for "
                 f"less, or choose another object")
+    hidden = {g.name: covering_part(g, geometry) for g in ordered(geometry, task)
+              if placed.furniture.part(g.name).upper >= opening}
+    if hidden and all(hidden.values()):
+        behind = ", ".join(f"{name} behind its {cover}" for name, cover in hidden.items())
+        return (f"{placed.furniture.source} cannot be used for a {task}: its {task}s stand behind another part's "
+                f"front as seen from outside ({behind}), where a pull cannot reach them; choose another object")
     return (f"{placed.furniture.source} has no {task} within the robot's reach: "
             f"{_reach(placed, ordered(geometry, task), task, reach)}")
 
