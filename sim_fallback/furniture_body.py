@@ -63,15 +63,27 @@ def link_pose(client: int, body: int, link: int) -> np.ndarray:
 
 def grip_frame(client: int, body: int, link: int, part: Part) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(grip centre, bar axis, front normal) of `part` now, in the frame the body was loaded in. Without handle
-    truth: the centre of the part's front (its links' box) and a horizontal bar."""
+    truth: the normal is the way the centre of the part's links' box moves as the joint starts to open (level), the
+    grip where that direction leaves the box from its centre (the middle of its front), the bar horizontal across."""
     T = link_pose(client, body, link)
     if part.handle is not None:
         h = part.handle
         return T[:3, :3] @ h.centre + T[:3, 3], T[:3, :3] @ h.axis, T[:3, :3] @ h.normal
     lo, hi = _box(client, body, part_links(client, body, link))
-    normal = T[:3, 0]
-    centre = (lo + hi) / 2
-    return centre, np.cross(normal, [0.0, 0.0, 1.0]), normal
+    centre, half = (lo + hi) / 2, (hi - lo) / 2
+    normal = _opening_direction(client, body, link, T, centre)
+    exit_at = min(h / abs(n) for h, n in zip(half, normal, strict=True) if abs(n) > 1e-9)
+    return centre + exit_at * normal, np.cross(normal, [0.0, 0.0, 1.0]), normal
+
+
+def _opening_direction(client: int, body: int, link: int, T: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """The level unit direction `point` (on `link`, whose URDF frame is at `T`) moves as the link's joint value
+    grows from here: along a prismatic joint's axis, or about a revolute joint's axis through the link's origin."""
+    info = pb.getJointInfo(body, link, physicsClientId=client)
+    axis = T[:3, :3] @ np.asarray(info[13], dtype=float)
+    motion = axis if info[2] == pb.JOINT_PRISMATIC else np.cross(axis, point - T[:3, 3])
+    motion[2] = 0.0
+    return motion / np.linalg.norm(motion)
 
 
 def _box(client: int, body: int, links: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
