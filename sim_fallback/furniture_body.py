@@ -91,16 +91,21 @@ def _box(client: int, body: int, links: tuple[int, ...]) -> tuple[np.ndarray, np
     return boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
 
 
+ABOVE_M = 0.3  # the room above a grip is measured up to this far
+
+
 @dataclass(frozen=True)
 class PartGeometry:
     """A part closed, in its furniture's frame (metres): the `box` (lo, hi corners) of its links, its grip centre
-    (`grip`) and front `normal`."""
+    (`grip`), front `normal` and `room_above_m`: how far straight up from the grip the furniture's other shapes
+    leave free (ABOVE_M: at least that)."""
 
     name: str
     kind: str
     box: tuple[np.ndarray, np.ndarray]
     grip: np.ndarray
     normal: np.ndarray
+    room_above_m: float = ABOVE_M
 
     @property
     def front_centre(self) -> np.ndarray:
@@ -128,8 +133,23 @@ def measure_parts(furniture: Furniture) -> list[PartGeometry]:
                                  f"{furniture.urdf} does not have")
             link = links[part.link]
             grip, _, normal = grip_frame(client, body, link, part)
-            out.append(PartGeometry(part.name, part.kind, _box(client, body, part_links(client, body, link)),
-                                    grip, normal))
+            own = part_links(client, body, link)
+            out.append(PartGeometry(part.name, part.kind, _box(client, body, own), grip, normal,
+                                    _room_above(client, body, own, grip)))
         return out
     finally:
         pb.disconnect(client)
+
+
+def _room_above(client: int, body: int, own: tuple[int, ...], point: np.ndarray) -> float:
+    """How far straight up from `point` the shapes of `body` other than its links `own` leave free (m, at most
+    ABOVE_M): the first such shape a ray up from it meets, past the part's own shapes."""
+    top = (point + [0.0, 0.0, ABOVE_M]).tolist()
+    start = np.asarray(point, dtype=float)
+    while True:
+        hit, link, fraction, position = pb.rayTest(start.tolist(), top, physicsClientId=client)[0][:4]
+        if hit != body or fraction >= 1.0:
+            return ABOVE_M
+        if link not in own:
+            return float(position[2] - point[2])
+        start = np.array([point[0], point[1], position[2] + 1e-3])

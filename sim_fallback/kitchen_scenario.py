@@ -40,6 +40,8 @@ PARKINGS = 20  # robot parkings drawn until the part opens as asked clear of the
 ARM_COLUMN_M = 0.35  # the arm's base and shoulder stand this high above its base plate (the Panda's shoulder: 0.333 m)
 ARM_BASE_HALF_M = 0.11  # and this far either side of its axis (the Panda's base: about 0.2 m across)
 SWEEP_STEPS = 10  # the part's openings checked against the robot, from closed to the task's
+HAND_ABOVE_M = 0.15  # a hand grasping a drawer's level bar from above reaches this far above the grip (the Panda's
+# hand, 0.2 m along the way its fingers close, stands tilted up along it)
 GRIP_BAND_M = 0.4  # a front no mount sees whole (a tall door) need only be seen this far above and below its grip
 STAND = Finish("painted", (0.25, 0.25, 0.27), 0.3, 0)
 SPLITS, KINDS = ("train", "test"), ("drawer", "door")
@@ -118,17 +120,22 @@ def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Ge
     placed = room.furniture[room.target]
     geometry = measure_parts(placed.furniture)
     placing = placing_reach(placed, geometry, task, reach, opening)
+    roomy = geometry if placing == reach else room_from_above(geometry)
     if text is not None:
         chosen = resolve(placed.furniture, geometry, task, text)
         cover = covering_part(chosen, geometry)
         if cover is not None:
             raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} stands behind its {cover}'s "
                             f"front: a pull from outside cannot reach it; name another part")
+        if chosen.name not in {g.name for g in roomy}:
+            raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} is grasped from above here "
+                            f"and its furniture stands {chosen.room_above_m:.2f} m above its grip, less than the "
+                            f"{HAND_ABOVE_M:g} m the hand needs; name another part")
         if base_heights(_grip_height(placed, chosen), task, placing) is None:
             raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} is out of the robot's "
                              f"reach: {_reach(placed, [chosen], task, reach)}")
         return chosen, placing
-    reachable = reachable_parts(placed, geometry, task, placing, opening)
+    reachable = reachable_parts(placed, roomy, task, placing, opening)
     if not reachable:
         raise PartError(_no_part(placed, geometry, task, reach, opening))
     return reachable[int(rng.integers(len(reachable)))], placing
@@ -138,11 +145,18 @@ def placing_reach(placed: Placed, geometry: list[PartGeometry], task: PartKind, 
                   opening: float = 0.0) -> Reach:
     """The reach the furniture's parts are placed in: `reach` when some part of the task's kind that opens at least
     `opening` lies in its usual bands, else its reach from above (a user grasps a low handle from above only when
-    nothing is at a comfortable height), else `reach`."""
+    nothing is at a comfortable height) when a part there leaves a hand room above its grip, else `reach`."""
     low = reach.from_above(task)
-    if low is None or reachable_parts(placed, geometry, task, reach, opening):
+    if (low is None or reachable_parts(placed, geometry, task, reach, opening)
+            or not reachable_parts(placed, room_from_above(geometry), task, low, opening)):
         return reach
     return low
+
+
+def room_from_above(geometry: list[PartGeometry]) -> list[PartGeometry]:
+    """The parts a hand can grasp from above: doors, and drawers whose furniture leaves HAND_ABOVE_M free above
+    the grip (not under a tabletop)."""
+    return [g for g in geometry if g.kind != "drawer" or g.room_above_m >= HAND_ABOVE_M]
 
 
 def reach_problem(furniture: Furniture, task: PartKind, reach: Reach = PANDA_REACH, opening: float = 0.0) -> str | None:
@@ -150,7 +164,8 @@ def reach_problem(furniture: Furniture, task: PartKind, reach: Reach = PANDA_REA
     `standing_height`), has no part of the task's kind that opens at least `opening` (m or rad) and an arm of
     `reach` can reach (one line); None when it has one."""
     placed, geometry = Placed(furniture, (0.0, 0.0, standing_height(furniture), 0.0)), measure_parts(furniture)
-    if reachable_parts(placed, geometry, task, placing_reach(placed, geometry, task, reach, opening), opening):
+    placing = placing_reach(placed, geometry, task, reach, opening)
+    if reachable_parts(placed, geometry if placing == reach else room_from_above(geometry), task, placing, opening):
         return None
     return _no_part(placed, geometry, task, reach, opening)
 
@@ -188,7 +203,8 @@ def _grip_height(placed: Placed, part: PartGeometry) -> float:
 
 
 def _reach(placed: Placed, parts: list[PartGeometry], task: str, reach: Reach) -> str:
-    heights = ", ".join(f"{g.name} {_grip_height(placed, g):.2f} m" for g in parts) or f"it has no {task}"
+    heights = ", ".join(f"{g.name} {_grip_height(placed, g):.2f} m{_covered_above(g)}" for g in parts) or \
+        f"it has no {task}"
     (low, high), (base_low, base_high) = reach.height(task), BASE_HEIGHT_M
     return (f"its grips stand above the floor at {heights}; the robot reaches {task} grips {low + base_low:.2f}-"
             f"{high + base_high:.2f} m above the floor (its base {base_low:g}-{base_high:g} m up, the grip "
@@ -200,7 +216,14 @@ def _from_above(reach: Reach, task: str) -> str:
     if low is None:
         return ""
     (lo, hi), (base_low, base_high) = low.height(task), BASE_HEIGHT_M
-    return f", and from above {lo + base_low:.2f}-{hi + base_high:.2f} m when no grip is in that band"
+    return (f", and from above {lo + base_low:.2f}-{hi + base_high:.2f} m when no grip is in that band and a "
+            f"drawer's has {HAND_ABOVE_M:g} m free above it for the hand")
+
+
+def _covered_above(part: PartGeometry) -> str:
+    if part.kind != "drawer" or part.room_above_m >= HAND_ABOVE_M:
+        return ""
+    return f" (the furniture {part.room_above_m:.2f} m above it)"
 
 
 def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, room: Room, part: PartGeometry,
