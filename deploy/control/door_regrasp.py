@@ -14,6 +14,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from deploy.control.grasp import Handle
+from deploy.geometry.clearance import ToolBox, depth_behind
 from deploy.geometry.types import Axis
 
 
@@ -47,6 +48,18 @@ def door_plane(handle: Handle, centre: np.ndarray, axis: Axis, opened_rad: float
     normal = door_turn(axis, opened_rad).apply(handle.normal)
     normal /= np.linalg.norm(normal)
     return np.asarray(centre, float) - relief_m * normal, normal
+
+
+def door_meets_hand(T_tool: np.ndarray, handle: Handle, axis: Axis, opened_rad: float, relief_m: float,
+                    gripper: tuple[ToolBox, ...]) -> bool:
+    """Whether the door's front, opened `opened_rad`, reaches deeper into the gripper (`gripper`'s boxes) at
+    `T_tool`, holding `handle`, than a front square to the hand does (a tilted grasp's fingertips dip behind that
+    one): a handle that turns between the pads lets the door turn against a hand that keeps its orientation, and
+    the front, `relief_m` behind the grip centre, swings toward the fingers and the hand."""
+    centre = held_centre(T_tool, handle)
+    square = door_plane(held_as(T_tool, handle), centre, axis, 0.0, relief_m)
+    turned = door_plane(handle, centre, axis, opened_rad, relief_m)
+    return depth_behind([T_tool], gripper, *turned) > depth_behind([T_tool], gripper, *square)
 
 
 def opening_direction(axis: Axis, point: np.ndarray) -> np.ndarray:

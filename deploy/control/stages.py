@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 from deploy.axis_pipeline import viewpoint
 from deploy.control.classify import classify_joint, front_shift_m, front_turn_deg
 from deploy.control.context import GOAL_TOLERANCE, OVERSHOOT, SETTLE_S, Episode
+from deploy.control.door_regrasp import door_meets_hand
 from deploy.control.grasp import (
     Handle,
     find_handle,
@@ -39,12 +40,14 @@ from deploy.control.scene_clearance import clear_grasps, scene_tree
 from deploy.control.state import EpisodeStop, StopReason, opening_unit
 from deploy.control.view import step_log
 from deploy.errors import PartHiddenError, PointerError
+from deploy.geometry.clearance import parallel_gripper
 from deploy.geometry.cloud import depth_to_points
 from deploy.geometry.estimators.trajectory import fit_trajectory
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 from deploy.perception.base import Pointer
 from drivers.arm.motion import (
     PathFn,
+    arc_path,
     follow_cartesian_path,
     line_path,
     move_to_joints,
@@ -558,8 +561,22 @@ def _step_path(episode: Episode, axis: Axis) -> tuple[PathFn, float, MotionLimit
         tangent = np.cross(axis.direction, T[:3, 3] - axis.origin)
         radius = max(float(np.linalg.norm(tangent)), 0.05)
         return line_path(T, tangent), min(size, remaining * radius), episode.line_limits()
-    kind = "" if state.handle is None else state.handle.found
-    return door_arc(T, axis, kind), min(size, remaining), episode.arc_limits()
+    kind, arc = "" if state.handle is None else state.handle.found, min(size, remaining)
+    turn = turns_with_door(T, axis, kind) or _door_meets_hand(episode, axis, arc)
+    return arc_path(T, axis.origin, axis.direction, turn=turn), arc, episode.arc_limits()
+
+
+def _door_meets_hand(episode: Episode, axis: Axis, arc: float) -> bool:
+    """Whether the door's front would reach into the hand by the end of an `arc` that keeps the tool's
+    orientation (`door_meets_hand`; its place behind the handle is the pointed front's): the arc then turns the
+    tool with the door, so that the turn between them stays where it is. False without a pointed part."""
+    state, pointed, arm = episode.state, episode.observer.pointed, episode.arm
+    if pointed is None or state.handle is None:
+        return False
+    T_end = arc_path(episode.tool(), axis.origin, axis.direction, turn=False)(arc)
+    hand = tuple(box for box in parallel_gripper(arm.state().gripper_width_m, episode.gripper.max_opening_m)
+                 if box.name == "hand")  # the fingers straddle the handle, nearer than the front's place tells
+    return door_meets_hand(T_end, state.handle, axis, state.opened + arc, pointed.handle.relief_m, hand)
 
 
 
