@@ -388,12 +388,16 @@ def step(episode: Episode, axis: Axis, source: str) -> None:
     if axis.joint_type is JointType.PRISMATIC:
         _drawer_pull(episode, axis.direction, length, f"step {state.steps}: {source}", step=True)
         return
+    label = f"step {state.steps}: {source}"
     try:
-        checked_pull(episode, path, length, f"step {state.steps}: {source}", limits, step=True)
+        checked_pull(episode, path, length, label, limits, step=True)
     except IKError as out_of_reach:
-        if not _may_turn_back(episode, axis):
+        if _turned_for_hand(episode, axis):
+            _keep_orientation(episode, axis, length, label, limits)
+        elif not _may_turn_back(episode, axis):
             raise
-        regrasp_turned(episode, axis, out_of_reach)
+        else:
+            regrasp_turned(episode, axis, out_of_reach)
     except EpisodeStop as stop:
         if stop.reason is not StopReason.BLOCKED or not _may_go_on_blocked(episode, axis):
             raise
@@ -413,6 +417,25 @@ def _may_go_on_blocked(episode: Episode, axis: Axis) -> bool:
     step_log.info("step %d blocked %.0f N across its arc about the hinge prior: the front turned otherwise, going on "
                   "about the hinge its turn shows", state.steps - 1, state.across_force_n)
     return True
+
+
+def _turned_for_hand(episode: Episode, axis: Axis) -> bool:
+    """Whether a door's step turns the tool with the door only to keep the front off the hand (`_step_path`): the
+    handle held turns between the pads."""
+    state = episode.state
+    return axis.joint_type is JointType.REVOLUTE and not episode.policy.straight_door(axis.joint_type) \
+        and state.handle is not None and not turns_with_door(episode.tool(), axis, state.handle.found)
+
+
+def _keep_orientation(episode: Episode, axis: Axis, length: float, label: str, limits: MotionLimits) -> None:
+    """A door's step that turned the tool with the door to keep the front off the hand ran out of the arm's reach:
+    the rest of it keeps the tool's orientation (the handle turning between the pads), from where it stopped."""
+    state = episode.state
+    done = state.opened_before + opening(axis, state.p_grasp, episode.tool()[:3, 3]) - state.opened
+    step_log.info("%s: turning the hand with the door is out of reach; the rest of the step keeps its orientation",
+                  label)
+    checked_pull(episode, arc_path(episode.tool(), axis.origin, axis.direction, turn=False), length - max(done, 0.0),
+                 f"{label} (orientation kept)", limits, step=True)
 
 
 def _may_turn_back(episode: Episode, axis: Axis) -> bool:
