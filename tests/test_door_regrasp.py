@@ -125,3 +125,33 @@ def test_a_door_turning_against_a_hand_that_keeps_its_orientation_reaches_the_ha
         assert door_meets_hand(kept, TAB, HINGE, np.radians(deg), TAB_RELIEF_M, _hand()) is meets, deg
     turned = arc_path(T, HINGE.origin, HINGE.direction)(np.radians(85.0))  # the hand turned with the door
     assert not door_meets_hand(turned, TAB, HINGE, np.radians(85.0), TAB_RELIEF_M, _hand())
+
+
+# Test kitchen door 50 (70 deg): a tab turning between the pads; a hand that keeps its orientation meets the door's
+# front past 64 deg, which pries the tab out of the fingers.
+PALM_SEED = 50
+# Test kitchen door 9 (70 deg): a tab whose last step, turned with the door to keep the front off the hand, needs
+# joint 7 past its limit.
+TURN_OUT_OF_REACH_SEED = 9
+
+
+def test_a_door_kept_off_the_hand_stays_held_to_its_target():
+    result = simulate_episode("door", PALM_SEED, split="test", target=70.0)
+    assert result["success"], result["message"]
+
+
+def test_a_hand_that_keeps_its_orientation_loses_that_door(monkeypatch):
+    monkeypatch.setattr(stages, "_door_meets_hand", lambda *_: False)
+    result = simulate_episode("door", PALM_SEED, split="test", target=70.0)
+    assert result["stop_reason"] == StopReason.GRASP_LOST, result["message"]  # the test above is not vacuous
+
+
+def test_a_turn_with_the_door_out_of_reach_goes_on_keeping_the_orientation():
+    result = simulate_episode("door", TURN_OUT_OF_REACH_SEED, split="test", target=70.0)
+    assert result["success"], result["message"]
+
+
+def test_without_keeping_the_orientation_that_turn_ends_out_of_reach(monkeypatch):
+    monkeypatch.setattr(stages, "_turned_for_hand", lambda *_: False)
+    result = simulate_episode("door", TURN_OUT_OF_REACH_SEED, split="test", target=70.0)
+    assert result["stop_reason"] == StopReason.IK_INFEASIBLE, result["message"]
