@@ -122,9 +122,9 @@ def test_a_door_turning_against_a_hand_that_keeps_its_orientation_reaches_the_ha
     T = grasp_pose(TAB, pitch_rad=pitch)
     for deg, meets in ((0.0, False), (20.0, False), (85.0, True)):
         kept = arc_path(T, HINGE.origin, HINGE.direction, turn=False)(np.radians(deg))
-        assert door_meets_hand(kept, TAB, HINGE, np.radians(deg), TAB_RELIEF_M, _hand()) is meets, deg
+        assert door_meets_hand(kept, TAB, HINGE, np.radians(deg), TAB_RELIEF_M, 0.0, _hand()) is meets, deg
     turned = arc_path(T, HINGE.origin, HINGE.direction)(np.radians(85.0))  # the hand turned with the door
-    assert not door_meets_hand(turned, TAB, HINGE, np.radians(85.0), TAB_RELIEF_M, _hand())
+    assert not door_meets_hand(turned, TAB, HINGE, np.radians(85.0), TAB_RELIEF_M, 0.0, _hand())
 
 
 # Test kitchen door 50 (70 deg): a tab turning between the pads; a hand that keeps its orientation meets the door's
@@ -155,3 +155,12 @@ def test_without_keeping_the_orientation_that_turn_ends_out_of_reach(monkeypatch
     monkeypatch.setattr(stages, "_turned_for_hand", lambda *_: False)
     result = simulate_episode("door", TURN_OUT_OF_REACH_SEED, split="test", target=70.0)
     assert result["stop_reason"] == StopReason.IK_INFEASIBLE, result["message"]
+
+
+def test_a_long_bar_turning_between_the_pads_swings_its_end_into_the_hand():
+    bar = Handle(TAB.center, NORMAL, TAB.bar, 0, "bar", depth_m=0.01)
+    T = grasp_pose(bar)
+    for deg, meets in ((20.0, False), (75.0, True)):
+        kept = arc_path(T, HINGE.origin, HINGE.direction, turn=False)(np.radians(deg))
+        assert door_meets_hand(kept, bar, HINGE, np.radians(deg), 0.03, 0.12, _hand()) is meets, deg
+        assert not door_meets_hand(kept, bar, HINGE, np.radians(deg), 0.03, 0.0, _hand())  # its front alone: clear

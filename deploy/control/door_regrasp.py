@@ -17,6 +17,8 @@ from deploy.control.grasp import Handle
 from deploy.geometry.clearance import ToolBox, depth_behind
 from deploy.geometry.types import Axis
 
+BAR_SAMPLES = 21  # a handle's bar is checked against the hand at this many points along it
+
 
 def door_turn(axis: Axis, angle_rad: float) -> Rotation:
     """The door's turn by `angle_rad` about the (oriented) hinge direction: positive opens."""
@@ -51,15 +53,21 @@ def door_plane(handle: Handle, centre: np.ndarray, axis: Axis, opened_rad: float
 
 
 def door_meets_hand(T_tool: np.ndarray, handle: Handle, axis: Axis, opened_rad: float, relief_m: float,
-                    gripper: tuple[ToolBox, ...]) -> bool:
-    """Whether the door's front, opened `opened_rad`, reaches deeper into the gripper (`gripper`'s boxes) at
-    `T_tool`, holding `handle`, than a front square to the hand does (a tilted grasp's fingertips dip behind that
-    one): a handle that turns between the pads lets the door turn against a hand that keeps its orientation, and
-    the front, `relief_m` behind the grip centre, swings toward the fingers and the hand."""
+                    length_m: float, hand: tuple[ToolBox, ...]) -> bool:
+    """Whether the door, opened `opened_rad`, reaches into the hand (`hand`'s boxes) at `T_tool` holding `handle`: a
+    handle that turns between the pads lets the door turn against a hand that keeps its orientation, so that the
+    handle's bar (`length_m` long, through the grip centre) swings its end toward the hand, and the front (`relief_m`
+    behind the grip centre) reaches deeper into it than a front square to the hand does (a tilted grasp dips
+    behind that one)."""
     centre = held_centre(T_tool, handle)
     square = door_plane(held_as(T_tool, handle), centre, axis, 0.0, relief_m)
     turned = door_plane(handle, centre, axis, opened_rad, relief_m)
-    return depth_behind([T_tool], gripper, *turned) > depth_behind([T_tool], gripper, *square)
+    if depth_behind([T_tool], hand, *turned) > depth_behind([T_tool], hand, *square):
+        return True
+    bar = door_turn(axis, opened_rad).apply(handle.bar)
+    along = np.linspace(-length_m / 2, length_m / 2, BAR_SAMPLES)
+    local = (centre + along[:, None] * bar - T_tool[:3, 3]) @ np.asarray(T_tool, float)[:3, :3]
+    return any(np.all(np.abs(local - box.centre) <= box.half, axis=1).any() for box in hand)
 
 
 def opening_direction(axis: Axis, point: np.ndarray) -> np.ndarray:

@@ -590,16 +590,17 @@ def _step_path(episode: Episode, axis: Axis) -> tuple[PathFn, float, MotionLimit
 
 
 def _door_meets_hand(episode: Episode, axis: Axis, arc: float) -> bool:
-    """Whether the door's front would reach into the hand by the end of an `arc` that keeps the tool's
-    orientation (`door_meets_hand`; its place behind the handle is the pointed front's): the arc then turns the
-    tool with the door, so that the turn between them stays where it is. False without a pointed part."""
+    """Whether the door (its front or the handle's bar) would reach into the hand by the end of an `arc` that keeps
+    the tool's orientation (`door_meets_hand`; the handle's size and relief are the pointed front's): the arc then
+    turns the tool with the door, so that the turn between them stays where it is. False without a pointed part."""
     state, pointed, arm = episode.state, episode.observer.pointed, episode.arm
     if pointed is None or state.handle is None:
         return False
     T_end = arc_path(episode.tool(), axis.origin, axis.direction, turn=False)(arc)
     hand = tuple(box for box in parallel_gripper(arm.state().gripper_width_m, episode.gripper.max_opening_m)
                  if box.name == "hand")  # the fingers straddle the handle, nearer than the front's place tells
-    return door_meets_hand(T_end, state.handle, axis, state.opened + arc, pointed.handle.relief_m, hand)
+    return door_meets_hand(T_end, state.handle, axis, state.opened + arc, pointed.handle.relief_m,
+                           pointed.handle.length_m, hand)
 
 
 
