@@ -63,15 +63,27 @@ def link_pose(client: int, body: int, link: int) -> np.ndarray:
 
 def grip_frame(client: int, body: int, link: int, part: Part) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(grip centre, bar axis, front normal) of `part` now, in the frame the body was loaded in. Without handle
-    truth: the centre of the part's front (its links' box) and a horizontal bar."""
+    truth: the normal is the way the centre of the part's links' box moves as the joint starts to open (level), the
+    grip where that direction leaves the box from its centre (the middle of its front), the bar horizontal across."""
     T = link_pose(client, body, link)
     if part.handle is not None:
         h = part.handle
         return T[:3, :3] @ h.centre + T[:3, 3], T[:3, :3] @ h.axis, T[:3, :3] @ h.normal
     lo, hi = _box(client, body, part_links(client, body, link))
-    normal = T[:3, 0]
-    centre = (lo + hi) / 2
-    return centre, np.cross(normal, [0.0, 0.0, 1.0]), normal
+    centre, half = (lo + hi) / 2, (hi - lo) / 2
+    normal = _opening_direction(client, body, link, T, centre)
+    exit_at = min(h / abs(n) for h, n in zip(half, normal, strict=True) if abs(n) > 1e-9)
+    return centre + exit_at * normal, np.cross(normal, [0.0, 0.0, 1.0]), normal
+
+
+def _opening_direction(client: int, body: int, link: int, T: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """The level unit direction `point` (on `link`, whose URDF frame is at `T`) moves as the link's joint value
+    grows from here: along a prismatic joint's axis, or about a revolute joint's axis through the link's origin."""
+    info = pb.getJointInfo(body, link, physicsClientId=client)
+    axis = T[:3, :3] @ np.asarray(info[13], dtype=float)
+    motion = axis if info[2] == pb.JOINT_PRISMATIC else np.cross(axis, point - T[:3, 3])
+    motion[2] = 0.0
+    return motion / np.linalg.norm(motion)
 
 
 def _box(client: int, body: int, links: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -79,16 +91,21 @@ def _box(client: int, body: int, links: tuple[int, ...]) -> tuple[np.ndarray, np
     return boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
 
 
+ABOVE_M = 0.3  # the room above a grip is measured up to this far
+
+
 @dataclass(frozen=True)
 class PartGeometry:
     """A part closed, in its furniture's frame (metres): the `box` (lo, hi corners) of its links, its grip centre
-    (`grip`) and front `normal`."""
+    (`grip`), front `normal` and `room_above_m`: how far straight up from the grip the furniture's other shapes
+    leave free (ABOVE_M: at least that)."""
 
     name: str
     kind: str
     box: tuple[np.ndarray, np.ndarray]
     grip: np.ndarray
     normal: np.ndarray
+    room_above_m: float = ABOVE_M
 
     @property
     def front_centre(self) -> np.ndarray:
@@ -116,8 +133,23 @@ def measure_parts(furniture: Furniture) -> list[PartGeometry]:
                                  f"{furniture.urdf} does not have")
             link = links[part.link]
             grip, _, normal = grip_frame(client, body, link, part)
-            out.append(PartGeometry(part.name, part.kind, _box(client, body, part_links(client, body, link)),
-                                    grip, normal))
+            own = part_links(client, body, link)
+            out.append(PartGeometry(part.name, part.kind, _box(client, body, own), grip, normal,
+                                    _room_above(client, body, own, grip)))
         return out
     finally:
         pb.disconnect(client)
+
+
+def _room_above(client: int, body: int, own: tuple[int, ...], point: np.ndarray) -> float:
+    """How far straight up from `point` the shapes of `body` other than its links `own` leave free (m, at most
+    ABOVE_M): the first such shape a ray up from it meets, past the part's own shapes."""
+    top = (point + [0.0, 0.0, ABOVE_M]).tolist()
+    start = np.asarray(point, dtype=float)
+    while True:
+        hit, link, fraction, position = pb.rayTest(start.tolist(), top, physicsClientId=client)[0][:4]
+        if hit != body or fraction >= 1.0:
+            return ABOVE_M
+        if link not in own:
+            return float(position[2] - point[2])
+        start = np.array([point[0], point[1], position[2] + 1e-3])

@@ -12,6 +12,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from drivers.arm.robots import PANDA_REACH, Reach
+from sim_fallback.covered import covering_part
 from sim_fallback.errors import PartError, SceneError
 from sim_fallback.furniture import Finish, Furniture, PartKind
 from sim_fallback.furniture_body import PartGeometry, measure_parts
@@ -39,6 +40,8 @@ PARKINGS = 20  # robot parkings drawn until the part opens as asked clear of the
 ARM_COLUMN_M = 0.35  # the arm's base and shoulder stand this high above its base plate (the Panda's shoulder: 0.333 m)
 ARM_BASE_HALF_M = 0.11  # and this far either side of its axis (the Panda's base: about 0.2 m across)
 SWEEP_STEPS = 10  # the part's openings checked against the robot, from closed to the task's
+HAND_ABOVE_M = 0.15  # a hand grasping a drawer's level bar from above reaches this far above the grip (the Panda's
+# hand, 0.2 m along the way its fingers close, stands tilted up along it)
 GRIP_BAND_M = 0.4  # a front no mount sees whole (a tall door) need only be seen this far above and below its grip
 STAND = Finish("painted", (0.25, 0.25, 0.27), 0.3, 0)
 SPLITS, KINDS = ("train", "test"), ("drawer", "door")
@@ -117,13 +120,22 @@ def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Ge
     placed = room.furniture[room.target]
     geometry = measure_parts(placed.furniture)
     placing = placing_reach(placed, geometry, task, reach, opening)
+    roomy = geometry if placing == reach else room_from_above(geometry)
     if text is not None:
         chosen = resolve(placed.furniture, geometry, task, text)
+        cover = covering_part(chosen, geometry)
+        if cover is not None:
+            raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} stands behind its {cover}'s "
+                            f"front: a pull from outside cannot reach it; name another part")
+        if chosen.name not in {g.name for g in roomy}:
+            raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} is grasped from above here "
+                            f"and its furniture stands {chosen.room_above_m:.2f} m above its grip, less than the "
+                            f"{HAND_ABOVE_M:g} m the hand needs; name another part")
         if base_heights(_grip_height(placed, chosen), task, placing) is None:
             raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} is out of the robot's "
                              f"reach: {_reach(placed, [chosen], task, reach)}")
         return chosen, placing
-    reachable = reachable_parts(placed, geometry, task, placing, opening)
+    reachable = reachable_parts(placed, roomy, task, placing, opening)
     if not reachable:
         raise PartError(_no_part(placed, geometry, task, reach, opening))
     return reachable[int(rng.integers(len(reachable)))], placing
@@ -133,11 +145,18 @@ def placing_reach(placed: Placed, geometry: list[PartGeometry], task: PartKind, 
                   opening: float = 0.0) -> Reach:
     """The reach the furniture's parts are placed in: `reach` when some part of the task's kind that opens at least
     `opening` lies in its usual bands, else its reach from above (a user grasps a low handle from above only when
-    nothing is at a comfortable height), else `reach`."""
+    nothing is at a comfortable height) when a part there leaves a hand room above its grip, else `reach`."""
     low = reach.from_above(task)
-    if low is None or reachable_parts(placed, geometry, task, reach, opening):
+    if (low is None or reachable_parts(placed, geometry, task, reach, opening)
+            or not reachable_parts(placed, room_from_above(geometry), task, low, opening)):
         return reach
     return low
+
+
+def room_from_above(geometry: list[PartGeometry]) -> list[PartGeometry]:
+    """The parts a hand can grasp from above: doors, and drawers whose furniture leaves HAND_ABOVE_M free above
+    the grip (not under a tabletop)."""
+    return [g for g in geometry if g.kind != "drawer" or g.room_above_m >= HAND_ABOVE_M]
 
 
 def reach_problem(furniture: Furniture, task: PartKind, reach: Reach = PANDA_REACH, opening: float = 0.0) -> str | None:
@@ -145,21 +164,23 @@ def reach_problem(furniture: Furniture, task: PartKind, reach: Reach = PANDA_REA
     `standing_height`), has no part of the task's kind that opens at least `opening` (m or rad) and an arm of
     `reach` can reach (one line); None when it has one."""
     placed, geometry = Placed(furniture, (0.0, 0.0, standing_height(furniture), 0.0)), measure_parts(furniture)
-    if reachable_parts(placed, geometry, task, placing_reach(placed, geometry, task, reach, opening), opening):
+    placing = placing_reach(placed, geometry, task, reach, opening)
+    if reachable_parts(placed, geometry if placing == reach else room_from_above(geometry), task, placing, opening):
         return None
     return _no_part(placed, geometry, task, reach, opening)
 
 
 def reachable_parts(placed: Placed, geometry: list[PartGeometry], task: PartKind, reach: Reach,
                     opening: float = 0.0) -> list[PartGeometry]:
-    """The parts of the task's kind (in a user's order) that open at least `opening` (m or rad) and whose grip some
-    robot base height brings into `reach`."""
+    """The parts of the task's kind (in a user's order) that open at least `opening` (m or rad), stand behind no
+    other part's front (`covering_part`) and whose grip some robot base height brings into `reach`."""
     return [g for g in ordered(geometry, task) if placed.furniture.part(g.name).upper >= opening
-            and base_heights(_grip_height(placed, g), task, reach) is not None]
+            and covering_part(g, geometry) is None and base_heights(_grip_height(placed, g), task, reach) is not None]
 
 
 def _no_part(placed: Placed, geometry: list[PartGeometry], task: PartKind, reach: Reach, opening: float) -> str:
-    """Why no part serves: none opens as far as asked, else none is within reach."""
+    """Why no part serves: none opens as far as asked, else all that do stand behind another part's front, else
+    none is within reach."""
     parts = [placed.furniture.part(g.name) for g in ordered(geometry, task)]
     if parts and all(p.upper < opening for p in parts):
         most = max(p.upper for p in parts)
@@ -167,6 +188,12 @@ def _no_part(placed: Placed, geometry: list[PartGeometry], task: PartKind, reach
             (f"{np.degrees(most):.0f} deg", f"{np.degrees(opening):.0f} deg")
         return (f"{placed.furniture.source}: its {task}s open at most {far}, less than the {asked} asked: ask for "
                 f"less, or choose another object")
+    hidden = {g.name: covering_part(g, geometry) for g in ordered(geometry, task)
+              if placed.furniture.part(g.name).upper >= opening}
+    if hidden and all(hidden.values()):
+        behind = ", ".join(f"{name} behind its {cover}" for name, cover in hidden.items())
+        return (f"{placed.furniture.source} cannot be used for a {task}: its {task}s stand behind another part's "
+                f"front as seen from outside ({behind}), where a pull cannot reach them; choose another object")
     return (f"{placed.furniture.source} has no {task} within the robot's reach: "
             f"{_reach(placed, ordered(geometry, task), task, reach)}")
 
@@ -176,7 +203,8 @@ def _grip_height(placed: Placed, part: PartGeometry) -> float:
 
 
 def _reach(placed: Placed, parts: list[PartGeometry], task: str, reach: Reach) -> str:
-    heights = ", ".join(f"{g.name} {_grip_height(placed, g):.2f} m" for g in parts) or f"it has no {task}"
+    heights = ", ".join(f"{g.name} {_grip_height(placed, g):.2f} m{_covered_above(g)}" for g in parts) or \
+        f"it has no {task}"
     (low, high), (base_low, base_high) = reach.height(task), BASE_HEIGHT_M
     return (f"its grips stand above the floor at {heights}; the robot reaches {task} grips {low + base_low:.2f}-"
             f"{high + base_high:.2f} m above the floor (its base {base_low:g}-{base_high:g} m up, the grip "
@@ -188,7 +216,14 @@ def _from_above(reach: Reach, task: str) -> str:
     if low is None:
         return ""
     (lo, hi), (base_low, base_high) = low.height(task), BASE_HEIGHT_M
-    return f", and from above {lo + base_low:.2f}-{hi + base_high:.2f} m when no grip is in that band"
+    return (f", and from above {lo + base_low:.2f}-{hi + base_high:.2f} m when no grip is in that band and a "
+            f"drawer's has {HAND_ABOVE_M:g} m free above it for the hand")
+
+
+def _covered_above(part: PartGeometry) -> str:
+    if part.kind != "drawer" or part.room_above_m >= HAND_ABOVE_M:
+        return ""
+    return f" (the furniture {part.room_above_m:.2f} m above it)"
 
 
 def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, room: Room, part: PartGeometry,

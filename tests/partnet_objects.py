@@ -33,7 +33,7 @@ ROOT_RPY = "1.570796326794897 0 -1.570796326794897"  # the dataset's base -> bod
 class Front:
     """A drawer or door front covering `y` x `z` (front coordinates); a door hinges on its low-y edge,
     `hinge_depth` behind its outer face. `handle`: "bar" (horizontal on drawers, vertical on doors) or None;
-    `label` as semantics.txt says it."""
+    `label` as semantics.txt says it; `inset`: how far behind the fronts' outer face it stands (inside the body)."""
 
     kind: str
     y: tuple[float, float]
@@ -41,6 +41,7 @@ class Front:
     handle: str | None = "bar"
     label: str = ""
     hinge_depth: float = 0.0
+    inset: float = 0.0
 
     def grip_centre(self) -> np.ndarray:
         """Where the handle's bar centre is, front coordinates (closed)."""
@@ -96,7 +97,7 @@ def _front_link(writer: _Writer, n: int, front: Front, drawer_open: float, axis_
     """The link, joint and mobility_v2 sub-parts of one front (sub-part ids 10n: the panel, 10n+1: the handle)."""
     M = writer.M
     (y0, y1), (z0, z1) = front.y, front.z
-    shift = np.array([drawer_open if front.kind == "drawer" else 0.0, 0, 0])  # as modelled
+    shift = np.array([(drawer_open if front.kind == "drawer" else 0.0) - front.inset, 0, 0])  # as modelled
     pieces = [(f"{front.kind}_front-{10 * n}", [((FRONT_X - PANEL / 2, (y0 + y1) / 2, (z0 + z1) / 2),
                                                  (PANEL, y1 - y0, z1 - z0))])]
     if front.kind == "drawer":

@@ -6,9 +6,17 @@ import pytest
 
 import deploy.control.stages as stages
 from deploy.bench.open import simulate_episode
-from deploy.control.door_regrasp import closing_push_n, door_plane, held_as, held_centre, opening_direction
+from deploy.control.door_regrasp import (
+    closing_push_n,
+    door_meets_hand,
+    door_plane,
+    held_as,
+    held_centre,
+    opening_direction,
+)
 from deploy.control.grasp import Handle, grasp_pose
 from deploy.control.state import StopReason
+from deploy.geometry.clearance import parallel_gripper
 from deploy.geometry.types import Axis, JointType
 from drivers.arm.motion import arc_path
 
@@ -99,3 +107,60 @@ def test_without_turning_back_that_arc_ends_out_of_reach(monkeypatch):
 def test_a_self_closing_door_stays_held_while_the_hand_turns_back_about_its_bar():
     result = simulate_episode("door", SPRING_SEED, split="test", target=70.0)
     assert result["success"], result["message"]
+
+
+TAB = Handle(np.array([0.7, 0.0, 0.6]), NORMAL, np.array([0.0, 1.0, 0.0]), 0, "edge pull")  # fingers close upright
+TAB_RELIEF_M = 0.013
+
+
+def _hand() -> tuple:
+    return tuple(box for box in parallel_gripper(0.03, 0.08) if box.name == "hand")
+
+
+@pytest.mark.parametrize("pitch", [0.25, 0.0])
+def test_a_door_turning_against_a_hand_that_keeps_its_orientation_reaches_the_hand_only_far_open(pitch):
+    T = grasp_pose(TAB, pitch_rad=pitch)
+    for deg, meets in ((0.0, False), (20.0, False), (85.0, True)):
+        kept = arc_path(T, HINGE.origin, HINGE.direction, turn=False)(np.radians(deg))
+        assert door_meets_hand(kept, TAB, HINGE, np.radians(deg), TAB_RELIEF_M, 0.0, _hand()) is meets, deg
+    turned = arc_path(T, HINGE.origin, HINGE.direction)(np.radians(85.0))  # the hand turned with the door
+    assert not door_meets_hand(turned, TAB, HINGE, np.radians(85.0), TAB_RELIEF_M, 0.0, _hand())
+
+
+# Test kitchen door 50 (70 deg): a tab turning between the pads; a hand that keeps its orientation meets the door's
+# front past 64 deg, which pries the tab out of the fingers.
+PALM_SEED = 50
+# Test kitchen door 9 (70 deg): a tab whose last step, turned with the door to keep the front off the hand, needs
+# joint 7 past its limit.
+TURN_OUT_OF_REACH_SEED = 9
+
+
+def test_a_door_kept_off_the_hand_stays_held_to_its_target():
+    result = simulate_episode("door", PALM_SEED, split="test", target=70.0)
+    assert result["success"], result["message"]
+
+
+def test_a_hand_that_keeps_its_orientation_loses_that_door(monkeypatch):
+    monkeypatch.setattr(stages, "_door_meets_hand", lambda *_: False)
+    result = simulate_episode("door", PALM_SEED, split="test", target=70.0)
+    assert result["stop_reason"] == StopReason.GRASP_LOST, result["message"]  # the test above is not vacuous
+
+
+def test_a_turn_with_the_door_out_of_reach_goes_on_keeping_the_orientation():
+    result = simulate_episode("door", TURN_OUT_OF_REACH_SEED, split="test", target=70.0)
+    assert result["success"], result["message"]
+
+
+def test_without_keeping_the_orientation_that_turn_ends_out_of_reach(monkeypatch):
+    monkeypatch.setattr(stages, "_turned_for_hand", lambda *_: False)
+    result = simulate_episode("door", TURN_OUT_OF_REACH_SEED, split="test", target=70.0)
+    assert result["stop_reason"] == StopReason.IK_INFEASIBLE, result["message"]
+
+
+def test_a_long_bar_turning_between_the_pads_swings_its_end_into_the_hand():
+    bar = Handle(TAB.center, NORMAL, TAB.bar, 0, "bar", depth_m=0.01)
+    T = grasp_pose(bar)
+    for deg, meets in ((20.0, False), (75.0, True)):
+        kept = arc_path(T, HINGE.origin, HINGE.direction, turn=False)(np.radians(deg))
+        assert door_meets_hand(kept, bar, HINGE, np.radians(deg), 0.03, 0.12, _hand()) is meets, deg
+        assert not door_meets_hand(kept, bar, HINGE, np.radians(deg), 0.03, 0.0, _hand())  # its front alone: clear

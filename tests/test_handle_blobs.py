@@ -2,7 +2,8 @@
 colour only) whose end nearly touches the depth hole along the front's side edge (the IR shadow a D415 leaves beside
 a depth edge) is still one handle, not part of a shape too large for one; a bar standing out across a drawer's whole
 width is a handle, a ledge running on past the front's ends is not; a sliver too short for a bar and too thin for a
-knob is no firm handle, a knob is."""
+knob is no firm handle, a knob is; a pull's pocket running under a counter's edge that hides the front's top is
+seen whole up to that edge."""
 
 from __future__ import annotations
 
@@ -92,3 +93,12 @@ def test_a_sliver_too_short_for_a_bar_and_too_thin_for_a_knob_is_no_firm_handle(
     knob = [(slice(v - 8, v + 9), slice(u - 8, u + 9), 0.98)]
     assert not _firm_at(_blobs_of(_plain_frame(sliver)), u, v)
     assert len(_firm_at(_blobs_of(_plain_frame(knob)), u, v)) == 1
+
+
+def test_a_pocket_running_under_what_hides_the_fronts_top_keeps_its_upper_part():
+    top = FRONT_V[0]  # a counter's edge 3 cm out hides the front down to its top row, where a pull's pocket (3 cm
+    # deep, 20 x 6.7 cm seen) begins: the pocket is whole, not cut 2 cm short of the edge as one inside the panel is
+    pocket = [(slice(top, top + 40), slice(260, 380), 1.03), (slice(top - 20, top), slice(0, 640), 0.97)]
+    blobs = [b for b in _blobs_of(_plain_frame(pocket)) if b.firm and b.relief_m < -0.02]
+    assert len(blobs) == 1
+    assert blobs[0].across_m > 0.06  # its whole 6.7 cm from the front's top (4.7 cm cut short)

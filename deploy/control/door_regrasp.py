@@ -14,7 +14,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from deploy.control.grasp import Handle
+from deploy.geometry.clearance import ToolBox, depth_behind
 from deploy.geometry.types import Axis
+
+BAR_SAMPLES = 21  # a handle's bar is checked against the hand at this many points along it
 
 
 def door_turn(axis: Axis, angle_rad: float) -> Rotation:
@@ -47,6 +50,24 @@ def door_plane(handle: Handle, centre: np.ndarray, axis: Axis, opened_rad: float
     normal = door_turn(axis, opened_rad).apply(handle.normal)
     normal /= np.linalg.norm(normal)
     return np.asarray(centre, float) - relief_m * normal, normal
+
+
+def door_meets_hand(T_tool: np.ndarray, handle: Handle, axis: Axis, opened_rad: float, relief_m: float,
+                    length_m: float, hand: tuple[ToolBox, ...]) -> bool:
+    """Whether the door, opened `opened_rad`, reaches into the hand (`hand`'s boxes) at `T_tool` holding `handle`: a
+    handle that turns between the pads lets the door turn against a hand that keeps its orientation, so that the
+    handle's bar (`length_m` long, through the grip centre) swings its end toward the hand, and the front (`relief_m`
+    behind the grip centre) reaches deeper into it than a front square to the hand does (a tilted grasp dips
+    behind that one)."""
+    centre = held_centre(T_tool, handle)
+    square = door_plane(held_as(T_tool, handle), centre, axis, 0.0, relief_m)
+    turned = door_plane(handle, centre, axis, opened_rad, relief_m)
+    if depth_behind([T_tool], hand, *turned) > depth_behind([T_tool], hand, *square):
+        return True
+    bar = door_turn(axis, opened_rad).apply(handle.bar)
+    along = np.linspace(-length_m / 2, length_m / 2, BAR_SAMPLES)
+    local = (centre + along[:, None] * bar - T_tool[:3, 3]) @ np.asarray(T_tool, float)[:3, :3]
+    return any(np.all(np.abs(local - box.centre) <= box.half, axis=1).any() for box in hand)
 
 
 def opening_direction(axis: Axis, point: np.ndarray) -> np.ndarray:

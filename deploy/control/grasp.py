@@ -185,17 +185,19 @@ def pull_poses(path: PathFn, length: float, step: float) -> list[np.ndarray]:
 
 
 def pregrasp_configuration(
-    kin: Kinematics, q_start: np.ndarray, T_grasp: np.ndarray, pulls: Sequence[list[np.ndarray]], approach_m: float
+    kin: Kinematics, q_start: np.ndarray, T_grasp: np.ndarray, pulls: Sequence[list[np.ndarray]], approach_m: float,
+    swung: bool = False,
 ) -> np.ndarray:
     """Joints at the pre-grasp pose from which the approach and a pull (tool poses after the grasp) stay farthest
     from singularities (largest smallest singular value of the Jacobian along them) and inside the joint limits;
     the Panda is redundant, so a few elbow seeds facing the handle are tried. `pulls` are the pulls wanted, most
-    wanted first (e.g. a door's arc, then shorter ones): the first that some seed carries decides. Raises IKError
-    when none does."""
+    wanted first (e.g. a door's arc, then shorter ones): the first that some seed carries decides. `swung`: the
+    seeds have the elbow swung out sideways instead (`well_conditioned_start`), a posture to try only when the usual
+    ones carry no grasp. Raises IKError when none carries any."""
     n = max(1, int(np.ceil(approach_m / APPROACH_STEP_M)))
     approach = [pregrasp_pose(T_grasp, approach_m * (n - k) / n) for k in range(n)]  # from the pre-grasp pose on
     for poses in pulls:
-        best = well_conditioned_start(kin, [*approach, T_grasp, *poses], q_start, LIMIT_MARGIN_RAD)
+        best = well_conditioned_start(kin, [*approach, T_grasp, *poses], q_start, LIMIT_MARGIN_RAD, swung)
         if best is not None:
             return best
     p = T_grasp[:3, 3]

@@ -3,6 +3,7 @@ episode by raising `EpisodeStop` with a `StopReason`."""
 
 from __future__ import annotations
 
+import itertools
 import logging
 import time
 
@@ -12,6 +13,7 @@ from scipy.spatial.transform import Rotation
 from deploy.axis_pipeline import viewpoint
 from deploy.control.classify import classify_joint, front_shift_m, front_turn_deg
 from deploy.control.context import GOAL_TOLERANCE, OVERSHOOT, SETTLE_S, Episode
+from deploy.control.door_regrasp import door_meets_hand
 from deploy.control.grasp import (
     Handle,
     find_handle,
@@ -39,12 +41,14 @@ from deploy.control.scene_clearance import clear_grasps, scene_tree
 from deploy.control.state import EpisodeStop, StopReason, opening_unit
 from deploy.control.view import step_log
 from deploy.errors import PartHiddenError, PointerError
+from deploy.geometry.clearance import parallel_gripper
 from deploy.geometry.cloud import depth_to_points
 from deploy.geometry.estimators.trajectory import fit_trajectory
 from deploy.geometry.types import Axis, AxisResult, JointType, NoAxis
 from deploy.perception.base import Pointer
 from drivers.arm.motion import (
     PathFn,
+    arc_path,
     follow_cartesian_path,
     line_path,
     move_to_joints,
@@ -385,12 +389,16 @@ def step(episode: Episode, axis: Axis, source: str) -> None:
     if axis.joint_type is JointType.PRISMATIC:
         _drawer_pull(episode, axis.direction, length, f"step {state.steps}: {source}", step=True)
         return
+    label = f"step {state.steps}: {source}"
     try:
-        checked_pull(episode, path, length, f"step {state.steps}: {source}", limits, step=True)
+        checked_pull(episode, path, length, label, limits, step=True)
     except IKError as out_of_reach:
-        if not _may_turn_back(episode, axis):
+        if _turned_for_hand(episode, axis):
+            _keep_orientation(episode, axis, length, label, limits)
+        elif not _may_turn_back(episode, axis):
             raise
-        regrasp_turned(episode, axis, out_of_reach)
+        else:
+            regrasp_turned(episode, axis, out_of_reach)
     except EpisodeStop as stop:
         if stop.reason is not StopReason.BLOCKED or not _may_go_on_blocked(episode, axis):
             raise
@@ -410,6 +418,25 @@ def _may_go_on_blocked(episode: Episode, axis: Axis) -> bool:
     step_log.info("step %d blocked %.0f N across its arc about the hinge prior: the front turned otherwise, going on "
                   "about the hinge its turn shows", state.steps - 1, state.across_force_n)
     return True
+
+
+def _turned_for_hand(episode: Episode, axis: Axis) -> bool:
+    """Whether a door's step turns the tool with the door only to keep the front off the hand (`_step_path`): the
+    handle held turns between the pads."""
+    state = episode.state
+    return axis.joint_type is JointType.REVOLUTE and not episode.policy.straight_door(axis.joint_type) \
+        and state.handle is not None and not turns_with_door(episode.tool(), axis, state.handle.found)
+
+
+def _keep_orientation(episode: Episode, axis: Axis, length: float, label: str, limits: MotionLimits) -> None:
+    """A door's step that turned the tool with the door to keep the front off the hand ran out of the arm's reach:
+    the rest of it keeps the tool's orientation (the handle turning between the pads), from where it stopped."""
+    state = episode.state
+    done = state.opened_before + opening(axis, state.p_grasp, episode.tool()[:3, 3]) - state.opened
+    step_log.info("%s: turning the hand with the door is out of reach; the rest of the step keeps its orientation",
+                  label)
+    checked_pull(episode, arc_path(episode.tool(), axis.origin, axis.direction, turn=False), length - max(done, 0.0),
+                 f"{label} (orientation kept)", limits, step=True)
 
 
 def _may_turn_back(episode: Episode, axis: Axis) -> bool:
@@ -440,18 +467,20 @@ def _drawer_pull(episode: Episode, direction: np.ndarray, length: float, label: 
 def _grasp_plan(episode: Episode, handle: Handle) -> tuple[np.ndarray, float, np.ndarray]:
     """The grasp pose, how wide the fingers open for it and the pre-grasp joints: with a pointed part, the first
     grasp whose approach and first pull keep clear of the scene the first frame showed and that the arm carries
-    (EpisodeStop when none keeps clear, IKError when the arm carries none); else the usual one, fully open."""
+    (EpisodeStop when none keeps clear, IKError when the arm carries none); else the usual one, fully open. Every
+    grasp is tried with the arm's usual postures before any with the elbow swung out sideways (an unusual posture,
+    sweeping more of the room on its way, is no better where a usual one carries a grasp)."""
     pointed, widest, kin = episode.observer.pointed, episode.gripper.max_opening_m, episode.kin
     approach, q = episode.config.opening.approach_m, episode.arm.state().q
     if pointed is None:
-        T = grasp_pose(handle)
-        opening = widest if handle.open_m is None else handle.open_m
-        return T, opening, pregrasp_configuration(kin, q, T, _planned_pulls(episode, handle, T), approach)
-    scene = scene_tree(episode.observer.first_look.frame, pointed)
+        grasps = [(grasp_pose(handle), widest if handle.open_m is None else handle.open_m)]
+    else:
+        scene = scene_tree(episode.observer.first_look.frame, pointed)
+        grasps = clear_grasps(handle, scene, lambda T: _planned_pulls(episode, handle, T), approach, widest)
     refused = None
-    for T, opening in clear_grasps(handle, scene, lambda T: _planned_pulls(episode, handle, T), approach, widest):
+    for swung, (T, width) in itertools.product((False, True), grasps):
         try:
-            return T, opening, pregrasp_configuration(kin, q, T, _planned_pulls(episode, handle, T), approach)
+            return T, width, pregrasp_configuration(kin, q, T, _planned_pulls(episode, handle, T), approach, swung)
         except IKError as e:
             refused = refused or e
     raise refused
@@ -558,8 +587,23 @@ def _step_path(episode: Episode, axis: Axis) -> tuple[PathFn, float, MotionLimit
         tangent = np.cross(axis.direction, T[:3, 3] - axis.origin)
         radius = max(float(np.linalg.norm(tangent)), 0.05)
         return line_path(T, tangent), min(size, remaining * radius), episode.line_limits()
-    kind = "" if state.handle is None else state.handle.found
-    return door_arc(T, axis, kind), min(size, remaining), episode.arc_limits()
+    kind, arc = "" if state.handle is None else state.handle.found, min(size, remaining)
+    turn = turns_with_door(T, axis, kind) or _door_meets_hand(episode, axis, arc)
+    return arc_path(T, axis.origin, axis.direction, turn=turn), arc, episode.arc_limits()
+
+
+def _door_meets_hand(episode: Episode, axis: Axis, arc: float) -> bool:
+    """Whether the door (its front or the handle's bar) would reach into the hand by the end of an `arc` that keeps
+    the tool's orientation (`door_meets_hand`; the handle's size and relief are the pointed front's): the arc then
+    turns the tool with the door, so that the turn between them stays where it is. False without a pointed part."""
+    state, pointed, arm = episode.state, episode.observer.pointed, episode.arm
+    if pointed is None or state.handle is None:
+        return False
+    T_end = arc_path(episode.tool(), axis.origin, axis.direction, turn=False)(arc)
+    hand = tuple(box for box in parallel_gripper(arm.state().gripper_width_m, episode.gripper.max_opening_m)
+                 if box.name == "hand")  # the fingers straddle the handle, nearer than the front's place tells
+    return door_meets_hand(T_end, state.handle, axis, state.opened + arc, pointed.handle.relief_m,
+                           pointed.handle.length_m, hand)
 
 
 

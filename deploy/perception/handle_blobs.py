@@ -151,7 +151,48 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
                                                 col > extent.right)]
             found = [blob_of(part, box) for part in parts if part.any() and part.sum() < member.sum()]
         blobs += [b for b in found if b is not None]
+    blobs = _under_hidden_edges(view, extent, blobs, camera_to_base, K)
     return _joined_pieces(view, blobs, extent, camera_to_base, K)
+
+
+def _under_hidden_edges(view: PlaneView, extent: Extent, blobs: list[Blob], camera_to_base: np.ndarray,
+                        K: np.ndarray) -> list[Blob]:
+    """`blobs` with each firm pocket grown by the sunk cells joined to it up to the sides of the front that something
+    standing in front of it hides (`_hidden_sides`: a counter's overhang over a top drawer): a pull's pocket cut near
+    such an edge runs on under what hides it, and is seen right up to it, not POCKET_INSET_M short of it; its rim is
+    the panel around it but for that side."""
+    inner = int(np.ceil(POCKET_INSET_M / view.res_m))
+    hidden = _hidden_sides(view, extent, inner)
+    if not hidden:
+        return blobs
+    inset = {side: 0 if side in hidden else inner for side in ("top", "bottom", "left", "right")}
+    rectangle = np.zeros(view.shape, bool)
+    rectangle[extent.top + inset["top"]:extent.bottom + 1 - inset["bottom"],
+              extent.left + inset["left"]:extent.right + 1 - inset["right"]] = True
+    with np.errstate(invalid="ignore"):
+        sunk = rectangle & view.seen & (view.smooth_m < -view.tolerance_m) & (view.smooth_m >= -MAX_POCKET_M)
+    _, labels = cv2.connectedComponents(sunk.astype(np.uint8), connectivity=8)
+    past = np.zeros(view.shape, bool)
+    past[:extent.top] |= "top" in hidden
+    past[extent.bottom + 1:] |= "bottom" in hidden
+    past[:, :extent.left] |= "left" in hidden
+    past[:, extent.right + 1:] |= "right" in hidden
+    join = max(int(round(JOIN_M / view.res_m)), 1)
+    out = []
+    for blob in blobs:
+        ids = np.unique(labels[blob.rows, blob.cols])
+        grown = np.isin(labels, ids[ids > 0])
+        grown[blob.rows, blob.cols] = True
+        if not (blob.firm and blob.relief_m < 0) or np.count_nonzero(grown) == len(blob.rows):
+            out.append(blob)
+            continue
+        ring = cv2.dilate(grown.astype(np.uint8), np.ones((2 * join + 1, 2 * join + 1), np.uint8)).astype(bool) \
+            & ~grown & view.seen & ~view.no_depth & ~past
+        rim = float(np.count_nonzero(ring & view.on_plane)) / max(np.count_nonzero(ring), 1)
+        rows, cols = np.nonzero(grown)
+        whole = _blob(view, rows, cols, extent, camera_to_base, K, rim)
+        out.append(whole if whole is not None and whole.firm else blob)
+    return out
 
 
 def _joined_pieces(view: PlaneView, blobs: list[Blob], extent: Extent, camera_to_base: np.ndarray,
@@ -222,6 +263,24 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
     r, c = int(view.row(centre[1])), int(view.col(centre[0]))
     inside = extent.top <= r <= extent.bottom and extent.left <= c <= extent.right
     return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)))
+
+
+def _hidden_sides(view: PlaneView, extent: Extent, lines: int) -> set[str]:
+    """The sides of the front whose `lines` lines just past it stand out of its plane (their median offset beyond the
+    noise): something in front of the front hides its edge there."""
+    h, w = view.shape
+    rows, cols = slice(extent.top, extent.bottom + 1), slice(extent.left, extent.right + 1)
+    bands = {"top": (slice(max(extent.top - lines, 0), extent.top), cols),
+             "bottom": (slice(extent.bottom + 1, min(extent.bottom + 1 + lines, h)), cols),
+             "left": (rows, slice(max(extent.left - lines, 0), extent.left)),
+             "right": (rows, slice(extent.right + 1, min(extent.right + 1 + lines, w)))}
+    hidden = set()
+    for side, band in bands.items():
+        seen = view.seen[band] & ~np.isnan(view.smooth_m[band])
+        if np.count_nonzero(seen) >= MIN_POINTS and \
+                np.median(view.smooth_m[band][seen]) > np.median(view.tolerance_m[band][seen]):
+            hidden.add(side)
+    return hidden
 
 
 def _within_rows(shape: tuple[int, int], top: int, bottom: int) -> np.ndarray:

@@ -24,6 +24,9 @@ IK_STALL_WINDOW, IK_STALL_RATIO = 20, 0.9  # give up when 20 iterations shrink t
 PATH_MAX_JOINT_STEP_RAD = 0.5  # a larger jump between path waypoints means IK switched branch
 GENERIC_SEEDS = 8  # well_conditioned_start on an arm of another layout: seeds drawn around its start ...
 GENERIC_SPREAD_RAD = 0.4  # ... this far (std per joint)
+SIDEWAYS_TURN_RAD, SIDEWAYS_LEAN_RAD, SIDEWAYS_TWIST_RAD = 1.2, 1.0, 2.0  # the elbow swung out to a side: joint 1
+# turned off the target, joint 2 leaning that way, joint 3 turned back (`_sideways_seeds`), ...
+SIDEWAYS_WRIST_RAD = ((1.8, 2.6), (-1.8, 2.6))  # ... the wrist's joints 5 and 6 as the template's or these
 
 
 class Kinematics:
@@ -312,14 +315,18 @@ def _dls_step(J: np.ndarray, err: np.ndarray | None, posture: np.ndarray | None 
 
 
 def well_conditioned_start(
-    kin: Kinematics, poses: Sequence[np.ndarray], q_template: np.ndarray, margin_rad: float = 0.1
+    kin: Kinematics, poses: Sequence[np.ndarray], q_template: np.ndarray, margin_rad: float = 0.1,
+    swung: bool = False,
 ) -> np.ndarray | None:
     """Joints at poses[0] from which every pose of the sequence is reached continuously, clear of the joint
-    limits by `margin_rad`, choosing among a few seeds (`_start_seeds`) the one whose path stays farthest from
-    singularities (largest smallest singular value of the Jacobian). A redundant arm needs this: per-tick IK
-    started near a singularity turns joints 1 and 3 fast. None when no seed works."""
+    limits by `margin_rad`, choosing among a few seeds (`_start_seeds`, or with `swung` the elbow swung out
+    sideways, `_sideways_seeds`) the one whose path stays farthest from singularities (largest smallest singular
+    value of the Jacobian). A redundant arm needs this: per-tick IK started near a singularity turns joints 1 and 3
+    fast. None when no seed works."""
+    first, q_template = poses[0][:3, 3], np.array(q_template, float)
+    seeds = _sideways_seeds(kin, first, q_template) if swung else _start_seeds(kin, first, q_template)
     best, best_score = None, -np.inf
-    for seed in _start_seeds(kin, poses[0][:3, 3], np.array(q_template, float)):
+    for seed in seeds:
         try:
             qs = kin.solve_path(poses, seed, restarts=0)
         except ArmError:
@@ -338,16 +345,42 @@ def _start_seeds(kin: Kinematics, first: np.ndarray, q_template: np.ndarray) -> 
     -2.6 or -1.9 rad), those of them that lie within the joint limits; when none does (another layout, such as
     OpenArm's shoulder), the template and GENERIC_SEEDS fixed draws around it (GENERIC_SPREAD_RAD per joint, within
     the limits): postures like the arm's own start, not whatever IK reaches first."""
-    seeds = []
-    for q2, q4 in itertools.product((-0.6, 0.0, 0.6), (-2.6, -1.9)):
-        seed = q_template.copy()
-        seed[:4] = np.arctan2(first[1], first[0]), q2, 0.0, q4
-        if np.all(seed >= kin.q_min) and np.all(seed <= kin.q_max):
-            seeds.append(seed)
+    seeds = _within_limits(kin, q_template, itertools.product((-0.6, 0.0, 0.6), (-2.6, -1.9)), first, 0.0, 0.0)
     if seeds:
         return seeds
     draws = np.random.default_rng(0).normal(0.0, GENERIC_SPREAD_RAD, (GENERIC_SEEDS, kin.dof))
     return [q_template, *np.clip(q_template + draws, kin.q_min, kin.q_max)]
+
+
+def _sideways_seeds(kin: Kinematics, first: np.ndarray, q_template: np.ndarray) -> list[np.ndarray]:
+    """Seeds of the Panda's layout (`_start_seeds`) with the elbow swung out to either side: the first joint
+    SIDEWAYS_TURN_RAD off the line toward `first`, the second leaning SIDEWAYS_LEAN_RAD that way and the third turned
+    SIDEWAYS_TWIST_RAD back, the wrist (joints 5 and 6) as in the template or bent at SIDEWAYS_WRIST_RAD either way.
+    The second joint then stays clear of zero, where the first and third joints' axes line up (the shoulder's
+    singularity that a point ahead and above the shoulder brings the usual seeds near), and the forearm comes at the
+    hand from beside and below: a hand tilted up (under a counter's overhang), which the usual postures reach only
+    with the wrist (joint 6) past its upper limit."""
+    seeds = []
+    for side, wrist in itertools.product((1.0, -1.0), (None, *SIDEWAYS_WRIST_RAD)):
+        template = q_template.copy()
+        if wrist is not None:
+            template[4:6] = wrist
+        seeds += _within_limits(kin, template, [(side * SIDEWAYS_LEAN_RAD, -1.9)], first,
+                                side * SIDEWAYS_TURN_RAD, -side * SIDEWAYS_TWIST_RAD)
+    return seeds
+
+
+def _within_limits(kin: Kinematics, q_template: np.ndarray, shoulder_elbow, first: np.ndarray, turn: float,
+                   twist: float) -> list[np.ndarray]:
+    """The template with joints 1-4 at (the direction of `first` + turn, q2, twist, q4) for each (q2, q4), those
+    within the joint limits."""
+    seeds = []
+    for q2, q4 in shoulder_elbow:
+        seed = q_template.copy()
+        seed[:4] = np.arctan2(first[1], first[0]) + turn, q2, twist, q4
+        if np.all(seed >= kin.q_min) and np.all(seed <= kin.q_max):
+            seeds.append(seed)
+    return seeds
 
 
 def _is_pose(T: np.ndarray) -> bool:
