@@ -92,3 +92,13 @@ def test_a_sliver_too_short_for_a_bar_and_too_thin_for_a_knob_is_no_firm_handle(
     knob = [(slice(v - 8, v + 9), slice(u - 8, u + 9), 0.98)]
     assert not _firm_at(_blobs_of(_plain_frame(sliver)), u, v)
     assert len(_firm_at(_blobs_of(_plain_frame(knob)), u, v)) == 1
+
+
+def test_a_knob_is_where_its_head_is_not_its_rims_mixed_depth_along_the_line_of_sight():
+    u, v = 320, 240  # a 2.8 cm knob head 3 cm out; beside it, 4 cm of its rim's pixels mixing its depth with the
+    # front's (1.5 cm out), as a D415 seeing it obliquely gives
+    knob = [(slice(v - 8, v + 9), slice(u - 8, u + 9), 0.97), (slice(v + 9, v + 20), slice(u - 8, u + 16), 0.985),
+            (slice(v - 8, v + 20), slice(u + 9, u + 32), 0.985)]
+    (blob,) = _firm_at(_blobs_of(_plain_frame(knob)), u, v)
+    head = np.array([(u - K.cx) / K.fx, (K.cy - v) / K.fy]) * 0.97
+    assert np.linalg.norm(blob.centre - head) < 0.005 and blob.length_m < 0.04
