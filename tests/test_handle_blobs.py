@@ -102,3 +102,13 @@ def test_a_pocket_running_under_what_hides_the_fronts_top_keeps_its_upper_part()
     blobs = [b for b in _blobs_of(_plain_frame(pocket)) if b.firm and b.relief_m < -0.02]
     assert len(blobs) == 1
     assert blobs[0].across_m > 0.06  # its whole 6.7 cm from the front's top (4.7 cm cut short)
+
+
+def test_a_knob_is_where_its_head_is_not_its_rims_mixed_depth_along_the_line_of_sight():
+    u, v = 320, 240  # a 2.8 cm knob head 3 cm out; beside it, 4 cm of its rim's pixels mixing its depth with the
+    # front's (1.5 cm out), as a D415 seeing it obliquely gives
+    knob = [(slice(v - 8, v + 9), slice(u - 8, u + 9), 0.97), (slice(v + 9, v + 20), slice(u - 8, u + 16), 0.985),
+            (slice(v - 8, v + 20), slice(u + 9, u + 32), 0.985)]
+    (blob,) = _firm_at(_blobs_of(_plain_frame(knob)), u, v)
+    head = np.array([(u - K.cx) / K.fx, (K.cy - v) / K.fy]) * 0.97
+    assert np.linalg.norm(blob.centre - head) < 0.005 and blob.length_m < 0.04

@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from deploy.perception.front_extent import Extent
-from deploy.perception.handle_blobs import EDGE_BAND_M, Blob, segment_distance, span_m
+from deploy.perception.handle_blobs import EDGE_BAND_M, OUTER_LAYER_M, Blob, segment_distance, span_m
 from deploy.perception.plane_view import PlaneView
 
 SNAP_DEG = 20.0  # handles run horizontal or vertical: an axis within this of either is taken as it
@@ -21,7 +21,6 @@ BAR_ELONGATION = 3.0  # a bar is at least this many times longer than thick (rea
 KNOB_MAX_M = 0.06  # a knob is at most this wide (real knobs 20-50 mm)
 COLOUR_ONLY_RELIEF_M = 0.03  # a handle without depth is taken to stand this far out: the middle of real bar and knob
 # handles' 25-40 mm
-OUTER_LAYER_M = 0.008  # a handle's front surface: its points this close to its outermost (a bar's radius)
 POCKET_LIP_M = 0.01  # a recessed pull is held at its lip, this far inside the pocket's mouth
 HIDDEN_REACH_M = 0.02  # the arm's pixels this close beyond a handle's end may hide more of it
 FINGER_REACH_M = 0.01  # the fingertips must pass this far behind the grip centre to hold it (half a pad)

@@ -40,6 +40,7 @@ FIRM_LENGTH_M = 0.025  # the smallest real knob's diameter
 KNOB_ELONGATION = 3.0  # a candidate shorter than this many times its width is no bar: a knob, a cup or a pull
 MIN_POCKET_ACROSS_M = 0.02  # a pull's pocket takes a fingertip (real ones 25-80 mm across): a narrower slit sunk
 # into the front is a seam, a gap between fronts or the depth's noise
+OUTER_LAYER_M = 0.008  # a handle's front surface: its points this close to its outermost (a bar's radius)
 RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured,
 # and, for one measured standing out, not the room seen past the front's top or bottom edge) is the front's surface
 
@@ -241,7 +242,10 @@ def _pieces_of_one_bar(view: PlaneView, a: Blob, b: Blob) -> bool:
 
 def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, camera_to_base: np.ndarray,
           K: np.ndarray, rim: float) -> Blob | None:
-    """A candidate's geometry, or None when it is not of a handle's size."""
+    """A candidate's geometry, or None when it is not of a handle's size. A short one standing out (a knob or a cup,
+    not KNOB_ELONGATION times longer than wide) is where its outermost surface is: the pixels on its rim mix its depth
+    with the front's behind it and lie along the lines of sight between them, drawing it out toward the camera's
+    side (a bar's length and a tab's are measured along them, and its outermost points may lie at one end only)."""
     if len(rows) < 4:
         return None
     with_depth = view.depth_m[rows, cols] > 0
@@ -249,20 +253,29 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
     raw_noise = (view.tolerance_m[rows, cols] - QUANTUM_M) / SMOOTH_NOISE + QUANTUM_M
     points = points[np.abs(points[:, 2]) > raw_noise[with_depth]]  # its own points, not the front's around it
     cells = np.stack([view.s(cols), view.z(rows)], axis=1)
-    where = np.concatenate([points[:, :2], cells[~with_depth]]) if len(points) else cells
+    shape = _extent_of(np.concatenate([points[:, :2], cells[~with_depth]]) if len(points) else cells, view.res_m)
+    if len(points) >= MIN_POINTS and np.median(points[:, 2]) > 0 and shape[2] < KNOB_ELONGATION * shape[3]:
+        outer = points[points[:, 2] >= np.percentile(points[:, 2], 90) - OUTER_LAYER_M, :2]
+        if len(outer) >= MIN_POINTS and np.ptp(outer, axis=0).max() + view.res_m >= MIN_SIZE_M:
+            shape = _extent_of(outer, view.res_m)
+    centre, axis, length, width = shape
+    if length < MIN_SIZE_M or length > MAX_LENGTH_M or width > MAX_ACROSS_M:
+        return None
+    r, c = int(view.row(centre[1])), int(view.col(centre[0]))
+    inside = extent.top <= r <= extent.bottom and extent.left <= c <= extent.right
+    return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)))
+
+
+def _extent_of(where: np.ndarray, res_m: float) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """(centre, axis, length, width) of plane positions (s, z): the axis of their largest spread, the middle and the
+    length of their 2-98 % range along it, and that range's width across it (each plus a cell)."""
     centred = where - where.mean(axis=0)
     _, _, vt = np.linalg.svd(centred, full_matrices=False)
     axis = vt[0] if len(vt) else np.array([1.0, 0.0])
     along, across = centred @ axis, centred @ np.array([-axis[1], axis[0]])
     lo, hi = np.percentile(along, [2, 98])
-    length = float(hi - lo) + view.res_m
-    width = float(np.subtract(*np.percentile(across, [98, 2]))) + view.res_m
-    if length < MIN_SIZE_M or length > MAX_LENGTH_M or width > MAX_ACROSS_M:
-        return None
-    centre = where.mean(axis=0) + axis * (lo + hi) / 2
-    r, c = int(view.row(centre[1])), int(view.col(centre[0]))
-    inside = extent.top <= r <= extent.bottom and extent.left <= c <= extent.right
-    return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)))
+    width = float(np.subtract(*np.percentile(across, [98, 2]))) + res_m
+    return where.mean(axis=0) + axis * (lo + hi) / 2, axis, float(hi - lo) + res_m, width
 
 
 def _hidden_sides(view: PlaneView, extent: Extent, lines: int) -> set[str]:
