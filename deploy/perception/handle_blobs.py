@@ -60,6 +60,7 @@ class Blob:
     inside: bool
     rim: float  # the share of the ring around it that is the front's surface
     noise_m: float  # the D415's noise band there (NOISE_SIGMAS sigmas of one measurement)
+    contrast: float = 0.0  # Delta E of its colour from the front's surface in that ring (0 where none is measured)
 
     @property
     def relief_m(self) -> float:
@@ -75,8 +76,10 @@ class Blob:
     def firm(self) -> bool:
         """Whether it is certainly a handle (not depth noise, not a neighbour's edge): large enough, with the front
         around it, standing clearly out of (or into, in a pocket wide enough for a fingertip) the front, or of another
-        colour where depth has a hole."""
-        relief = self.seen_in_colour_only or abs(self.relief_m) >= max(MIN_RELIEF_M, RELIEF_NOISE * self.noise_m)
+        colour than the front around it where depth has a hole (a hole in a shaded stretch of the front, of the
+        front's colour there, is none)."""
+        relief = self.contrast > COLOUR_DELTA_E if self.seen_in_colour_only else \
+            abs(self.relief_m) >= max(MIN_RELIEF_M, RELIEF_NOISE * self.noise_m)
         slit = self.relief_m < 0 and self.across_m < MIN_POCKET_ACROSS_M
         sliver = self.elongation < KNOB_ELONGATION and self.across_m < MIN_SIZE_M  # too short for a bar, too thin
         # for a knob's head: the depth's noise or a seam
@@ -118,7 +121,7 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     join = max(int(round(JOIN_M / view.res_m)), 1)
     joined = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
     count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
-    surface, measured = view.on_plane[sl], view.seen[sl] & ~view.no_depth[sl]
+    surface, measured, lab = view.on_plane[sl], view.seen[sl] & ~view.no_depth[sl], view.lab[sl]
     open_past = view.behind[sl] & ~_within_rows(offset.shape, extent.top - r0, extent.bottom - r0)  # the room seen
     # past the front's top or bottom edge: an edge pull's tab, measured standing out, stands over it and is no less
     # the front's; a line there not measured out of the plane (a shadow, what lies beyond) is judged by its whole ring
@@ -131,7 +134,12 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
         rims = [float(np.count_nonzero(r & surface[box])) / np.count_nonzero(r) if r.any() else 0.0
                 for r in (ring, ring & ~open_past[box])]
         blob = _blob(view, rows + r0 + box[0].start, cols + c0 + box[1].start, extent, camera_to_base, K, rims[1])
-        return replace(blob, rim=rims[0]) if blob is not None and blob.relief_m <= 0 else blob
+        if blob is None:
+            return None
+        around, colours = ring & surface[box], lab[box]
+        contrast = float(colour_distance(np.median(colours[rows, cols], axis=0),
+                                         np.median(colours[around], axis=0))) if around.any() else 0.0
+        return replace(blob, rim=rims[0] if blob.relief_m <= 0 else blob.rim, contrast=contrast)
 
     blobs = []
     for label in range(1, count):
@@ -151,7 +159,7 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
             parts = [member & side for side in (col < extent.left, (col >= extent.left) & (col <= extent.right),
                                                 col > extent.right)]
             found = [blob_of(part, box) for part in parts if part.any() and part.sum() < member.sum()]
-        blobs += [b for b in found if b is not None]
+        blobs += [b for b in found if b is not None and not _edge_line(view, b, extent)]
     blobs = _under_hidden_edges(view, extent, blobs, camera_to_base, K)
     return _joined_pieces(view, blobs, extent, camera_to_base, K)
 
@@ -196,6 +204,20 @@ def _under_hidden_edges(view: PlaneView, extent: Extent, blobs: list[Blob], came
     return out
 
 
+def _edge_line(view: PlaneView, blob: Blob, extent: Extent) -> bool:
+    """Whether a candidate seen in colour only is a line along one of the rectangle's sides, its middle within
+    EDGE_BAND_M of it: the dark line of the gap there or the front's edge seen at a slant (a thin dark bar that the
+    D415 loses stands off its front's edges; one on the very edge stands out, and is measured)."""
+    if not blob.seen_in_colour_only or blob.elongation < KNOB_ELONGATION:
+        return False
+    band = EDGE_BAND_M / view.res_m
+    if abs(blob.axis[0]) >= abs(blob.axis[1]):
+        row = float(view.row(blob.centre[1]))
+        return min(abs(row - extent.top), abs(row - extent.bottom)) <= band
+    col = float(view.col(blob.centre[0]))
+    return min(abs(col - extent.left), abs(col - extent.right)) <= band
+
+
 def _joined_pieces(view: PlaneView, blobs: list[Blob], extent: Extent, camera_to_base: np.ndarray,
                    K: np.ndarray) -> list[Blob]:
     """`blobs` with the pieces of one bar (`_pieces_of_one_bar`), each measured standing out, made one candidate."""
@@ -210,6 +232,7 @@ def _joined_pieces(view: PlaneView, blobs: list[Blob], extent: Extent, camera_to
                     rows, cols = np.concatenate([a.rows, b.rows]), np.concatenate([a.cols, b.cols])
                     whole = _blob(view, rows, cols, extent, camera_to_base, K, min(a.rim, b.rim))
                     if whole is not None:
+                        whole = replace(whole, contrast=min(a.contrast, b.contrast))
                         blobs = [x for x in blobs if x is not a and x is not b] + [whole]
                         merged = True
                         break
