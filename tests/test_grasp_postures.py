@@ -29,7 +29,8 @@ def _episode(kin: Kinematics) -> SimpleNamespace:
     """What `stages._grasp_plan` reads of an episode: a drawer pulled PULL_M from the arm's ready posture."""
     opening = SimpleNamespace(approach_m=0.1, target_distance_m=PULL_M - 0.015)
     return SimpleNamespace(observer=SimpleNamespace(pointed=object(), first_look=SimpleNamespace(frame=None)),
-                           gripper=SimpleNamespace(max_opening_m=0.08), kin=kin, config=SimpleNamespace(opening=opening),
+                           gripper=SimpleNamespace(max_opening_m=0.08), kin=kin,
+                           config=SimpleNamespace(opening=opening),
                            arm=SimpleNamespace(state=lambda: SimpleNamespace(q=np.array(panda().q_ready))),
                            state=SimpleNamespace(joint=JointType.PRISMATIC))
 

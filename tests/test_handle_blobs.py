@@ -3,8 +3,7 @@ colour only) whose end nearly touches the depth hole along the front's side edge
 a depth edge) is still one handle, not part of a shape too large for one; a bar standing out across a drawer's whole
 width is a handle, a ledge running on past the front's ends is not; a sliver too short for a bar and too thin for a
 knob is no firm handle, a knob is; a pull's pocket running under a counter's edge that hides the front's top is
-seen whole up to that edge; a depth hole of the front's own colour there, or a dark line without depth along
-the front's side, is no handle seen in colour only."""
+seen whole up to that edge; a dark line without depth along the front's side is no handle seen in colour only."""
 
 from __future__ import annotations
 
@@ -113,19 +112,6 @@ def test_a_knob_is_where_its_head_is_not_its_rims_mixed_depth_along_the_line_of_
     (blob,) = _firm_at(_blobs_of(_plain_frame(knob)), u, v)
     head = np.array([(u - K.cx) / K.fx, (K.cy - v) / K.fy]) * 0.97
     assert np.linalg.norm(blob.centre - head) < 0.005 and blob.length_m < 0.04
-
-
-def test_a_depth_hole_of_the_fronts_own_colour_there_is_no_handle():
-    """The lower half of the front lit paler (farther than COLOUR_DELTA_E from the front's median colour), with a
-    4 x 1.5 cm depth hole in it of that same paler colour: no handle seen in colour only (it is not of another colour
-    than the front around it); a grey one there, of another colour, is."""
-    u, v = 320, 300
-    frame = _plain_frame([(slice(v - 4, v + 5), slice(u - 12, u + 13), 0.0)])
-    pale = (slice((FRONT_V[0] + FRONT_V[1]) // 2, FRONT_V[1]), slice(*FRONT_U))
-    frame.color[pale] = (200, 150, 110)
-    assert not _firm_at(_blobs_of(frame), u, v)
-    frame.color[v - 4:v + 5, u - 12:u + 13] = (90, 90, 90)
-    assert len(_firm_at(_blobs_of(frame), u, v)) == 1
 
 
 def test_a_dark_line_without_depth_along_the_fronts_side_is_no_handle():

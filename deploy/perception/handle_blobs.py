@@ -40,6 +40,7 @@ FIRM_LENGTH_M = 0.025  # the smallest real knob's diameter
 KNOB_ELONGATION = 3.0  # a candidate shorter than this many times its width is no bar: a knob, a cup or a pull
 MIN_POCKET_ACROSS_M = 0.02  # a pull's pocket takes a fingertip (real ones 25-80 mm across): a narrower slit sunk
 # into the front is a seam, a gap between fronts or the depth's noise
+KNOB_MAX_M = 0.06  # a knob is at most this wide (real knobs 20-50 mm)
 OUTER_LAYER_M = 0.008  # a handle's front surface: its points this close to its outermost (a bar's radius)
 RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured,
 # and, for one measured standing out, not the room seen past the front's top or bottom edge) is the front's surface
@@ -60,7 +61,6 @@ class Blob:
     inside: bool
     rim: float  # the share of the ring around it that is the front's surface
     noise_m: float  # the D415's noise band there (NOISE_SIGMAS sigmas of one measurement)
-    contrast: float = 0.0  # Delta E of its colour from the front's surface in that ring (0 where none is measured)
 
     @property
     def relief_m(self) -> float:
@@ -76,10 +76,8 @@ class Blob:
     def firm(self) -> bool:
         """Whether it is certainly a handle (not depth noise, not a neighbour's edge): large enough, with the front
         around it, standing clearly out of (or into, in a pocket wide enough for a fingertip) the front, or of another
-        colour than the front around it where depth has a hole (a hole in a shaded stretch of the front, of the
-        front's colour there, is none)."""
-        relief = self.contrast > COLOUR_DELTA_E if self.seen_in_colour_only else \
-            abs(self.relief_m) >= max(MIN_RELIEF_M, RELIEF_NOISE * self.noise_m)
+        colour where depth has a hole."""
+        relief = self.seen_in_colour_only or abs(self.relief_m) >= max(MIN_RELIEF_M, RELIEF_NOISE * self.noise_m)
         slit = self.relief_m < 0 and self.across_m < MIN_POCKET_ACROSS_M
         sliver = self.elongation < KNOB_ELONGATION and self.across_m < MIN_SIZE_M  # too short for a bar, too thin
         # for a knob's head: the depth's noise or a seam
@@ -121,7 +119,7 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     join = max(int(round(JOIN_M / view.res_m)), 1)
     joined = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
     count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
-    surface, measured, lab = view.on_plane[sl], view.seen[sl] & ~view.no_depth[sl], view.lab[sl]
+    surface, measured = view.on_plane[sl], view.seen[sl] & ~view.no_depth[sl]
     open_past = view.behind[sl] & ~_within_rows(offset.shape, extent.top - r0, extent.bottom - r0)  # the room seen
     # past the front's top or bottom edge: an edge pull's tab, measured standing out, stands over it and is no less
     # the front's; a line there not measured out of the plane (a shadow, what lies beyond) is judged by its whole ring
@@ -134,12 +132,7 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
         rims = [float(np.count_nonzero(r & surface[box])) / np.count_nonzero(r) if r.any() else 0.0
                 for r in (ring, ring & ~open_past[box])]
         blob = _blob(view, rows + r0 + box[0].start, cols + c0 + box[1].start, extent, camera_to_base, K, rims[1])
-        if blob is None:
-            return None
-        around, colours = ring & surface[box], lab[box]
-        contrast = float(colour_distance(np.median(colours[rows, cols], axis=0),
-                                         np.median(colours[around], axis=0))) if around.any() else 0.0
-        return replace(blob, rim=rims[0] if blob.relief_m <= 0 else blob.rim, contrast=contrast)
+        return replace(blob, rim=rims[0]) if blob is not None and blob.relief_m <= 0 else blob
 
     blobs = []
     for label in range(1, count):
@@ -232,7 +225,6 @@ def _joined_pieces(view: PlaneView, blobs: list[Blob], extent: Extent, camera_to
                     rows, cols = np.concatenate([a.rows, b.rows]), np.concatenate([a.cols, b.cols])
                     whole = _blob(view, rows, cols, extent, camera_to_base, K, min(a.rim, b.rim))
                     if whole is not None:
-                        whole = replace(whole, contrast=min(a.contrast, b.contrast))
                         blobs = [x for x in blobs if x is not a and x is not b] + [whole]
                         merged = True
                         break
@@ -266,9 +258,10 @@ def _pieces_of_one_bar(view: PlaneView, a: Blob, b: Blob) -> bool:
 def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, camera_to_base: np.ndarray,
           K: np.ndarray, rim: float) -> Blob | None:
     """A candidate's geometry, or None when it is not of a handle's size. A short one standing out (a knob or a cup,
-    not KNOB_ELONGATION times longer than wide) is where its outermost surface is: the pixels on its rim mix its depth
-    with the front's behind it and lie along the lines of sight between them, drawing it out toward the camera's
-    side (a bar's length and a tab's are measured along them, and its outermost points may lie at one end only)."""
+    not KNOB_ELONGATION times longer than wide) is where its outermost surface is, when that is a knob's head (at most
+    KNOB_MAX_M): the pixels on its rim mix its depth with the front's behind it and lie along the lines of sight
+    between them, drawing it out toward the camera's side (a bar's length and a tab's are measured along them, and
+    its outermost points may lie at one end only; a short bar's outermost surface is a bar)."""
     if len(rows) < 4:
         return None
     with_depth = view.depth_m[rows, cols] > 0
@@ -279,7 +272,7 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
     shape = _extent_of(np.concatenate([points[:, :2], cells[~with_depth]]) if len(points) else cells, view.res_m)
     if len(points) >= MIN_POINTS and np.median(points[:, 2]) > 0 and shape[2] < KNOB_ELONGATION * shape[3]:
         outer = points[points[:, 2] >= np.percentile(points[:, 2], 90) - OUTER_LAYER_M, :2]
-        if len(outer) >= MIN_POINTS and np.ptp(outer, axis=0).max() + view.res_m >= MIN_SIZE_M:
+        if len(outer) >= MIN_POINTS and MIN_SIZE_M <= np.ptp(outer, axis=0).max() + view.res_m <= KNOB_MAX_M:
             shape = _extent_of(outer, view.res_m)
     centre, axis, length, width = shape
     if length < MIN_SIZE_M or length > MAX_LENGTH_M or width > MAX_ACROSS_M:
