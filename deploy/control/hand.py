@@ -143,29 +143,21 @@ def measure_torque_offset(episode: Episode) -> None:
     episode.compliance = episode.compliance.with_torque_offset(torque_offset(episode.kin, states))
 
 
-def ease_off_press(episode: Episode, in_pocket: bool = False) -> float:
+def ease_off_press(episode: Episode) -> None:
     """A handle nearer than seen (a short knob, the calibration's error) leaves the palm pushing on it at the
     approach's end. The first pull would start by releasing that push, which its force bound reads as resistance
-    (a pull held still at 0 deg): back off along the approach until the tool no longer pushes. `in_pocket`: a push
-    mostly across the fingers is a finger on a pocket's lip, which backing off does not release (it would draw the
-    fingers off the pocket's bar): only a push mostly along the approach is eased. How far it backed off (m); arms
-    that measure no joint torques skip this."""
+    (a pull held still at 0 deg): back off along the approach until the tool no longer pushes. Arms that measure
+    no joint torques skip this."""
     arm, kin = episode.arm, episode.kin
     wrench = WrenchEstimator(kin, 0.0, episode.compliance.torque_offset)
-    eased = 0.0
-    while eased < MAX_EASE_M:
+    for _ in range(round(MAX_EASE_M / EASE_STEP_M)):
         state = arm.state()
         w = wrench.update(state)
         T = kin.fk(state.q)
-        if w is None:
-            break
-        along, across = float(w[:3] @ T[:3, 2]), float(w[:3] @ T[:3, 1])
-        if along < PRESS_N or (in_pocket and along < abs(across)):
-            break
+        if w is None or w[:3] @ T[:3, 2] < PRESS_N:
+            return
         _step(episode, T, -T[:3, 2], EASE_STEP_M)
         episode.wait(SETTLE_S)
-        eased += EASE_STEP_M
-    return eased
 
 
 def close_and_check(episode: Episode, open_width: float, failure: StopReason, context: str = "") -> None:
@@ -210,20 +202,28 @@ def centre_on_handle(episode: Episode, width: float) -> float:
     return moved
 
 
-def seat_in_pocket(episode: Episode) -> None:
-    """Into a recessed pull's pocket the approach misses the bar by the calibration's error along it (the pocket's
-    mouth is seen, not its bar): short of it, or deep enough that the palm presses the front. Such a press is
-    eased (`ease_off_press`): the tool went as deep as it goes. Else the tool goes on along the approach, slowly
-    (SEAT_SPEED_M_S), at most MAX_SEAT_M, force-bounded at SEAT_FORCE_N (the front, or the pocket's back, stops it)
-    and yielding across to what pushes it there. Arms that measure no joint torques do not move."""
-    if episode.arm.state().tau is None or ease_off_press(episode, in_pocket=True) > 0.0:
-        return
-    T = episode.tool()
+def seat_in_pocket(episode: Episode) -> bool:
+    """Whether the tool went on into a recessed pull's pocket. Its fingers, open around the bar, fill most of the
+    pocket's height; an approach that ends with a push mostly across them has a finger on the pocket's lip, short
+    of the bar by the calibration's error along the approach (the pocket's mouth is seen, not its bar), and easing
+    off would draw the fingers farther off it. The tool then goes on along the approach, slowly (SEAT_SPEED_M_S), at
+    most MAX_SEAT_M, force-bounded at SEAT_FORCE_N (the front, or the pocket's back, stops it) and yielding across
+    to what pushes it there. Otherwise (nothing pushes, or the palm presses the front) it stays for the usual
+    easing off. Arms that measure no joint torques do not move."""
+    state = episode.arm.state()
+    w = WrenchEstimator(episode.kin, 0.0, episode.compliance.torque_offset).update(state)
+    if w is None:
+        return False
+    T = episode.kin.fk(state.q)
+    along, across = float(w[:3] @ T[:3, 2]), abs(float(w[:3] @ T[:3, 1]))
+    if across < PRESS_N or along >= across:
+        return False
     limits = MotionLimits(SEAT_SPEED_M_S, 4 * SEAT_SPEED_M_S, 40 * SEAT_SPEED_M_S)
     result = follow_cartesian_path(episode.arm, episode.kin, line_path(T, T[:3, 2]), MAX_SEAT_M, limits,
                                    episode.show_arm, compliance=episode.compliance.with_force_limit(SEAT_FORCE_N))
-    log.info("into the pocket: %.1f mm further (%s)", float(np.linalg.norm(episode.tool()[:3, 3] - T[:3, 3])) * 1e3,
-             result.reason)
+    log.info("a finger on the pocket's lip: the tool went %.1f mm further in (%s)",
+             float(np.linalg.norm(episode.tool()[:3, 3] - T[:3, 3])) * 1e3, result.reason)
+    return True
 
 
 def _force_at_rest(episode: Episode) -> tuple[np.ndarray | None, np.ndarray]:

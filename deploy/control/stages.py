@@ -201,8 +201,9 @@ def grasp(episode: Episode, handle: Handle) -> None:
     open_width = arm.state().gripper_width_m
     T = episode.tool()
     follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), approach, episode.line_limits(), episode.show_arm)
-    if handle.found == "recessed pull":  # the press left after closing is eased holding the bar
-        seat_in_pocket(episode)
+    # into a drawer's pocket only: a door's turn would swing the pocket's walls into fingers set deeper in it
+    pocket = handle.found == "recessed pull" and state.joint is JointType.PRISMATIC
+    if pocket and seat_in_pocket(episode):  # the press left is eased holding the bar
         close_and_check(episode, open_width, StopReason.GRASP_FAILED)
         ease_off_press(episode)
     else:
