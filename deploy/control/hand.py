@@ -46,6 +46,10 @@ CENTRING_STEP_M = 0.002  # such a handle is centred between the fingers in steps
 REST_READING_S = 0.1  # a force at rest is the mean of the readings over this long
 PRESS_N = 10.0  # the approach ended with the tool pushing the handle this hard: ease back before closing
 EASE_STEP_M, MAX_EASE_M = 0.004, 0.02  # easing back: step, and at most this far
+MAX_SEAT_M = 0.014  # into a pocket the tool goes on at most this far: the calibration's error along the approach
+# (5 mm, and 0.5 deg over the camera's metre or so: 9 mm)
+SEAT_FORCE_N = 15.0  # ... pushing at most this hard
+SEAT_SPEED_M_S = 0.01  # ... this slowly (the force bound stops it within a millimetre)
 
 
 def checked_pull(episode: Episode, path: PathFn, length: float, label: str, limits: MotionLimits | None = None,
@@ -142,8 +146,8 @@ def measure_torque_offset(episode: Episode) -> None:
 def ease_off_press(episode: Episode) -> None:
     """A handle nearer than seen (a short knob, the calibration's error) leaves the palm pushing on it at the
     approach's end. The first pull would start by releasing that push, which its force bound reads as resistance
-    (a pull held still at 0 deg): back off along the approach, before closing, until the tool no longer pushes.
-    Arms that measure no joint torques skip this."""
+    (a pull held still at 0 deg): back off along the approach until the tool no longer pushes. Arms that measure
+    no joint torques skip this."""
     arm, kin = episode.arm, episode.kin
     wrench = WrenchEstimator(kin, 0.0, episode.compliance.torque_offset)
     for _ in range(round(MAX_EASE_M / EASE_STEP_M)):
@@ -152,8 +156,7 @@ def ease_off_press(episode: Episode) -> None:
         T = kin.fk(state.q)
         if w is None or w[:3] @ T[:3, 2] < PRESS_N:
             return
-        follow_cartesian_path(arm, kin, line_path(T, -T[:3, 2]), EASE_STEP_M, episode.line_limits(),
-                              episode.show_arm)
+        _step(episode, T, -T[:3, 2], EASE_STEP_M)
         episode.wait(SETTLE_S)
 
 
@@ -188,23 +191,58 @@ def centre_on_handle(episode: Episode, width: float) -> float:
     the middle). Still squeezing, the tool moves toward the touching finger in CENTRING_STEP_M steps until the other
     finger presses too (the force across them drops), at most the closed `width` (the touching finger is no farther
     from the middle). Arms that measure no joint torques do not move."""
-    arm, kin = episode.arm, episode.kin
     moved = 0.0
     while moved < width:
-        wrench = WrenchEstimator(kin, 0.0, episode.compliance.torque_offset)
-        states = []
-        for _ in range(round(REST_READING_S / arm.control_period_s)):
-            arm.sync()
-            states.append(arm.state())
-        w = wrench.start(states)
-        T = kin.fk(states[-1].q)
-        across = 0.0 if w is None else float(w[:3] @ T[:3, 1])
+        force, T = _force_at_rest(episode)
+        across = 0.0 if force is None else float(force @ T[:3, 1])
         if abs(across) < ONE_FINGER_SHARE * episode.grip_force_n:
             break
-        follow_cartesian_path(arm, kin, line_path(T, -np.sign(across) * T[:3, 1]), CENTRING_STEP_M,
-                              episode.line_limits(), episode.show_arm)
+        _step(episode, T, -np.sign(across) * T[:3, 1], CENTRING_STEP_M)
         moved += CENTRING_STEP_M
     return moved
+
+
+def seat_in_pocket(episode: Episode) -> bool:
+    """Whether the tool went on into a recessed pull's pocket. Its fingers, open around the bar, fill most of the
+    pocket's height; an approach that ends with a push mostly across them has a finger on the pocket's lip, short
+    of the bar by the calibration's error along the approach (the pocket's mouth is seen, not its bar), and easing
+    off would draw the fingers farther off it. The tool then goes on along the approach, slowly (SEAT_SPEED_M_S), at
+    most MAX_SEAT_M, force-bounded at SEAT_FORCE_N (the front, or the pocket's back, stops it) and yielding across
+    to what pushes it there. Otherwise (nothing pushes, or the palm presses the front) it stays for the usual
+    easing off. Arms that measure no joint torques do not move."""
+    state = episode.arm.state()
+    w = WrenchEstimator(episode.kin, 0.0, episode.compliance.torque_offset).update(state)
+    if w is None:
+        return False
+    T = episode.kin.fk(state.q)
+    along, across = float(w[:3] @ T[:3, 2]), abs(float(w[:3] @ T[:3, 1]))
+    if across < PRESS_N or along >= across:
+        return False
+    limits = MotionLimits(SEAT_SPEED_M_S, 4 * SEAT_SPEED_M_S, 40 * SEAT_SPEED_M_S)
+    result = follow_cartesian_path(episode.arm, episode.kin, line_path(T, T[:3, 2]), MAX_SEAT_M, limits,
+                                   episode.show_arm, compliance=episode.compliance.with_force_limit(SEAT_FORCE_N))
+    log.info("a finger on the pocket's lip: the tool went %.1f mm further in (%s)",
+             float(np.linalg.norm(episode.tool()[:3, 3] - T[:3, 3])) * 1e3, result.reason)
+    return True
+
+
+def _force_at_rest(episode: Episode) -> tuple[np.ndarray | None, np.ndarray]:
+    """The force the tool exerts (base frame; the mean over REST_READING_S, None for an arm that measures no joint
+    torques) and the tool pose."""
+    arm = episode.arm
+    wrench = WrenchEstimator(episode.kin, 0.0, episode.compliance.torque_offset)
+    states = []
+    for _ in range(round(REST_READING_S / arm.control_period_s)):
+        arm.sync()
+        states.append(arm.state())
+    w = wrench.start(states)
+    return (None if w is None else w[:3]), episode.kin.fk(states[-1].q)
+
+
+def _step(episode: Episode, T: np.ndarray, direction: np.ndarray, length: float) -> None:
+    """A short straight move of the tool from pose T along `direction`."""
+    follow_cartesian_path(episode.arm, episode.kin, line_path(T, direction), length, episode.line_limits(),
+                          episode.show_arm)
 
 
 def door_arc(T: np.ndarray, axis: Axis, kind: str) -> PathFn:

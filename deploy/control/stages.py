@@ -33,6 +33,7 @@ from deploy.control.hand import (
     door_arc,
     ease_off_press,
     measure_torque_offset,
+    seat_in_pocket,
     turns_with_door,
 )
 from deploy.control.out_of_reach import PLANNED_ARC_STEP_RAD, line_pulls, regrasp_turned, reseat
@@ -204,8 +205,14 @@ def grasp(episode: Episode, handle: Handle) -> None:
     open_width = arm.state().gripper_width_m
     T = episode.tool()
     follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), approach, episode.line_limits(), episode.show_arm)
-    ease_off_press(episode)
-    close_and_check(episode, open_width, StopReason.GRASP_FAILED)
+    # into a drawer's pocket only: a door's turn would swing the pocket's walls into fingers set deeper in it
+    pocket = handle.found == "recessed pull" and state.joint is JointType.PRISMATIC
+    if pocket and seat_in_pocket(episode):  # the press left is eased holding the bar
+        close_and_check(episode, open_width, StopReason.GRASP_FAILED)
+        ease_off_press(episode)
+    else:
+        ease_off_press(episode)
+        close_and_check(episode, open_width, StopReason.GRASP_FAILED)
     state.open_width_m = open_width
     state.p_grasp = episode.tool()[:3, 3]
     state.timings["grasp_s"] += time.perf_counter() - clock
