@@ -38,6 +38,18 @@ def test_a_surface_still_there_is_told_from_one_that_moved_or_is_hidden():
     assert still_around(first, noisy, (70, 40)) is None  # off the image
 
 
+def test_a_front_pulled_out_is_told_moved_though_one_place_on_it_reads_its_old_depth():
+    first = _frame(np.full((60, 80), 1.0))
+    out = first.depth_m.copy()
+    out[10:50, 20:60] = 0.88  # the front 12 cm out ...
+    out[25:36, 35:46] = 1.0  # ... and at the pointed pixel the drawer's inside, at the front's old depth
+    front = np.zeros((60, 80), bool)
+    front[10:50, 20:60] = True
+    assert still_around(first, _frame(out), (30, 40)) is True
+    assert observer.still_on(first, _frame(out), front) is False
+    assert observer.still_on(first, first, front) is True
+
+
 def test_a_neighbours_drawer_carried_out_is_not_claimed_as_the_pointed_ones(monkeypatch):
     """Test kitchen seed THREE_DRAWERS, a stack of three drawers: the user points at the top one, and the pointer
     finds the middle one's front and handle (as a pointer that took the neighbour's front for the pointed one

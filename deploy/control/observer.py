@@ -46,6 +46,7 @@ log = logging.getLogger(__name__)
 
 NEAR_OBJECT_PX = 9  # the arm's pixels within this square around the object's count as near it
 POINTED_PATCH_PX = 5  # the pointed part's depth is read on the pixels this near the pointed pixel (either way)
+STILL_RADIUS_M = 0.08  # ... and on the pointed front's pixels this near it (a drawer front is 10 cm tall and more)
 STILL_SHARE = 0.8  # the pointed part stands where it was when this share of those pixels read the first frame's depth
 NEAR_POINTER_PX = 90  # a pointed part the arm hides: the arm's pixels this near the pointed pixel count (a 30 cm front
 # at 1 m is about 180 pixels across)
@@ -152,12 +153,17 @@ class Observer:
 
     def pointed_still(self) -> bool | None:
         """Whether the part the user pointed at still stands where the first frame showed it: on the latest frame,
-        STILL_SHARE of the pixels around the pointed pixel that neither frame's arm hides read the first frame's
-        depth (within the static scene's tolerance). None without a pointer, a latest frame, or such pixels."""
+        STILL_SHARE of the pointed front's pixels within STILL_RADIUS_M of the pointed pixel (the pixels around it when
+        the front found does not hold it) that neither frame's arm hides read the first frame's depth (within the
+        static scene's tolerance): a drawer pulled out may show its inside at its front's old depth at one place, not
+        across its front. None without a pointer, a latest frame, or such pixels."""
         pointer = Pointer.of(self._config.perception.point, self._config.perception.box)
         if pointer is None or self._looked is None or self._last_seen is None:
             return None
-        return still_around(self._looked, self._last_seen[0], pointer.pixel())
+        region = _pointed_region(self._looked, self._pointed, pointer.pixel())
+        if region is None:
+            return still_around(self._looked, self._last_seen[0], pointer.pixel())
+        return still_on(self._looked, self._last_seen[0], region)
 
     def times(self) -> FrameTimes:
         return FrameTimes(self._seconds, list(self._frame_ms), list(self._frame_cpu_ms))
@@ -298,10 +304,30 @@ def still_around(first: Frame, later: Frame, pixel: tuple[int, int], half: int =
     h, w = first.depth_m.shape
     if not (0 <= r < h and 0 <= c < w):
         return None
-    window = np.s_[max(r - half, 0):r + half + 1, max(c - half, 0):c + half + 1]
-    before, after = first.depth_m[window], later.depth_m[window]
+    window = np.zeros((h, w), bool)
+    window[max(r - half, 0):r + half + 1, max(c - half, 0):c + half + 1] = True
+    return still_on(first, later, window)
+
+
+def _pointed_region(first: Frame, pointed: PointedPart | None, pixel: tuple[int, int]) -> np.ndarray | None:
+    """The pointed front's pixels within STILL_RADIUS_M of `pixel` (row, column) on `first`; None when no front was
+    found there (or the pixel has no depth)."""
+    r, c = pixel
+    h, w = first.depth_m.shape
+    if pointed is None or not (0 <= r < h and 0 <= c < w) or not pointed.front.mask[r, c] or first.depth_m[r, c] <= 0:
+        return None
+    radius = STILL_RADIUS_M * first.intrinsics.fx / float(first.depth_m[r, c])
+    v, u = np.ogrid[:h, :w]
+    return pointed.front.mask & ((v - r) ** 2 + (u - c) ** 2 <= radius ** 2)
+
+
+def still_on(first: Frame, later: Frame, region: np.ndarray) -> bool | None:
+    """Whether the surface on the pixels `region` (H, W bool) of `first` is still there on `later` (the same
+    camera): of those with depth on both frames (at least half of them), STILL_SHARE read the same depth within
+    `tolerance_m`; None when fewer have depth on both (the arm hides them) or the region is empty."""
+    before, after = first.depth_m[region], later.depth_m[region]
     both = (before > 0) & (after > 0)
-    if np.count_nonzero(both) < 0.5 * before.size:
+    if not before.size or np.count_nonzero(both) < 0.5 * before.size:
         return None
     same = np.abs(after[both] - before[both]) <= tolerance_m(before[both], first.intrinsics.fx)
     return bool(np.mean(same) >= STILL_SHARE)
