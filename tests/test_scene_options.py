@@ -105,6 +105,13 @@ def test_sim_show_lists_the_objects_parts_and_renders_the_one_asked_for(capsys, 
         listed["40"]["unusable_for"]["drawer"])
 
 
+def test_sim_show_renders_an_object_that_serves_doors_only_with_its_door(capsys, tmp_path, assets):
+    code, out, err = run(capsys, "sim", "show", "--assets", assets, "--object", "40", "--out", tmp_path / "40.png",
+                         "--json")
+    assert code == 0, err
+    assert json.loads(out)["task"] == "door"
+
+
 def test_an_object_with_no_part_in_the_usual_reach_is_usable_when_the_arm_grasps_it_from_above(assets):
     from sim_fallback.scenes import task_objects
 

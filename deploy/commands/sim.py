@@ -27,7 +27,8 @@ from deploy.commands.output import console, err_console, print_json, progress_ba
 app = typer.Typer(help="PyBullet simulation: render scenes and record scripted openings.", no_args_is_help=True)
 
 TaskOpt = Annotated[Task | None, typer.Option(
-    help="A drawer or a door \\[default: the kind of the part --part names on --object, else drawer].")]
+    help="A drawer or a door \\[default: the kind of the part --part names on --object, else drawer; sim show: door "
+    "for an object that serves doors only].")]
 SeedOpt = Annotated[int, typer.Option(min=0, help="Scenario seed.")]
 SplitOpt = Annotated[Split, typer.Option(help="Object family.")]
 OverwriteOpt = overwrite_option("recording at --out")
@@ -66,8 +67,9 @@ def sim_show(
     from sim_fallback.show import render_scene_png
 
     listing = _listing(assets, object_id, task, scale) if assets is not None else {}
+    kind = task.value if task else _servable_kind(listing, object_id, part)
     with err_console.status(f"rendering the scene of seed {seed}"):
-        _, scenario = render_scene_png(task.value if task else None, seed, out, split=split.value, world=world.value,
+        _, scenario = render_scene_png(kind, seed, out, split=split.value, world=world.value,
                                        part=part, assets=assets, object_id=object_id, scale=scale.value)
     data = {"out": str(out), "task": scenario.task, "seed": seed, "split": split.value, "world": world.value,
             "furniture": scenario_object(scenario), "part": scenario.part, **listing}
@@ -82,6 +84,15 @@ def sim_show(
         for kind, why in entry["unusable_for"].items():
             console.print(f"  not usable for a {kind}: {why}", soft_wrap=True)
     console.print(f"wrote {out}: {data['furniture']}, {data['part']} ({data['world']}, seed {seed})", soft_wrap=True)
+
+
+def _servable_kind(listing: dict, object_id: str | None, part: str | None) -> str | None:
+    """The task `sim show` renders --object for when none is given: "door" when the object cannot serve a drawer but
+    can a door (its drawers behind its door, or out of reach), else None (the default)."""
+    if object_id is None or part is not None or len(listing.get("objects", [])) != 1:
+        return None
+    unusable = listing["objects"][0]["unusable_for"]
+    return "door" if "drawer" in unusable and "door" not in unusable else None
 
 
 def _listing(assets: Path, object_id: str | None, task: Task | None, scale: ScaleChoice) -> dict:
