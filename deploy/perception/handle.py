@@ -13,11 +13,18 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from deploy.perception.front_extent import Extent
-from deploy.perception.handle_blobs import EDGE_BAND_M, KNOB_MAX_M, OUTER_LAYER_M, Blob, segment_distance, span_m
+from deploy.perception.handle_blobs import (
+    BAR_ELONGATION,
+    EDGE_BAND_M,
+    KNOB_MAX_M,
+    OUTER_LAYER_M,
+    Blob,
+    segment_distance,
+    span_m,
+)
 from deploy.perception.plane_view import PlaneView
 
 SNAP_DEG = 20.0  # handles run horizontal or vertical: an axis within this of either is taken as it
-BAR_ELONGATION = 3.0  # a bar is at least this many times longer than thick (real bars 8-40x; cups 2-3x)
 COLOUR_ONLY_RELIEF_M = 0.03  # a handle without depth is taken to stand this far out: the middle of real bar and knob
 # handles' 25-40 mm
 POCKET_LIP_M = 0.01  # a recessed pull is held at its lip, this far inside the pocket's mouth

@@ -37,7 +37,8 @@ MIN_POINTS = 8  # a candidate with fewer measured points is seen in colour only
 RELIEF_NOISE = 1.2  # ... and at least this many times the depth noise band there (points just outside the band
 # are noise as often as not)
 FIRM_LENGTH_M = 0.025  # the smallest real knob's diameter
-KNOB_ELONGATION = 3.0  # a candidate shorter than this many times its width is no bar: a knob, a cup or a pull
+BAR_ELONGATION = 3.0  # a bar is at least this many times longer than thick (real bars 8-40x; cups 2-3x): a
+# shorter candidate is a knob, a cup or a pull
 MIN_POCKET_ACROSS_M = 0.02  # a pull's pocket takes a fingertip (real ones 25-80 mm across): a narrower slit sunk
 # into the front is a seam, a gap between fronts or the depth's noise
 KNOB_MAX_M = 0.06  # a knob is at most this wide (real knobs 20-50 mm)
@@ -79,7 +80,7 @@ class Blob:
         colour where depth has a hole."""
         relief = self.seen_in_colour_only or abs(self.relief_m) >= max(MIN_RELIEF_M, RELIEF_NOISE * self.noise_m)
         slit = self.relief_m < 0 and self.across_m < MIN_POCKET_ACROSS_M
-        sliver = self.elongation < KNOB_ELONGATION and self.across_m < MIN_SIZE_M  # too short for a bar, too thin
+        sliver = self.elongation < BAR_ELONGATION and self.across_m < MIN_SIZE_M  # too short for a bar, too thin
         # for a knob's head: the depth's noise or a seam
         return self.length_m >= FIRM_LENGTH_M and relief and not slit and not sliver and self.rim >= RIM_SHARE
 
@@ -201,7 +202,7 @@ def _edge_line(view: PlaneView, blob: Blob, extent: Extent) -> bool:
     """Whether a candidate seen in colour only is a line along one of the rectangle's sides, its middle within
     EDGE_BAND_M of it: the dark line of the gap there or the front's edge seen at a slant (a thin dark bar that the
     D415 loses stands off its front's edges; one on the very edge stands out, and is measured)."""
-    if not blob.seen_in_colour_only or blob.elongation < KNOB_ELONGATION:
+    if not blob.seen_in_colour_only or blob.elongation < BAR_ELONGATION:
         return False
     band = EDGE_BAND_M / view.res_m
     if abs(blob.axis[0]) >= abs(blob.axis[1]):
@@ -258,7 +259,7 @@ def _pieces_of_one_bar(view: PlaneView, a: Blob, b: Blob) -> bool:
 def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, camera_to_base: np.ndarray,
           K: np.ndarray, rim: float) -> Blob | None:
     """A candidate's geometry, or None when it is not of a handle's size. A short one standing out (a knob or a cup,
-    not KNOB_ELONGATION times longer than wide) is where its outermost surface is, when that is a knob's head (at most
+    not BAR_ELONGATION times longer than wide) is where its outermost surface is, when that is a knob's head (at most
     KNOB_MAX_M): the pixels on its rim mix its depth with the front's behind it and lie along the lines of sight
     between them, drawing it out toward the camera's side (a bar's length and a tab's are measured along them, and
     its outermost points may lie at one end only; a short bar's outermost surface is a bar)."""
@@ -270,7 +271,7 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
     points = points[np.abs(points[:, 2]) > raw_noise[with_depth]]  # its own points, not the front's around it
     cells = np.stack([view.s(cols), view.z(rows)], axis=1)
     shape = _extent_of(np.concatenate([points[:, :2], cells[~with_depth]]) if len(points) else cells, view.res_m)
-    if len(points) >= MIN_POINTS and np.median(points[:, 2]) > 0 and shape[2] < KNOB_ELONGATION * shape[3]:
+    if len(points) >= MIN_POINTS and np.median(points[:, 2]) > 0 and shape[2] < BAR_ELONGATION * shape[3]:
         outer = points[points[:, 2] >= np.percentile(points[:, 2], 90) - OUTER_LAYER_M, :2]
         if len(outer) >= MIN_POINTS and MIN_SIZE_M <= np.ptp(outer, axis=0).max() + view.res_m <= KNOB_MAX_M:
             shape = _extent_of(outer, view.res_m)

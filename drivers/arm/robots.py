@@ -48,8 +48,8 @@ class Reach:
                        low_door_height_m=None)
 
 
-# The Panda's, from above: a low bar grasped with the approach tilted 0.7 or 1.1 rad down (deploy/control/
-# scene_clearance.py FROM_ABOVE_RAD), a drawer's pulled 45 cm and a door's swung 45 deg (drivers/arm/configs/
+# The Panda's, from above: a low bar grasped with the approach tilted 0.7 or 1.1 rad down (drivers/arm/
+# grasping.py FROM_ABOVE_RAD), a drawer's pulled 45 cm and a door's swung 45 deg (drivers/arm/configs/
 # panda_sim.toml says the same, with the scans).
 PANDA_REACH = Reach(low_drawer_distance_m=(0.70, 0.75), low_drawer_height_m=(0.40, 0.70),
                     low_door_distance_m=(0.60, 0.75), low_door_height_m=(0.25, 0.62))
