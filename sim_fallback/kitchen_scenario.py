@@ -6,11 +6,15 @@ Robot base frame = world frame: origin at the Panda's base, x forward, z up; the
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from drivers.arm.grasping import FROM_ABOVE_RAD, GRASP_PITCH_RAD
+from drivers.arm.kinematics import Kinematics, grasps_grip
+from drivers.arm.robot_config import load_robot_config
 from drivers.arm.robots import PANDA_REACH, Reach
 from sim_fallback.covered import covering_part
 from sim_fallback.errors import PartError, SceneError
@@ -39,6 +43,8 @@ OPENED = {"drawer": 0.3, "door": float(np.radians(45.0))}  # the grip stays in v
 PARKINGS = 20  # robot parkings drawn until the part opens as asked clear of the robot
 ARM_COLUMN_M = 0.35  # the arm's base and shoulder stand this high above its base plate (the Panda's shoulder: 0.333 m)
 ARM_BASE_HALF_M = 0.11  # and this far either side of its axis (the Panda's base: about 0.2 m across)
+PARK_APPROACH_M, PARK_PULL_M = 0.1, 0.05  # a parking lets the arm approach the grip this far straight in (the
+# episode's default approach) and pull it this far straight out (the shortest pull its grasp planner asks for)
 SWEEP_STEPS = 10  # the part's openings checked against the robot, from closed to the task's
 HAND_ABOVE_M = 0.15  # a hand grasping a drawer's level bar from above reaches this far above the grip (the Panda's
 # hand, 0.2 m along the way its fingers close, stands tilted up along it)
@@ -246,11 +252,11 @@ def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, r
             raise SceneError(f"{placed.furniture.source}, {part.name}: {exc}") from None
         height = float(rng.uniform(lo, hi))
         T[2, 3] = -height
-        if not meets_robot(part, T @ T_room, height, opening):
+        if not meets_robot(part, T @ T_room, height, opening) and arm_grasps(reach, T, grip, normal):
             break
     else:
-        raise SceneError(f"{placed.furniture.source}, {part.name}: no parking spot in reach lets it open clear of "
-                         "the robot's stand and arm; give another seed")
+        raise SceneError(f"{placed.furniture.source}, {part.name}: no parking spot in reach lets the arm grasp it "
+                         "and it open clear of the robot's stand and arm; give another seed")
     layout = Layout(tuple(room.furniture), tuple(room.statics), room.target, part.name).moved(T)
     if height > 0.01:
         stand = StaticShape("robot stand", "box", (2 * STAND_HALF_M, 2 * STAND_HALF_M, height - 0.002),
@@ -258,6 +264,25 @@ def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, r
         layout = Layout(layout.furniture, (*layout.statics, stand), layout.target, layout.part)
     camera = _camera(layout, part, T @ T_room, -height, task, rng, arm_at_start(reach, task))
     return cls(task, seed, split, layout, height, camera, random_start(rng), condition)
+
+
+def arm_grasps(reach: Reach, T_base_room: np.ndarray, grip: np.ndarray, normal: np.ndarray) -> bool:
+    """Whether the arm of `reach.model` (None: any arm, the bands alone) parked at `T_base_room` grasps the grip
+    (room frame) on its front facing `normal` and pulls it PARK_PULL_M out (`grasps_grip`), at the usual pitch or
+    from above: the bands are a box, the arm's reach is not."""
+    if reach.model is None:
+        return True
+    kin, q_ready = _arm_model(reach.model)
+    grip_base = T_base_room[:3, :3] @ grip + T_base_room[:3, 3]
+    normal_base = T_base_room[:3, :3] @ normal
+    return any(grasps_grip(kin, q_ready, grip_base, normal_base, pitch, PARK_APPROACH_M, PARK_PULL_M)
+               for pitch in (GRASP_PITCH_RAD, *FROM_ABOVE_RAD))
+
+
+@functools.cache
+def _arm_model(model: str) -> tuple[Kinematics, np.ndarray]:
+    config = load_robot_config(model)
+    return config.kinematics(), np.array(config.q_ready)
 
 
 def meets_robot(part: PartGeometry, T_base_furniture: np.ndarray, base_height: float, opening: float) -> bool:

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from drivers.arm.robot_config import PANDA_SIM_CONFIG, load_robot_config
 from drivers.arm.robots import PANDA_REACH, Reach
+from sim_fallback.kitchen_scenario import arm_grasps
 from sim_fallback.scenario import make_scenario
 from sim_fallback.world import SimWorld
 
@@ -53,3 +56,17 @@ def test_scenes_put_the_grip_in_the_arms_reach(world):
                 assert reach.distance("drawer")[0] - 0.1 <= distance <= reach.distance("drawer")[1] + 0.02
             if reach is LOW and world == "kitchen":
                 assert height < PANDA_REACH.height("drawer")[0]
+
+
+def test_a_parking_is_checked_with_the_arms_kinematics_where_the_bands_corner_lies_past_its_reach():
+    """The door bands' far, high corner (within both bands) lies past the Panda's reach: its kinematics refuse the
+    parking there and take one a few centimetres nearer; a reach without a model keeps the bands alone."""
+    corner = np.array([PANDA_REACH.door_distance_m[1] - 0.02, 0.0, PANDA_REACH.door_height_m[1] - 0.005])
+    normal = np.array([-1.0, 0.0, 0.0])
+    assert PANDA_REACH.model == "panda_sim"
+    assert not arm_grasps(PANDA_REACH, np.eye(4), corner, normal)
+    assert arm_grasps(PANDA_REACH, np.eye(4), corner - [0.05, 0.0, 0.0], normal)
+    assert arm_grasps(replace(PANDA_REACH, model=None), np.eye(4), corner, normal)
+    T = np.eye(4)
+    T[:2, 3] = [-0.05, 0.0]  # the robot parked 5 cm farther forward sees the same grip nearer
+    assert arm_grasps(PANDA_REACH, T, corner, normal)

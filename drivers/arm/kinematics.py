@@ -10,6 +10,7 @@ from xml.etree import ElementTree
 import numpy as np
 import pinocchio as pin
 
+from drivers.arm.grasping import GRASP_DEPTH_M, LIMIT_MARGIN_RAD, UP, grasp_pose, pregrasp_pose
 from drivers.arm.robots import RobotSpec, panda
 from drivers.errors import ArmError, IKError, JointSpeedError
 
@@ -337,6 +338,23 @@ def well_conditioned_start(
         if score > best_score:
             best, best_score = qs[0], score
     return best
+
+
+def grasps_grip(kin: Kinematics, q_template: np.ndarray, grip: np.ndarray, normal: np.ndarray, pitch_rad: float,
+                approach_m: float, pull_m: float, steps: int = 6) -> bool:
+    """Whether the arm reaches a handle's `grip` on a front facing `normal` (horizontal, outward) as the grasp planner
+    takes it: approached `approach_m` straight in tilted down by `pitch_rad`, grasped across a vertical or a
+    horizontal bar, and pulled `pull_m` straight out, clear of the joint limits (`well_conditioned_start`)."""
+    normal = np.asarray(normal, float)
+    for bar in (UP, np.cross(UP, normal)):
+        T = grasp_pose(grip, normal, bar, GRASP_DEPTH_M, pitch_rad)
+        approach = [pregrasp_pose(T, approach_m * (steps - k) / steps) for k in range(steps)]
+        pull = [T.copy() for _ in range(steps)]
+        for k, P in enumerate(pull, 1):
+            P[:3, 3] += normal * pull_m * k / steps
+        if well_conditioned_start(kin, [*approach, T, *pull], q_template, LIMIT_MARGIN_RAD) is not None:
+            return True
+    return False
 
 
 def _start_seeds(kin: Kinematics, first: np.ndarray, q_template: np.ndarray) -> list[np.ndarray]:

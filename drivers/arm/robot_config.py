@@ -81,7 +81,8 @@ class ComplianceConfig(StrictModel):
 class ReachConfig(StrictModel):
     """Where simulated scenes put the grip of the part to open, in the base frame (m): its horizontal distance from
     the base and its height above it, per task (`drivers.arm.robots.Reach`; defaults: the Panda's usual bands); the
-    `low_*` bands where the arm grasps a low handle from above (default: none)."""
+    `low_*` bands where the arm grasps a low handle from above (default: none); `model`: the robot config whose
+    kinematics check a scene's parking (default: none, the bands alone)."""
 
     drawer_distance_m: tuple[float, float] = Reach.drawer_distance_m
     drawer_height_m: tuple[float, float] = Reach.drawer_height_m
@@ -91,11 +92,12 @@ class ReachConfig(StrictModel):
     low_drawer_height_m: tuple[float, float] | None = None
     low_door_distance_m: tuple[float, float] | None = None
     low_door_height_m: tuple[float, float] | None = None
+    model: str | None = None
 
     @model_validator(mode="after")
     def _bands(self) -> ReachConfig:
         for key, band in self:
-            if band is None:
+            if band is None or key == "model":
                 continue
             lo, hi = band
             if lo > hi:

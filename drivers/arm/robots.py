@@ -17,7 +17,9 @@ class Reach:
     arm's). The defaults are the Panda's: a 45 cm drawer pull and a door's swing stay clear of its joint limits.
 
     `low_*`: the bands where the arm grasps a low handle from above (the approach tilted steeply down) and pulls it,
-    for furniture with no part in the usual bands (None: the arm has none measured for that task)."""
+    for furniture with no part in the usual bands (None: the arm has none measured for that task). `model`: the robot
+    config (a shipped name or a TOML file) whose kinematics a scene's parking is checked with, as a user tries the arm
+    there: a band's corner can lie past the arm's reach (None: the bands alone)."""
 
     drawer_distance_m: tuple[float, float] = (0.55, 0.68)
     drawer_height_m: tuple[float, float] = (0.72, 0.86)
@@ -27,6 +29,7 @@ class Reach:
     low_drawer_height_m: tuple[float, float] | None = None
     low_door_distance_m: tuple[float, float] | None = None
     low_door_height_m: tuple[float, float] | None = None
+    model: str | None = None
 
     def distance(self, task: str) -> tuple[float, float]:
         return self.drawer_distance_m if task == "drawer" else self.door_distance_m
@@ -52,7 +55,7 @@ class Reach:
 # grasping.py FROM_ABOVE_RAD), a drawer's pulled 45 cm and a door's swung 45 deg (drivers/arm/configs/
 # panda_sim.toml says the same, with the scans).
 PANDA_REACH = Reach(low_drawer_distance_m=(0.70, 0.75), low_drawer_height_m=(0.40, 0.70),
-                    low_door_distance_m=(0.60, 0.75), low_door_height_m=(0.25, 0.62))
+                    low_door_distance_m=(0.60, 0.75), low_door_height_m=(0.25, 0.62), model="panda_sim")
 
 
 @dataclass(frozen=True)
