@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +32,7 @@ MIN_SIDE_TURN_RAD = float(np.radians(0.5))  # a front turned less than this tell
 MIN_MOVED_M = 0.01  # a front that moved out more than this moved with the door (the depth's steps at 1-2 m)
 SIDE_BIN_M = 0.02  # the door's motion is read across its front in bins this wide
 REGRASP_RADIUS_M = 0.12  # a slipped handle is looked for this close to where the gripper held it
+HALF_TURN = np.diag([-1.0, -1.0, 1.0, 1.0])  # a tool pose turned half a turn about its approach (its z)
 APPROACH_STEP_M = 0.025  # the planned approach is followed through a pose every this much (a short arm's joints
 # turn fast near the handle: the path check needs its waypoints dense enough to tell a turn from a branch change)
 HANDLE_MIN_STANDOFF_M, HANDLE_MAX_STANDOFF_M = 0.01, 0.08  # a handle stands this far out of its front
@@ -194,14 +195,47 @@ def pregrasp_configuration(
     wanted first (e.g. a door's arc, then shorter ones): the first that some seed carries decides. `swung`: the
     seeds have the elbow swung out sideways instead (`well_conditioned_start`), a posture to try only when the usual
     ones carry no grasp. Raises IKError when none carries any."""
+    carried = _carried_pull(kin, q_start, T_grasp, pulls, approach_m, swung)
+    if carried is None:
+        raise _out_of_reach(T_grasp)
+    return carried[1]
+
+
+def pregrasp_either_way(
+    kin: Kinematics, q_start: np.ndarray, T_grasp: np.ndarray,
+    pulls: Callable[[np.ndarray], Sequence[list[np.ndarray]]], approach_m: float, swung: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The grasp and its pre-grasp joints (`pregrasp_configuration`, `pulls` of the grasp pose): `T_grasp`, or it
+    turned half a turn about its approach (a parallel gripper holds a handle either way round) where that one
+    carries a more wanted pull (the wrist's last joint, near its limit as found, takes the door's turn the other way
+    round). IKError when neither carries any pull."""
+    found = _carried_pull(kin, q_start, T_grasp, pulls(T_grasp), approach_m, swung)
+    if found is not None and found[0] == 0:
+        return T_grasp, found[1]
+    T_turned = T_grasp @ HALF_TURN
+    turned = _carried_pull(kin, q_start, T_turned, pulls(T_turned), approach_m, swung)
+    if turned is not None and (found is None or turned[0] < found[0]):
+        return T_turned, turned[1]
+    if found is None:
+        raise _out_of_reach(T_grasp)
+    return T_grasp, found[1]
+
+
+def _carried_pull(kin: Kinematics, q_start: np.ndarray, T_grasp: np.ndarray, pulls: Sequence[list[np.ndarray]],
+                  approach_m: float, swung: bool) -> tuple[int, np.ndarray] | None:
+    """(index of the first of `pulls` some seed carries, its pre-grasp joints); None when none is carried."""
     n = max(1, int(np.ceil(approach_m / APPROACH_STEP_M)))
     approach = [pregrasp_pose(T_grasp, approach_m * (n - k) / n) for k in range(n)]  # from the pre-grasp pose on
-    for poses in pulls:
+    for index, poses in enumerate(pulls):
         best = well_conditioned_start(kin, [*approach, T_grasp, *poses], q_start, LIMIT_MARGIN_RAD, swung)
         if best is not None:
-            return best
+            return index, best
+    return None
+
+
+def _out_of_reach(T_grasp: np.ndarray) -> IKError:
     p = T_grasp[:3, 3]
-    raise IKError(
+    return IKError(
         f"handle at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m is out of reach: no arm configuration reaches "
         "it and pulls it clear of joint limits and singularities; move the cabinet or the robot closer"
     )

@@ -23,7 +23,7 @@ from deploy.control.grasp import (
     hinge_side,
     hinge_side_sure,
     pointed_handle,
-    pregrasp_configuration,
+    pregrasp_either_way,
     protruding_points,
     pull_poses,
 )
@@ -476,7 +476,8 @@ def _grasp_plan(episode: Episode, handle: Handle) -> tuple[np.ndarray, float, np
     grasp whose approach and first pull keep clear of the scene the first frame showed and that the arm carries
     (EpisodeStop when none keeps clear, IKError when the arm carries none); else the usual one, fully open. Every
     grasp is tried with the arm's usual postures before any with the elbow swung out sideways (an unusual posture,
-    sweeping more of the room on its way, is no better where a usual one carries a grasp)."""
+    sweeping more of the room on its way, is no better where a usual one carries a grasp); each as found or turned
+    half a turn about its approach (`pregrasp_either_way`)."""
     pointed, widest, kin = episode.observer.pointed, episode.gripper.max_opening_m, episode.kin
     approach, q = episode.config.opening.approach_m, episode.arm.state().q
     if pointed is None:
@@ -487,7 +488,9 @@ def _grasp_plan(episode: Episode, handle: Handle) -> tuple[np.ndarray, float, np
     refused = None
     for swung, (T, width) in itertools.product((False, True), grasps):
         try:
-            return T, width, pregrasp_configuration(kin, q, T, _planned_pulls(episode, handle, T), approach, swung)
+            T_held, q_pre = pregrasp_either_way(kin, q, T, lambda P: _planned_pulls(episode, handle, P), approach,
+                                                swung)
+            return T_held, width, q_pre
         except IKError as e:
             refused = refused or e
     raise refused
