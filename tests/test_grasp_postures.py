@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import deploy.control.stages as stages
-from deploy.control.grasp import Handle, grasp_pose, pregrasp_configuration
+from deploy.control.grasp import HALF_TURN, Handle, grasp_pose, pregrasp_configuration
 from deploy.control.out_of_reach import line_pulls
 from deploy.geometry.types import JointType
 from drivers.arm.grasping import GRASP_PITCH_RAD, LIMIT_MARGIN_RAD, pregrasp_pose
@@ -60,5 +60,6 @@ def test_every_grasp_is_tried_with_the_usual_postures_before_the_elbow_swings_ou
     assert np.allclose(q, pregrasp_configuration(kin, episode.arm.state().q, down,
                                                  stages._planned_pulls(episode, BAR, down), 0.1))
     grasps.pop()
-    T, _, q = stages._grasp_plan(episode, BAR)
-    assert np.allclose(T, up) and np.allclose(kin.fk(q), pregrasp_pose(up, 0.1), atol=1e-3)
+    T, _, q = stages._grasp_plan(episode, BAR)  # as found the swung-out elbow carries half the pull, turned half a
+    # turn about its approach the whole of it
+    assert np.allclose(T, up @ HALF_TURN) and np.allclose(kin.fk(q), pregrasp_pose(T, 0.1), atol=1e-3)

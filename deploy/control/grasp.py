@@ -205,19 +205,19 @@ def pregrasp_either_way(
     kin: Kinematics, q_start: np.ndarray, T_grasp: np.ndarray,
     pulls: Callable[[np.ndarray], Sequence[list[np.ndarray]]], approach_m: float, swung: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The grasp and its pre-grasp joints (`pregrasp_configuration`, `pulls` of the grasp pose): `T_grasp`, or it
-    turned half a turn about its approach (a parallel gripper holds a handle either way round) where that one
-    carries a more wanted pull (the wrist's last joint, near its limit as found, takes the door's turn the other way
-    round). IKError when neither carries any pull."""
+    """The grasp and its pre-grasp joints (`pregrasp_configuration`, `pulls` of the grasp pose): `T_grasp`, or, where
+    that carries a pull but not the most wanted one, it turned half a turn about its approach when that one carries
+    a more wanted pull (a parallel gripper holds a handle either way round: the wrist's last joint, near its limit
+    as found, takes the door's turn the other way round). IKError when `T_grasp` carries no pull (the next grasp
+    is tried as found)."""
     found = _carried_pull(kin, q_start, T_grasp, pulls(T_grasp), approach_m, swung)
-    if found is not None and found[0] == 0:
-        return T_grasp, found[1]
-    T_turned = T_grasp @ HALF_TURN
-    turned = _carried_pull(kin, q_start, T_turned, pulls(T_turned), approach_m, swung)
-    if turned is not None and (found is None or turned[0] < found[0]):
-        return T_turned, turned[1]
     if found is None:
         raise _out_of_reach(T_grasp)
+    if found[0] > 0:
+        T_turned = T_grasp @ HALF_TURN
+        turned = _carried_pull(kin, q_start, T_turned, pulls(T_turned), approach_m, swung)
+        if turned is not None and turned[0] < found[0]:
+            return T_turned, turned[1]
     return T_grasp, found[1]
 
 
