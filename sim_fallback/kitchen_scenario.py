@@ -40,7 +40,7 @@ from sim_fallback.unit_families import Split, random_look
 
 ATTEMPTS = 30  # kitchens drawn for one seed until the target has a reachable part as asked
 OPENED = {"drawer": 0.3, "door": float(np.radians(45.0))}  # the grip stays in view opened this far
-PARKINGS = 20  # robot parkings drawn until the part opens as asked clear of the robot
+PARKINGS = 20  # robot parkings drawn until the part opens as asked clear of the robot and the arm grasps it
 ARM_COLUMN_M = 0.35  # the arm's base and shoulder stand this high above its base plate (the Panda's shoulder: 0.333 m)
 ARM_BASE_HALF_M = 0.11  # and this far either side of its axis (the Panda's base: about 0.2 m across)
 PARK_APPROACH_M, PARK_PULL_M = 0.1, 0.05  # a parking lets the arm approach the grip this far straight in (the
@@ -235,8 +235,8 @@ def _covered_above(part: PartGeometry) -> str:
 def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, room: Room, part: PartGeometry,
           condition: Condition, reach: Reach, opening: float) -> KitchenScenario:
     """The robot parked in front of `part` (its grip in `reach`) where the part opens to `opening` (m or rad)
-    without passing through the robot's stand or arm column, as a user parks it; the camera placed; all in the
-    robot base frame."""
+    without passing through the robot's stand or arm column and the arm grasps it (`arm_grasps`), as a user parks
+    it; the camera placed; all in the robot base frame."""
     rng = np.random.default_rng([SPLITS.index(split), KINDS.index(task), seed, 3])
     placed = room.furniture[room.target]
     T_room = placed.T
