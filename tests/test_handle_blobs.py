@@ -3,7 +3,9 @@ colour only) whose end nearly touches the depth hole along the front's side edge
 a depth edge) is still one handle, not part of a shape too large for one; a bar standing out across a drawer's whole
 width is a handle, a ledge running on past the front's ends is not; a sliver too short for a bar and too thin for a
 knob is no firm handle, a knob is; a pull's pocket running under a counter's edge that hides the front's top is
-seen whole up to that edge; a dark line without depth along the front's side is no handle seen in colour only."""
+seen whole up to that edge; a dark line without depth along the front's side is no handle seen in colour only; a
+bump on a bowed panel, or a dip in a recessed window, is no firm handle when it stands out of the surface around it
+by less than a handle does."""
 
 from __future__ import annotations
 
@@ -126,3 +128,15 @@ def test_a_dark_line_without_depth_along_the_fronts_side_is_no_handle():
     frame.depth_m[FRONT_V[0] + 40:FRONT_V[1] - 40, u + 36:u + 41] = 0.0
     frame.color[FRONT_V[0] + 40:FRONT_V[1] - 40, u + 36:u + 41] = (30, 30, 30)
     assert len(_firm_at(_blobs_of(frame), u + 38, v)) == 1
+
+
+def test_a_bump_on_a_bowed_panel_or_a_dip_in_a_recessed_window_is_no_firm_handle():
+    """A 6.7 x 2.8 cm patch 1.7 cm off the plane is a firm handle on a flat panel; on a 33 x 20 cm stretch of the
+    panel 7 mm off the plane the same way (a fridge's bowed door, a microwave's window set in), it stands 1 cm out of
+    the surface around it, within the depth's noise: no handle."""
+    u, v = 320, 240
+    for sign in (-1, 1):  # standing out, sunk in
+        patch = (slice(v - 8, v + 9), slice(u - 20, u + 21), 1.0 - sign * 0.017)
+        assert len(_firm_at(_blobs_of(_plain_frame([patch])), u, v)) == 1
+        panel = (slice(v - 60, v + 61), slice(u - 100, u + 101), 1.0 - sign * 0.007)
+        assert not _firm_at(_blobs_of(_plain_frame([panel, patch])), u, v)

@@ -62,6 +62,7 @@ class Blob:
     inside: bool
     rim: float  # the share of the ring around it that is the front's surface
     noise_m: float  # the D415's noise band there (NOISE_SIGMAS sigmas of one measurement)
+    base_m: float = 0.0  # the offset of the surface around it (`_surface_around`: a bowed panel, a window set in)
 
     @property
     def relief_m(self) -> float:
@@ -78,7 +79,9 @@ class Blob:
         """Whether it is certainly a handle (not depth noise, not a neighbour's edge): large enough, with the front
         around it, standing clearly out of (or into, in a pocket wide enough for a fingertip) the front, or of another
         colour where depth has a hole."""
-        relief = self.seen_in_colour_only or abs(self.relief_m) >= max(MIN_RELIEF_M, RELIEF_NOISE * self.noise_m)
+        rise = abs(self.relief_m) - max(0.0, float(np.sign(self.relief_m)) * self.base_m)  # out of (into) the
+        # surface around it: a bump on a bowed panel, or a piece of a recessed window, is off the plane with it
+        relief = self.seen_in_colour_only or rise >= max(MIN_RELIEF_M, RELIEF_NOISE * self.noise_m)
         slit = self.relief_m < 0 and self.across_m < MIN_POCKET_ACROSS_M
         sliver = self.elongation < BAR_ELONGATION and self.across_m < MIN_SIZE_M  # too short for a bar, too thin
         # for a knob's head: the depth's noise or a seam
@@ -280,7 +283,24 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
         return None
     r, c = int(view.row(centre[1])), int(view.col(centre[0]))
     inside = extent.top <= r <= extent.bottom and extent.left <= c <= extent.right
-    return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)))
+    return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)),
+                _surface_around(view, rows, cols))
+
+
+def _surface_around(view: PlaneView, rows: np.ndarray, cols: np.ndarray) -> float:
+    """The median offset (m) from the plane of the measured cells JOIN_M to 2 JOIN_M around the cells (`rows`,
+    `cols`), past the pixels at a candidate's edges that mix its depth with what lies behind: the surface it stands on
+    or is sunk into (0 where none is measured)."""
+    join = max(int(round(JOIN_M / view.res_m)), 1)
+    r0, c0 = max(int(rows.min()) - 2 * join, 0), max(int(cols.min()) - 2 * join, 0)
+    box = (slice(r0, int(rows.max()) + 2 * join + 1), slice(c0, int(cols.max()) + 2 * join + 1))
+    member = np.zeros(view.offset_m[box].shape, np.uint8)
+    member[rows - r0, cols - c0] = 1
+    near, far = (cv2.dilate(member, np.ones((2 * k * join + 1, 2 * k * join + 1), np.uint8)).astype(bool)
+                 for k in (1, 2))
+    offsets = view.offset_m[box][far & ~near & view.seen[box]]
+    offsets = offsets[~np.isnan(offsets)]
+    return float(np.median(offsets)) if len(offsets) else 0.0
 
 
 def _extent_of(where: np.ndarray, res_m: float) -> tuple[np.ndarray, np.ndarray, float, float]:
