@@ -1,6 +1,7 @@
 """A handle that one finger alone presses when the gripper closes (it lies off the fingers' middle by more than half
 its thickness: each finger closes only to the middle) is centred between them before the pull
-(deploy/control/hand.py `centre_on_handle`); without that, the one finger drags it out of the grasp."""
+(deploy/control/hand.py `centre_on_handle`, by the force across the fingers; `centre_by_width`, by the closed width,
+for a bar); without either, the one finger drags it out of the grasp."""
 
 from __future__ import annotations
 
@@ -15,7 +16,9 @@ from deploy.control.state import StopReason
 OFF_CENTRE = [("drawer", 21, 0.1), ("door", 0, 20.0)]
 
 
-def _episode(monkeypatch, task: str, seed: int, target: float, centre: bool) -> tuple[dict, list[float]]:
+def _episode(monkeypatch, task: str, seed: int, target: float, centre: bool, by_width: bool = False
+             ) -> tuple[dict, list[float]]:
+    """The episode with the force's centring on (`centre`) or off, the width's only when `by_width`."""
     moves: list[float] = []
     original = hand.centre_on_handle
 
@@ -24,6 +27,8 @@ def _episode(monkeypatch, task: str, seed: int, target: float, centre: bool) -> 
         return moves[-1]
 
     monkeypatch.setattr(hand, "centre_on_handle", recorded)
+    if not by_width:
+        monkeypatch.setattr(hand, "centre_by_width", lambda episode, width, open_width: 0.0)
     return simulate_episode(task, seed, split="test", target=target), moves
 
 
@@ -39,3 +44,9 @@ def test_uncentred_the_one_finger_loses_the_handle(monkeypatch, task, seed, targ
     result, moves = _episode(monkeypatch, task, seed, target, centre=False)
     assert moves  # the scenario closes on its handle: the test above is not vacuous
     assert result["stop_reason"] == StopReason.GRASP_LOST, result["message"]
+
+
+def test_a_bar_the_arm_does_not_feel_is_centred_by_the_closed_width(monkeypatch):
+    result, moves = _episode(monkeypatch, *OFF_CENTRE[0], centre=False, by_width=True)
+    assert moves  # the force's centring was asked and did not move
+    assert result["success"], result["message"]

@@ -43,6 +43,9 @@ TURNING_HANDLES = ("edge pull", "cup", "bar")  # handles that may turn between t
 ONE_FINGER_SHARE = 0.5  # closed, the arm feels more than this share of the grip force across the fingers: one finger
 # alone presses the handle
 CENTRING_STEP_M = 0.002  # such a handle is centred between the fingers in steps of this
+PROBE_STEP_M = 0.004  # a handle the fingers closed wider than is looked for across them in steps of this: under a thin
+# bar's half thickness (a step off a held bar leaves both fingers on it)
+WIDTH_TOLERANCE_M = 0.001  # closed widths closer than this are one hold's (the pads' give, the handle's surface)
 REST_READING_S = 0.1  # a force at rest is the mean of the readings over this long
 PRESS_N = 10.0  # the approach ended with the tool pushing the handle this hard: ease back before closing
 EASE_STEP_M, MAX_EASE_M = 0.004, 0.02  # easing back: step, and at most this far
@@ -162,7 +165,9 @@ def ease_off_press(episode: Episode) -> None:
 
 def close_and_check(episode: Episode, open_width: float, failure: StopReason, context: str = "") -> None:
     """Close on the handle; when one finger alone pressed it, centre it (`centre_on_handle`), open and close again
-    so that both fingers squeeze it. EpisodeStop(`failure`) when the gripper closed on nothing."""
+    so that both fingers squeeze it; when the fingers closed wider than the handle is thick without the arm feeling
+    it, centre it by the closed width (`centre_by_width`). EpisodeStop(`failure`) when the gripper closed on
+    nothing."""
     width = _close(episode, open_width, failure, context)
     moved = centre_on_handle(episode, width)
     if moved:
@@ -170,6 +175,12 @@ def close_and_check(episode: Episode, open_width: float, failure: StopReason, co
                  "closed again", width * 1e3, moved * 1e3)
         episode.arm.set_gripper(open_width)
         episode.wait(CLOSE_TIME_S)
+        width = _close(episode, open_width, failure, context)
+    handle = episode.state.handle
+    if handle is not None and handle.thickness_m is not None and width > handle.thickness_m:
+        moved = centre_by_width(episode, width, open_width)
+        log.info("the fingers closed to %.1f mm on a %.1f mm handle: the tool moved %.1f mm across them to where "
+                 "they close narrowest", width * 1e3, handle.thickness_m * 1e3, moved * 1e3)
         _close(episode, open_width, failure, context)
 
 
@@ -200,6 +211,56 @@ def centre_on_handle(episode: Episode, width: float) -> float:
         _step(episode, T, -np.sign(across) * T[:3, 1], CENTRING_STEP_M)
         moved += CENTRING_STEP_M
     return moved
+
+
+def centre_by_width(episode: Episode, width: float, open_width: float) -> float:
+    """How far (m, signed along the fingers' closing axis) the tool moved to where the closed fingers hold the handle
+    narrowest. A handle off the fingers' middle by more than half its thickness stops one finger while the other
+    closes past it to the middle: the closed width then exceeds the handle's thickness by its offset (by twice it on
+    a gripper whose fingers move together), and shrinks as the tool moves toward it, down to the handle's thickness
+    once both fingers hold it. Some grippers' fingers barely press what stops one of them (the arm then feels
+    nothing across them: `centre_on_handle` does not move): the tool tries a PROBE_STEP_M step either way (open,
+    step, close), goes on the way the width shrank (by more than WIDTH_TOLERANCE_M) while it does, at most the closed
+    `width` (the touching finger is no farther from the middle), and ends closed where it last shrank at all (the
+    step that brings the free finger onto it shrinks it by less than a step; where it was, when it shrank neither
+    way)."""
+    T0 = episode.tool()
+    widths = {0.0: width}
+    direction = 0.0
+    for sign in (1.0, -1.0):
+        at = offset = sign * PROBE_STEP_M
+        widths[at] = _closed_at(episode, T0, at, open_width)
+        if widths[at] < width - WIDTH_TOLERANCE_M:
+            direction = sign
+            break
+    while direction and abs(offset) + PROBE_STEP_M <= width:
+        at = offset + direction * PROBE_STEP_M
+        widths[at] = _closed_at(episode, T0, at, open_width)
+        if widths[at] >= widths[offset] - WIDTH_TOLERANCE_M:
+            break
+        offset = at
+    if direction and widths[at] < widths[offset]:  # the last step brought the free finger onto it
+        offset = at
+    best = offset if direction else 0.0
+    if best != at:
+        _closed_at(episode, T0, best, open_width)
+    return best
+
+
+def _closed_at(episode: Episode, T0: np.ndarray, offset: float, open_width: float) -> float:
+    """Open the gripper, move the tool to `offset` (m) along the fingers' closing axis from pose T0, close; the width
+    it closed to (infinite when it closed on nothing)."""
+    episode.arm.set_gripper(open_width)
+    episode.wait(CLOSE_TIME_S)
+    T = episode.tool()
+    target = T0[:3, 3] + offset * T0[:3, 1]
+    shift = target - T[:3, 3]
+    if np.linalg.norm(shift) > 1e-4:
+        _step(episode, T, shift / np.linalg.norm(shift), float(np.linalg.norm(shift)))
+    episode.arm.set_gripper(0.0, episode.grip_force_n)
+    episode.wait(CLOSE_TIME_S)
+    width = episode.arm.state().gripper_width_m
+    return width if MIN_GRASP_WIDTH_M < width < open_width - OPEN_MARGIN_M else float("inf")
 
 
 def seat_in_pocket(episode: Episode) -> bool:
