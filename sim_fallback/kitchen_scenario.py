@@ -115,14 +115,15 @@ class KitchenScenario:
 
 def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Generator,
                  reach: Reach, opening: float) -> tuple[PartGeometry, Reach]:
-    """The target part and the reach it is placed in (`placing_reach`): the one `text` names, else one of the task's
-    kind within that reach that opens at least `opening`, drawn from `rng`."""
+    """The target part and the reach it is placed in (`placing_reach`): the one `text` names (placed in the reach
+    its own grip calls for: a user who names a low part grasps it from above), else one of the task's kind within
+    that reach that opens at least `opening`, drawn from `rng`."""
     placed = room.furniture[room.target]
     geometry = measure_parts(placed.furniture)
-    placing = placing_reach(placed, geometry, task, reach, opening)
-    roomy = geometry if placing == reach else room_from_above(geometry)
     if text is not None:
         chosen = resolve(placed.furniture, geometry, task, text)
+        placing = named_reach(placed, chosen, task, reach)
+        roomy = geometry if placing == reach else room_from_above(geometry)
         cover = covering_part(chosen, geometry)
         if cover is not None:
             raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} stands behind its {cover}'s "
@@ -135,6 +136,8 @@ def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Ge
             raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} is out of the robot's "
                              f"reach: {_reach(placed, [chosen], task, reach)}")
         return chosen, placing
+    placing = placing_reach(placed, geometry, task, reach, opening)
+    roomy = geometry if placing == reach else room_from_above(geometry)
     reachable = reachable_parts(placed, roomy, task, placing, opening)
     if not reachable:
         raise PartError(_no_part(placed, geometry, task, reach, opening))
@@ -149,6 +152,17 @@ def placing_reach(placed: Placed, geometry: list[PartGeometry], task: PartKind, 
     low = reach.from_above(task)
     if (low is None or reachable_parts(placed, geometry, task, reach, opening)
             or not reachable_parts(placed, room_from_above(geometry), task, low, opening)):
+        return reach
+    return low
+
+
+def named_reach(placed: Placed, part: PartGeometry, task: PartKind, reach: Reach) -> Reach:
+    """The reach a part a user names is placed in: `reach` when its grip lies in the usual bands, else its reach from
+    above when the grip lies in that one (a user who names a low part grasps it from above, whatever the other parts'
+    heights), else `reach`."""
+    low = reach.from_above(task)
+    grip = _grip_height(placed, part)
+    if base_heights(grip, task, reach) is not None or low is None or base_heights(grip, task, low) is None:
         return reach
     return low
 
@@ -216,8 +230,8 @@ def _from_above(reach: Reach, task: str) -> str:
     if low is None:
         return ""
     (lo, hi), (base_low, base_high) = low.height(task), BASE_HEIGHT_M
-    return (f", and from above {lo + base_low:.2f}-{hi + base_high:.2f} m when no grip is in that band and a "
-            f"drawer's has {HAND_ABOVE_M:g} m free above it for the hand")
+    return (f", and from above {lo + base_low:.2f}-{hi + base_high:.2f} m for a part named or when no grip is in "
+            f"that band, and a drawer's has {HAND_ABOVE_M:g} m free above it for the hand")
 
 
 def _covered_above(part: PartGeometry) -> str:
