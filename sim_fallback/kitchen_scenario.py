@@ -24,9 +24,11 @@ from sim_fallback.kitchen import Room, random_room, random_target, role_of, stan
 from sim_fallback.layout import Layout, Placed, StaticShape
 from sim_fallback.parts import ordered, resolve
 from sim_fallback.placement import (
+    ARM_AT_START,
     BASE_HEIGHT_M,
     CLEARANCE_M,
     STAND_HALF_M,
+    TRIPOD_HEIGHT_M,
     CameraMount,
     Obstacle,
     arm_at_start,
@@ -48,6 +50,8 @@ PARK_APPROACH_M, PARK_PULL_M = 0.1, 0.05  # a parking lets the arm approach the 
 SWEEP_STEPS = 10  # the part's openings checked against the robot, from closed to the task's
 HAND_ABOVE_M = 0.15  # a hand grasping a drawer's level bar from above reaches this far above the grip (the Panda's
 # hand, 0.2 m along the way its fingers close, stands tilted up along it)
+RECORD_ABOVE_M = (0.2, 0.6)  # a recording's tripod head stands this far above the part's front centre
+TRIPOD_LOW_M = 0.5  # and at least this high above the floor (a tripod's lowest comfortable setting)
 GRIP_BAND_M = 0.4  # a front no mount sees whole (a tall door) need only be seen this far above and below its grip
 STAND = Finish("painted", (0.25, 0.25, 0.27), 0.3, 0)
 SPLITS, KINDS = ("train", "test"), ("drawer", "door")
@@ -121,14 +125,15 @@ class KitchenScenario:
 
 def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Generator,
                  reach: Reach, opening: float) -> tuple[PartGeometry, Reach]:
-    """The target part and the reach it is placed in (`placing_reach`): the one `text` names, else one of the task's
-    kind within that reach that opens at least `opening`, drawn from `rng`."""
+    """The target part and the reach it is placed in (`placing_reach`): the one `text` names (placed in the reach
+    its own grip calls for: a user who names a low part grasps it from above), else one of the task's kind within
+    that reach that opens at least `opening`, drawn from `rng`."""
     placed = room.furniture[room.target]
     geometry = measure_parts(placed.furniture)
-    placing = placing_reach(placed, geometry, task, reach, opening)
-    roomy = geometry if placing == reach else room_from_above(geometry)
     if text is not None:
         chosen = resolve(placed.furniture, geometry, task, text)
+        placing = named_reach(placed, chosen, task, reach)
+        roomy = geometry if placing == reach else room_from_above(geometry)
         cover = covering_part(chosen, geometry)
         if cover is not None:
             raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} stands behind its {cover}'s "
@@ -141,6 +146,8 @@ def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Ge
             raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} is out of the robot's "
                              f"reach: {_reach(placed, [chosen], task, reach)}")
         return chosen, placing
+    placing = placing_reach(placed, geometry, task, reach, opening)
+    roomy = geometry if placing == reach else room_from_above(geometry)
     reachable = reachable_parts(placed, roomy, task, placing, opening)
     if not reachable:
         raise PartError(_no_part(placed, geometry, task, reach, opening))
@@ -155,6 +162,17 @@ def placing_reach(placed: Placed, geometry: list[PartGeometry], task: PartKind, 
     low = reach.from_above(task)
     if (low is None or reachable_parts(placed, geometry, task, reach, opening)
             or not reachable_parts(placed, room_from_above(geometry), task, low, opening)):
+        return reach
+    return low
+
+
+def named_reach(placed: Placed, part: PartGeometry, task: PartKind, reach: Reach) -> Reach:
+    """The reach a part a user names is placed in: `reach` when its grip lies in the usual bands, else its reach from
+    above when the grip lies in that one (a user who names a low part grasps it from above, whatever the other parts'
+    heights), else `reach`."""
+    low = reach.from_above(task)
+    grip = _grip_height(placed, part)
+    if base_heights(grip, task, reach) is not None or low is None or base_heights(grip, task, low) is None:
         return reach
     return low
 
@@ -222,8 +240,8 @@ def _from_above(reach: Reach, task: str) -> str:
     if low is None:
         return ""
     (lo, hi), (base_low, base_high) = low.height(task), BASE_HEIGHT_M
-    return (f", and from above {lo + base_low:.2f}-{hi + base_high:.2f} m when no grip is in that band and a "
-            f"drawer's has {HAND_ABOVE_M:g} m free above it for the hand")
+    return (f", and from above {lo + base_low:.2f}-{hi + base_high:.2f} m for a part named or when no grip is in "
+            f"that band, and a drawer's has {HAND_ABOVE_M:g} m free above it for the hand")
 
 
 def _covered_above(part: PartGeometry) -> str:
@@ -316,10 +334,32 @@ def swept_boxes(part: PartGeometry, opening: float) -> list[np.ndarray]:
             for a in np.linspace(0.0, opening, SWEEP_STEPS)]
 
 
+def recording_camera(scenario: KitchenScenario) -> CameraMount:
+    """The camera of a recording of `scenario`'s part (`deploy sim record`): for a low part, one whose front centre
+    stands too low for a tripod at its usual height (TRIPOD_HEIGHT_M) to stand within RECORD_ABOVE_M above it, a
+    tripod lowered as a user filming the part lowers it: its head RECORD_ABOVE_M above the front centre, at least
+    TRIPOD_LOW_M above the floor (mounted as `_camera` does), so that the part is seen from near its own height,
+    not from 1.2-1.8 m up across the room; else, or when no such mount sees it, the scenario's camera."""
+    layout = scenario.kitchen
+    placed = layout.target_furniture
+    [part] = [g for g in measure_parts(placed.furniture) if g.name == layout.part]
+    floor_z = -scenario.base_height_m
+    centre_up = float((placed.T @ [*part.front_centre, 1.0])[2]) - floor_z
+    if centre_up + RECORD_ABOVE_M[1] >= TRIPOD_HEIGHT_M[0]:
+        return scenario.camera
+    tripod = (max(centre_up + RECORD_ABOVE_M[0], TRIPOD_LOW_M), max(centre_up + RECORD_ABOVE_M[1], TRIPOD_LOW_M))
+    rng = np.random.default_rng([SPLITS.index(scenario.split), KINDS.index(scenario.task), scenario.seed, 4])
+    try:
+        return _camera(layout, part, placed.T, floor_z, scenario.task, rng, ARM_AT_START, tripod)
+    except SceneError:
+        return scenario.camera
+
+
 def _camera(layout: Layout, part: PartGeometry, T_base_furniture: np.ndarray, floor_z: float, task: PartKind,
-            rng: np.random.Generator, arm: Obstacle) -> CameraMount:
+            rng: np.random.Generator, arm: Obstacle, tripod_m: tuple[float, float] = TRIPOD_HEIGHT_M) -> CameraMount:
     """A camera that sees the part's front closed and its grip opened by OPENED[task], past the `arm` at its start; for
-    a front no mount sees whole, its band within GRIP_BAND_M of the grip."""
+    a front no mount sees whole, its band within GRIP_BAND_M of the grip; a tripod's head `tripod_m` above the
+    floor."""
     def base(points: np.ndarray) -> np.ndarray:
         return np.asarray(points) @ T_base_furniture[:3, :3].T + T_base_furniture[:3, 3]
 
@@ -333,7 +373,7 @@ def _camera(layout: Layout, part: PartGeometry, T_base_furniture: np.ndarray, fl
     for seen in (front, near_grip):
         try:
             return place_camera(base(part.front_centre), base(part.grip), T_base_furniture[:3, :3] @ part.normal,
-                                base(np.vstack([seen, opened])), floor_z, obstacles, rng, arm)
+                                base(np.vstack([seen, opened])), floor_z, obstacles, rng, arm, tripod_m=tripod_m)
         except ValueError as exc:
             error = exc
     raise SceneError(f"{layout.target_furniture.furniture.source}, {part.name}: {error}") from None

@@ -30,6 +30,7 @@ CABINET_YAW_RAD = 0.2  # its front turns up to +-this away from facing the robot
 BASE_HEIGHT_M = (0.0, 1.0)  # the robot base above the floor
 STAND_HALF_M = 0.22  # the robot's stand (or mobile base): a square this half-width under the robot base
 CLEARANCE_M = 0.05  # the stand keeps this far from furniture
+TRIPOD_HEIGHT_M = (1.2, 1.8)  # a tripod's head above the floor
 FOV_DEG = (65.0, 51.0)  # the simulated D415's field of view at 640x480 (horizontal, vertical)
 VIEW_MARGIN = 0.05  # what must be in view stays this share of the half field inside its edges
 MIN_RANGE_M = 0.55  # the camera stays this far from the part (a D415 sees from about 0.45 m)
@@ -136,17 +137,17 @@ Obstacle = tuple[np.ndarray, float, float]  # a footprint (Nx2, convex, in order
 
 def place_camera(centre: np.ndarray, grip: np.ndarray, normal: np.ndarray, must_see: np.ndarray, floor_z: float,
                  obstacles: list[Obstacle], rng: np.random.Generator, arm: Obstacle = ARM_AT_START,
-                 attempts: int = 80) -> CameraMount:
+                 attempts: int = 80, tripod_m: tuple[float, float] = TRIPOD_HEIGHT_M) -> CameraMount:
     """A camera mount seeing the points `must_see` (base frame) from beside the robot, aimed near `centre` (the
     part's front centre), within MAX_VIEW_ANGLE_DEG of the front's `normal`, its lines of sight to `centre` and to
-    the `grip` clear of the `obstacles` (base frame) and of the `arm` at its start. ValueError when no mount sees it
-    all."""
+    the `grip` clear of the `obstacles` (base frame) and of the `arm` at its start; a tripod's head `tripod_m` (low,
+    high) above the floor. ValueError when no mount sees it all."""
     first: CameraKind = "tripod" if rng.random() < 0.5 else "base"
     for attempt in range(attempts):
         kind = first if attempt < attempts // 2 else ("base" if first == "tripod" else "tripod")
         side = rng.choice([-1.0, 1.0])
         if kind == "tripod":
-            eye = np.array([rng.uniform(-0.8, 0.05), side * rng.uniform(0.35, 0.9), floor_z + rng.uniform(1.2, 1.8)])
+            eye = np.array([rng.uniform(-0.8, 0.05), side * rng.uniform(0.35, 0.9), floor_z + rng.uniform(*tripod_m)])
         else:
             eye = np.array([rng.uniform(-0.25, -0.1), side * rng.uniform(0.1, 0.3), rng.uniform(0.95, 1.3)])
         seen_from = (eye - centre) / np.linalg.norm(eye - centre)

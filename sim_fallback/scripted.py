@@ -11,7 +11,7 @@ import json
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +38,7 @@ from drivers.errors import ArmError
 from sim_fallback.arm import SimArm
 from sim_fallback.cabinet_urdf import Kind, Split
 from sim_fallback.camera import SimCamera, d415_intrinsics
+from sim_fallback.kitchen_scenario import KitchenScenario, recording_camera
 from sim_fallback.scenes import scenario_object, scene_scenario
 from sim_fallback.start import Q_START
 from sim_fallback.world import JointTruth, SimWorld
@@ -169,6 +170,11 @@ class RecordingSummary:
                 f"({self.wall_time_s:.1f} s wall)")
 
 
+def _filmed(scenario):
+    """The scenario with a kitchen's camera set up to film its part (`recording_camera`)."""
+    return replace(scenario, camera=recording_camera(scenario)) if isinstance(scenario, KitchenScenario) else scenario
+
+
 def record_scripted(
     task: Kind | None,
     seed: int,
@@ -198,7 +204,7 @@ def record_scripted(
     """
     out = Path(out_dir)
     wall0 = time.perf_counter()
-    scenario = scene_scenario(world, task, seed, split, part, assets, object_id, scale)
+    scenario = _filmed(scene_scenario(world, task, seed, split, part, assets, object_id, scale))
     task = scenario.task
     target = DEFAULT_TARGET[task] if target is None else float(target)
     log.info("scripted %s opening from GROUND TRUTH (data generator, not the policy): %s seed %d, split %s, %s",

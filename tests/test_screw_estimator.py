@@ -9,7 +9,13 @@ from scipy.spatial.transform import Rotation
 
 from deploy.config import EstimatorConfig
 from deploy.geometry.estimators.base import Observation
-from deploy.geometry.estimators.screw import ScrewEstimator, ScrewGripEstimator, open_screw, open_screw_grip
+from deploy.geometry.estimators.screw import (
+    ScrewEstimator,
+    ScrewGripEstimator,
+    held_path,
+    open_screw,
+    open_screw_grip,
+)
 from deploy.geometry.estimators.screw_config import ScrewConfig
 from deploy.geometry.estimators.screw_fit import (
     FREE_DIRECTION_EVIDENCE,
@@ -581,3 +587,40 @@ def test_a_hinge_reports_a_direction_sigma_that_covers_its_error():
         assert isinstance(axis, Axis) and axis.direction_sigma_deg is not None and axis.direction_sigma_deg > 0
         within.append(angle_deg(axis.direction, direction) <= 2 * axis.direction_sigma_deg)
     assert np.mean(within) >= 0.75
+
+
+def test_held_path_keeps_the_hold_across_windows_and_restarts_after_a_release():
+    T = [np.eye(4) for _ in range(6)]
+    for k, pose in enumerate(T):
+        pose[:3, 3] = [0.1 * k, 0.0, 0.0]
+    box = Box(np.zeros(3), np.eye(3), np.ones(3))
+    frames = [Observation(k, 0.1 * k, np.zeros((0, 3)), box, T[k]) for k in range(6)]
+    held = held_path({}, frames[0:3])
+    held = held_path(held, frames[2:5])  # the window slid past frames 0 and 1: they stay in the hold
+    assert sorted(held) == [0, 1, 2, 3, 4]
+    np.testing.assert_allclose(held[1], [0.1, 0.0, 0.0])
+    released = held_path(held, [frames[3], replace(frames[4], gripper_pose=None), frames[5]])
+    assert sorted(released) == [5]  # let go at frame 4: a re-grasp holds the handle elsewhere
+
+
+def test_the_gripper_path_fitted_is_the_whole_hold_not_only_the_window(monkeypatch):
+    """A door held from the first frame, seen through a sliding window of 4 frames: the hinge is fitted to the
+    gripper's positions over every frame held so far (a window's short arc barely shows the hinge's tilt)."""
+    import deploy.geometry.estimators.screw as screw
+
+    angles = np.radians(np.linspace(0.0, 30.0, 10))
+    pose = POSES["upright"]
+    window, _, _ = make_window("door", angles, seed=2, pose=pose)
+    held = with_gripper(window, angles, pose)
+    lengths = []
+    real = screw.fit_screw_joint
+
+    def spy(*args):
+        lengths.append(None if args[7] is None else len(args[7]))
+        return real(*args)
+
+    monkeypatch.setattr(screw, "fit_screw_joint", spy)
+    estimator = ScrewGripEstimator()
+    for end in range(2, len(held) + 1):
+        estimator.estimate(held[max(0, end - 4):end], JointType.REVOLUTE)
+    assert lengths and lengths[-1] == len(held)

@@ -246,8 +246,8 @@ def test_the_seed_picks_a_reachable_part_and_named_parts_out_of_reach_are_refuse
     names = [g.name for g in ordered(measure_parts(chest), "drawer")]
     picked = {KitchenScenario.make("drawer", seed, "train", target=chest).part for seed in range(4)}
     assert picked == {names[0]}  # only the top drawer's handle stands high enough above a base on the floor
-    with pytest.raises(PartError, match="out of the robot's reach"):  # though below the usual bands: the chest has
-        KitchenScenario.make("drawer", 0, "train", part="bottom drawer", target=chest)  # a part in them
+    with pytest.raises(PartError, match="out of the robot's reach"):  # its grip 0.38 m up: below the usual bands
+        KitchenScenario.make("drawer", 0, "train", part="bottom drawer", target=chest)  # and the one from above
     assert PANDA_REACH.from_above("drawer") is not None
 
 

@@ -59,6 +59,7 @@ class ScrewEstimator(AxisEstimator):
         self._seen: set[int] = set()  # frames registered (or tried) since the last reset
         self._keyframe: Keyframe | None = None
         self._failures = 0
+        self._held: dict[int, np.ndarray] = {}  # frame -> gripper position, over the hold the window ends in
 
     def estimate(self, window: Sequence[Observation], joint: JointType | None = None) -> AxisResult:
         """The joint axis from the moving part's motion over the window (`fit_screw_joint`).
@@ -74,6 +75,7 @@ class ScrewEstimator(AxisEstimator):
         cached = [self._clouds[o.index].fingerprint for o in window if o.index in self._clouds]
         if cached != [fingerprint(o.moving) for o in window if o.index in self._clouds]:
             self.reset()  # a frame index now holds other points: a new episode
+        self._held = held_path(self._held, window)
         clouds = {o.index: self._cloud(o) for o in window}
         usable = [o.index for o in window if len(clouds[o.index].points) >= config.min_points]
         self._forget_all_but(clouds)
@@ -103,7 +105,7 @@ class ScrewEstimator(AxisEstimator):
         model = keyframe.points @ start[:3, :3].T + start[:3, 3]
         fitness = min(self._motions[i].fitness for i in used)
         latest_centre = clouds[usable[-1]].points.mean(axis=0)
-        grip_at_poses, grip_path = _gripper_positions(window, used) if self.use_gripper else (None, None)
+        grip_at_poses, grip_path = _gripper_positions(window, used, self._held) if self.use_gripper else (None, None)
         turn = start[:3, :3]
         surface = (np.asarray(keyframe.target.points) @ turn.T + start[:3, 3], keyframe.normals @ turn.T)
         return fit_screw_joint(poses, model, latest_centre, fitness, joint, config, grip_at_poses, grip_path,
@@ -190,14 +192,27 @@ class ScrewGripEstimator(ScrewEstimator):
     use_gripper = True
 
 
+def held_path(held: dict[int, np.ndarray], window: Sequence[Observation]) -> dict[int, np.ndarray]:
+    """The gripper's positions (frame -> position) over the hold the window ends in: `held` (the earlier frames')
+    with the window's frames that have a pose added, and every frame up to the window's last one without a pose (the
+    grip let go there: a re-grasp holds the handle elsewhere) dropped. The joint stays the same over a hold, and the
+    held handle's path over all of it pins the hinge's tilt within the door's plate, which a window's short arc
+    shows only by its sagitta."""
+    released = max((o.index for o in window if o.gripper_pose is None), default=None)
+    path = {i: p for i, p in held.items() if released is None or i > released}
+    path.update({o.index: np.asarray(o.gripper_pose, float)[:3, 3] for o in window
+                 if o.gripper_pose is not None and (released is None or o.index > released)})
+    return path
+
+
 def _gripper_positions(
-    window: Sequence[Observation], used: list[int]
+    window: Sequence[Observation], used: list[int], held: dict[int, np.ndarray]
 ) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """The gripper's positions at the `used` frames (None unless every one has a pose), and in every
-    frame of the window that has a pose (None for fewer than 2)."""
+    """The gripper's positions at the `used` frames (None unless every one has a pose), and over the hold
+    (`held_path`, in frame order; None for fewer than 2)."""
     grips = {o.index: np.asarray(o.gripper_pose, float)[:3, 3] for o in window if o.gripper_pose is not None}
     at_used = np.array([grips[i] for i in used]) if all(i in grips for i in used) else None
-    everywhere = np.array(list(grips.values())) if len(grips) >= 2 else None
+    everywhere = np.array([held[i] for i in sorted(held)]) if len(held) >= 2 else None
     return at_used, everywhere
 
 
