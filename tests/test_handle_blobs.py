@@ -3,7 +3,9 @@ colour only) whose end nearly touches the depth hole along the front's side edge
 a depth edge) is still one handle, not part of a shape too large for one; a bar standing out across a drawer's whole
 width is a handle, a ledge running on past the front's ends is not; a sliver too short for a bar and too thin for a
 knob is no firm handle, a knob is; a pull's pocket running under a counter's edge that hides the front's top is
-seen whole up to that edge; a dark line without depth along the front's side is no handle seen in colour only."""
+seen whole up to that edge; a dark line without depth along the front's side is no handle seen in colour only; a
+strip along the side where the front's surface stops, standing out no farther than the unit beside it, is that unit's
+edge, not a handle."""
 
 from __future__ import annotations
 
@@ -41,13 +43,13 @@ def _blobs(bar_u: tuple[int, int], bar_depth: float = 0.0, ledge: bool = False) 
     return _blobs_of(_frame(bar_u, bar_depth, ledge))
 
 
-def _blobs_of(frame: Frame) -> list:
+def _blobs_of(frame: Frame, right: str = "gap") -> list:
     plane = PlaneFrame.facing(np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]), np.zeros(3))
     view = rectify(frame, np.zeros((480, 640), bool), plane, (-0.35, 0.35), (-0.25, 0.25), 1.0 / K.fx)
     s = (np.array(FRONT_U) - K.cx) / K.fx
     z = (K.cy - np.array(FRONT_V)) / K.fy
     extent = Extent(int(view.row(z[0])) + 1, int(view.row(z[1])) - 1, int(view.col(s[0])) + 1, int(view.col(s[1])) - 1,
-                    dict.fromkeys(("top", "bottom", "left", "right"), "gap"))
+                    {**dict.fromkeys(("top", "bottom", "left"), "gap"), "right": right})
     return handle_blobs(view, extent, frame.T_base_camera, K.K)
 
 
@@ -126,3 +128,14 @@ def test_a_dark_line_without_depth_along_the_fronts_side_is_no_handle():
     frame.depth_m[FRONT_V[0] + 40:FRONT_V[1] - 40, u + 36:u + 41] = 0.0
     frame.color[FRONT_V[0] + 40:FRONT_V[1] - 40, u + 36:u + 41] = (30, 30, 30)
     assert len(_firm_at(_blobs_of(frame), u + 38, v)) == 1
+
+
+def test_a_strip_along_the_side_standing_out_no_farther_than_the_unit_beside_is_no_handle():
+    """Past the front's right side, where its surface stops, a unit stands 2.5 cm out of it; along that side, 11 cm of
+    the front's edge 1.8 cm out (the smoothed depth blending the two, or a ridge of noise there). What stands out
+    there no farther than the unit beside it is that unit's edge, no handle (before: a firm candidate, which cut a
+    door away from its own knob). A bar on a door's very edge, with the room past it, is still one (test_pointer)."""
+    u, v = FRONT_U[1] - 4, (FRONT_V[0] + FRONT_V[1]) // 2
+    strip = (slice(v - 33, v + 33), slice(FRONT_U[1] - 8, FRONT_U[1]), 0.982)
+    beside = (slice(*FRONT_V), slice(FRONT_U[1], FRONT_U[1] + 60), 0.975)
+    assert not _firm_at(_blobs_of(_plain_frame([strip, beside]), right="surface"), u, v)

@@ -153,7 +153,8 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
             parts = [member & side for side in (col < extent.left, (col >= extent.left) & (col <= extent.right),
                                                 col > extent.right)]
             found = [blob_of(part, box) for part in parts if part.any() and part.sum() < member.sum()]
-        blobs += [b for b in found if b is not None and not _edge_line(view, b, extent)]
+        blobs += [b for b in found if b is not None and not _edge_line(view, b, extent)
+                  and not _edge_of_beside(view, b, extent)]
     blobs = _under_hidden_edges(view, extent, blobs, camera_to_base, K)
     return _joined_pieces(view, blobs, extent, camera_to_base, K)
 
@@ -210,6 +211,31 @@ def _edge_line(view: PlaneView, blob: Blob, extent: Extent) -> bool:
         return min(abs(row - extent.top), abs(row - extent.bottom)) <= band
     col = float(view.col(blob.centre[0]))
     return min(abs(col - extent.left), abs(col - extent.right)) <= band
+
+
+def _edge_of_beside(view: PlaneView, blob: Blob, extent: Extent) -> bool:
+    """Whether a candidate measured out of the plane, its cells or its points (no parallax) within EDGE_BAND_M of a
+    left or right side where the front's surface stopped (not at a gap, not at the view's border), is the edge of what
+    stands beside the front there: the surface just past that side stands out of the plane as far as the candidate,
+    within the margin a handle stands out by (the smoothed depth blends the two across the edge), or, past a strip
+    sunk into the plane, stands no lower than it (the gap between the front and a unit or wall beside it: a pull's
+    pocket is cut into the panel, with the panel on every side). A handle stands out of what is beside it too (a bar
+    on a door's very edge has the room past it, farther back)."""
+    if blob.seen_in_colour_only:
+        return False
+    band = int(np.ceil(EDGE_BAND_M / view.res_m))
+    rows = slice(int(blob.rows.min()), int(blob.rows.max()) + 1)
+    cols = np.concatenate([blob.cols, view.col(blob.points[:, 0])])  # where it is seen, and where it is
+    margin = max(MIN_RELIEF_M, RELIEF_NOISE * blob.noise_m)
+    for side, short, past in (("left", cols.min() - extent.left, slice(max(extent.left - band, 0), extent.left)),
+                              ("right", extent.right - cols.max(), slice(extent.right + 1, extent.right + 1 + band))):
+        if extent.ended.get(side) != "surface" or short > band:
+            continue
+        beside = view.smooth_m[rows, past][view.seen[rows, past]]
+        beside = beside[~np.isnan(beside)]
+        if len(beside) >= MIN_POINTS and np.median(beside) >= blob.relief_m - margin:
+            return True
+    return False
 
 
 def _joined_pieces(view: PlaneView, blobs: list[Blob], extent: Extent, camera_to_base: np.ndarray,
