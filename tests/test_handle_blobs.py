@@ -43,10 +43,11 @@ def _blobs(bar_u: tuple[int, int], bar_depth: float = 0.0, ledge: bool = False) 
     return _blobs_of(_frame(bar_u, bar_depth, ledge))
 
 
-def _blobs_of(frame: Frame, right: str = "gap") -> list:
+def _blobs_of(frame: Frame, right: str = "gap", right_u: int = FRONT_U[1]) -> list:
+    """The candidates on the front FRONT_U x FRONT_V (or up to pixel column `right_u`), its right side ended `right`."""
     plane = PlaneFrame.facing(np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]), np.zeros(3))
     view = rectify(frame, np.zeros((480, 640), bool), plane, (-0.35, 0.35), (-0.25, 0.25), 1.0 / K.fx)
-    s = (np.array(FRONT_U) - K.cx) / K.fx
+    s = (np.array([FRONT_U[0], right_u]) - K.cx) / K.fx
     z = (K.cy - np.array(FRONT_V)) / K.fy
     extent = Extent(int(view.row(z[0])) + 1, int(view.row(z[1])) - 1, int(view.col(s[0])) + 1, int(view.col(s[1])) - 1,
                     {**dict.fromkeys(("top", "bottom", "left"), "gap"), "right": right})
@@ -139,3 +140,15 @@ def test_a_strip_along_the_side_standing_out_no_farther_than_the_unit_beside_is_
     strip = (slice(v - 33, v + 33), slice(FRONT_U[1] - 8, FRONT_U[1]), 0.982)
     beside = (slice(*FRONT_V), slice(FRONT_U[1], FRONT_U[1] + 60), 0.975)
     assert not _firm_at(_blobs_of(_plain_frame([strip, beside]), right="surface"), u, v)
+
+
+def test_a_strip_sunk_along_the_side_next_to_a_unit_standing_out_is_no_pull():
+    """Past the front's right side a wall stands 4 cm out, its first 5 mm close enough to the plane to be taken for
+    the front's surface; inside the side, 4.5 cm of the front sunk 3 cm (the carcass's edge between the door and the
+    wall). That strip is the gap to what stands beside the front, not a pull's pocket cut into the panel (before: a
+    firm pocket, which cut a door away from its own knob)."""
+    u, v = FRONT_U[1] - 16, (FRONT_V[0] + FRONT_V[1]) // 2
+    strip = (slice(v - 20, v + 20), slice(FRONT_U[1] - 30, FRONT_U[1] - 3), 1.03)
+    ramp = (slice(*FRONT_V), slice(FRONT_U[1], FRONT_U[1] + 3), 0.995)
+    wall = (slice(*FRONT_V), slice(FRONT_U[1] + 3, FRONT_U[1] + 60), 0.96)
+    assert not _firm_at(_blobs_of(_plain_frame([strip, ramp, wall]), right="surface", right_u=FRONT_U[1] + 3), u, v)
