@@ -455,23 +455,3 @@ def test_a_bar_whose_depth_is_lost_in_its_middle_is_one_handle_not_two_fronts():
     found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(200, 250))
     assert found.front.ended["left"] == "gap" and found.front.ended["right"] == "gap", found.front.ended
     assert found.handle.kind == "bar" and found.handle.length_m > 0.45
-
-
-def test_a_front_with_a_knob_standing_out_is_no_wall_with_nothing_seen_behind_it():
-    """The camera 1 m before a bank of coplanar doors filling the view (one gap seen), nothing farther behind: a knob
-    measured 3 cm out of the pointed door makes it a front, not a wall (before: refused as the farthest surface in
-    view, as a door set back between units standing out of it was). Without the knob, or with a dark patch the D415
-    loses (seen in colour only: a wall's stain or socket as well), it is a wall."""
-    knob = ((150, 167), (300, 317), 0.97, (128, 128, 128))
-    patch = ((150, 167), (300, 317), 0.0, (40, 40, 40))
-    for shapes, wall in (([knob], False), ([], True), ([patch], True)):
-        frame = _fronts_ahead((), (400,), shapes)
-        frame.depth_m[:, :100], frame.color[:, :100] = 1.0, (150, 100, 60)  # no wall in view: the doors fill it
-        if wall:
-            with pytest.raises(PointerError, match="a wall, not a front"):
-                point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(250, 300))
-            continue
-        found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(250, 300))
-        assert found.handle.kind == "knob"
-        s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
-        assert np.linalg.norm([s, z] - _on_plane_at(found, 308, 158)) < GRIP_TOLERANCE_M

@@ -25,7 +25,7 @@ from deploy.perception.front import (
 )
 from deploy.perception.furniture import Furniture, find_furniture
 from deploy.perception.handle import GripperSize, Handle, describe, own_blob
-from deploy.perception.handle_blobs import Blob, handle_blobs
+from deploy.perception.handle_blobs import handle_blobs
 from drivers.camera.base import Frame
 
 MIN_FRONT_M = 0.06  # the narrowest real fronts (a spice drawer) are about 10 cm: a face narrower is an edge
@@ -69,17 +69,12 @@ def point_at(frame: Frame, robot: np.ndarray, pointer: Pointer, reach_m: float |
         raise PointerError(f"{pointer}: {e}") from None
     timings["front"] = _lap(clock)
     _check_seen(front, pointer, (u, v))
+    _check_not_wall(frame, robot, front, pointer, (u, v))
     try:
-        blob = _handle_blob(front, frame, pointer)
-    except PointerError:  # no handle: is it a front at all?
-        _check_not_wall(frame, robot, front, pointer, (u, v))
-        _check_is_front(front, pointer, (u, v))
+        handle = find_handle(front, frame, gripper or GripperSize(), pointer)
+    except PointerError:
+        _check_is_front(front, pointer, (u, v))  # no handle: is it a front at all?
         raise
-    if blob.seen_in_colour_only or front.width_m > MAX_FRONT_WIDTH_M or front.height_m > MAX_FRONT_HEIGHT_M:
-        _check_not_wall(frame, robot, front, pointer, (u, v))
-    e = front.extent
-    handle = describe(blob, front.view, (e.top, e.bottom), gripper or GripperSize(),
-                      np.asarray(frame.T_base_camera)[:3, 3])
     timings["handle"] = _lap(clock) - timings["front"]
     if reach_m is not None and np.linalg.norm(handle.centre) > reach_m:
         p = handle.centre
@@ -125,11 +120,7 @@ def _check_seen(front: Front, pointer: Pointer, pixel: tuple[int, int]) -> None:
 def _check_not_wall(frame: Frame, robot: np.ndarray, front: Front, pointer: Pointer, pixel: tuple[int, int]) -> None:
     """PointerError when nothing in view lies behind the pointed surface's plane: furniture stands out of the room's
     walls (a counter's top, a unit's top, the wall above or beside it lie behind its fronts), a wall does not. A
-    surface cut from its neighbours by gaps on two sides is a front however close the camera is (walls have none).
-    Walls carry no handles either: `point_at` asks this only of a surface with none measured standing out of (or sunk
-    into) it, or larger than any front (a rail on a wall); a surface of a front's size with one is a front with
-    nothing seen behind it (a camera close to its unit; a unit set back between others standing out of it). What is
-    seen in colour only may be a wall's stain, shadow or socket."""
+    surface cut from its neighbours by gaps on two sides is a front however close the camera is (walls have none)."""
     if sum(why == "gap" for why in front.ended.values()) >= 2:
         return
     _, _, offset = plane_coordinates(front.plane, frame.depth_m, frame.intrinsics.K, frame.T_base_camera)
@@ -154,9 +145,8 @@ def _check_is_front(front: Front, pointer: Pointer, pixel: tuple[int, int]) -> N
                            "point at the drawer's or door's front below or above it")
 
 
-def _handle_blob(front: Front, frame: Frame, pointer: Pointer) -> Blob:
-    """The front's handle candidate (`own_blob`); PointerError when the front shows none (one line saying what was
-    seen)."""
+def find_handle(front: Front, frame: Frame, gripper: GripperSize, pointer: Pointer | str = "") -> Handle:
+    """The front's handle and its grip; PointerError when the front shows none (one line saying what was seen)."""
     e = front.extent
     blobs = handle_blobs(front.view, e, frame.T_base_camera, frame.intrinsics.K)
     blob = own_blob(blobs, front.view, e)
@@ -169,4 +159,4 @@ def _handle_blob(front: Front, frame: Frame, pointer: Pointer) -> Blob:
                                   "again")
         raise PointerError(f"{said}: a push-to-open front needs a push first (not supported); point at a front with a "
                            "handle")
-    return blob
+    return describe(blob, front.view, (e.top, e.bottom), gripper, np.asarray(frame.T_base_camera)[:3, 3])
