@@ -455,3 +455,13 @@ def test_a_bar_whose_depth_is_lost_in_its_middle_is_one_handle_not_two_fronts():
     found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(200, 250))
     assert found.front.ended["left"] == "gap" and found.front.ended["right"] == "gap", found.front.ended
     assert found.handle.kind == "bar" and found.handle.length_m > 0.45
+
+
+def test_a_recessed_pull_along_a_doors_side_is_its_handle():
+    """Test kitchen 8 (door), pointed high on the door: its pull's pocket runs down near the door's side, where the
+    surface stops, with the carcass past it no farther out than the door. It is the door's pull, not the trough
+    beside a unit standing out there."""
+    scene = kitchen_scene("door", 8, "test")
+    found = point_at(scene.frame, scene.robot, Pointer(428, 223))
+    assert found.handle.kind == "recessed pull"
+    assert np.linalg.norm(found.handle.centre - scene.grip()) < GRIP_TOLERANCE_M, found.handle

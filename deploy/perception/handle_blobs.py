@@ -218,9 +218,10 @@ def _edge_of_beside(view: PlaneView, blob: Blob, extent: Extent) -> bool:
     left or right side where the front's surface stopped (not at a gap, not at the view's border), is the edge of what
     stands beside the front there: the surface just past that side stands out of the plane as far as the candidate,
     within the margin a handle stands out by (the smoothed depth blends the two across the edge), or, past a strip
-    sunk into the plane, stands no lower than it (the gap between the front and a unit or wall beside it: a pull's
-    pocket is cut into the panel, with the panel on every side). A handle stands out of what is beside it too (a bar
-    on a door's very edge has the room past it, farther back)."""
+    sunk into the plane, stands out of the plane by that margin (the trough between the front and a unit or wall
+    standing out beside it). A handle stands out of what is beside it too (a bar on a door's very edge has the room
+    past it, farther back); a pull's pocket cut along an edge has the carcass or the next front past it, no farther
+    out than the front."""
     if blob.seen_in_colour_only:
         return False
     band = int(np.ceil(EDGE_BAND_M / view.res_m))
@@ -233,7 +234,8 @@ def _edge_of_beside(view: PlaneView, blob: Blob, extent: Extent) -> bool:
             continue
         beside = view.smooth_m[rows, past][view.seen[rows, past]]
         beside = beside[~np.isnan(beside)]
-        if len(beside) >= MIN_POINTS and np.median(beside) >= blob.relief_m - margin:
+        out = float(np.median(beside)) if len(beside) >= MIN_POINTS else -np.inf
+        if out >= (blob.relief_m - margin if blob.relief_m > 0 else margin):
             return True
     return False
 
