@@ -5,7 +5,8 @@ width is a handle, a ledge running on past the front's ends is not; a sliver too
 knob is no firm handle, a knob is; a pull's pocket running under a counter's edge that hides the front's top is
 seen whole up to that edge; a dark line without depth along the front's side is no handle seen in colour only; a
 bump on a bowed panel, or a dip in a recessed window, is no firm handle when it stands out of the surface around it
-by less than a handle does."""
+by less than a handle does; a strip along the side where the front's surface stops, standing out no farther than the
+unit beside it, is that unit's edge, not a handle."""
 
 from __future__ import annotations
 
@@ -43,13 +44,14 @@ def _blobs(bar_u: tuple[int, int], bar_depth: float = 0.0, ledge: bool = False) 
     return _blobs_of(_frame(bar_u, bar_depth, ledge))
 
 
-def _blobs_of(frame: Frame) -> list:
+def _blobs_of(frame: Frame, right: str = "gap", right_u: int = FRONT_U[1]) -> list:
+    """The candidates on the front FRONT_U x FRONT_V (or up to pixel column `right_u`), its right side ended `right`."""
     plane = PlaneFrame.facing(np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]), np.zeros(3))
     view = rectify(frame, np.zeros((480, 640), bool), plane, (-0.35, 0.35), (-0.25, 0.25), 1.0 / K.fx)
-    s = (np.array(FRONT_U) - K.cx) / K.fx
+    s = (np.array([FRONT_U[0], right_u]) - K.cx) / K.fx
     z = (K.cy - np.array(FRONT_V)) / K.fy
     extent = Extent(int(view.row(z[0])) + 1, int(view.row(z[1])) - 1, int(view.col(s[0])) + 1, int(view.col(s[1])) - 1,
-                    dict.fromkeys(("top", "bottom", "left", "right"), "gap"))
+                    {**dict.fromkeys(("top", "bottom", "left"), "gap"), "right": right})
     return handle_blobs(view, extent, frame.T_base_camera, K.K)
 
 
@@ -140,3 +142,29 @@ def test_a_bump_on_a_bowed_panel_or_a_dip_in_a_recessed_window_is_no_firm_handle
         assert len(_firm_at(_blobs_of(_plain_frame([patch])), u, v)) == 1
         panel = (slice(v - 60, v + 61), slice(u - 100, u + 101), 1.0 - sign * 0.007)
         assert not _firm_at(_blobs_of(_plain_frame([panel, patch])), u, v)
+
+
+def test_a_strip_along_the_side_standing_out_no_farther_than_the_unit_beside_is_no_handle():
+    """Past the front's right side, where its surface stops, a unit stands 2.5 cm out of it; along that side, 11 cm of
+    the front's edge 1.8 cm out (the smoothed depth blending the two, or a ridge of noise there). What stands out
+    there no farther than the unit beside it is that unit's edge, no handle (before: a firm candidate, which cut a
+    door away from its own knob). A bar on a door's very edge, with the room past it, is still one (test_pointer)."""
+    u, v = FRONT_U[1] - 4, (FRONT_V[0] + FRONT_V[1]) // 2
+    strip = (slice(v - 33, v + 33), slice(FRONT_U[1] - 8, FRONT_U[1]), 0.982)
+    beside = (slice(*FRONT_V), slice(FRONT_U[1], FRONT_U[1] + 60), 0.975)
+    assert not _firm_at(_blobs_of(_plain_frame([strip, beside]), right="surface"), u, v)
+
+
+def test_a_strip_sunk_along_the_side_next_to_a_unit_standing_out_is_no_pull():
+    """Past the front's right side a wall stands 4 cm out, its first 5 mm close enough to the plane to be taken for
+    the front's surface; inside the side, 4.5 cm of the front sunk 3 cm (the carcass's edge between the door and the
+    wall). That strip is the gap to what stands beside the front, not a pull's pocket cut into the panel (before: a
+    firm pocket, which cut a door away from its own knob)."""
+    u, v = FRONT_U[1] - 16, (FRONT_V[0] + FRONT_V[1]) // 2
+    strip = (slice(v - 20, v + 20), slice(FRONT_U[1] - 30, FRONT_U[1] - 3), 1.03)
+    ramp = (slice(*FRONT_V), slice(FRONT_U[1], FRONT_U[1] + 3), 0.995)
+    wall = (slice(*FRONT_V), slice(FRONT_U[1] + 3, FRONT_U[1] + 60), 0.96)
+    assert not _firm_at(_blobs_of(_plain_frame([strip, ramp, wall]), right="surface", right_u=FRONT_U[1] + 3), u, v)
+    carcass = (slice(*FRONT_V), slice(FRONT_U[1] + 3, FRONT_U[1] + 60), 1.01)  # no farther out than the front: a
+    # pull's pocket cut along the door's side
+    assert _firm_at(_blobs_of(_plain_frame([strip, carcass]), right="surface", right_u=FRONT_U[1] + 3), u, v)

@@ -156,7 +156,8 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
             parts = [member & side for side in (col < extent.left, (col >= extent.left) & (col <= extent.right),
                                                 col > extent.right)]
             found = [blob_of(part, box) for part in parts if part.any() and part.sum() < member.sum()]
-        blobs += [b for b in found if b is not None and not _edge_line(view, b, extent)]
+        blobs += [b for b in found if b is not None and not _edge_line(view, b, extent)
+                  and not _edge_of_beside(view, b, extent)]
     blobs = _under_hidden_edges(view, extent, blobs, camera_to_base, K)
     return _joined_pieces(view, blobs, extent, camera_to_base, K)
 
@@ -213,6 +214,33 @@ def _edge_line(view: PlaneView, blob: Blob, extent: Extent) -> bool:
         return min(abs(row - extent.top), abs(row - extent.bottom)) <= band
     col = float(view.col(blob.centre[0]))
     return min(abs(col - extent.left), abs(col - extent.right)) <= band
+
+
+def _edge_of_beside(view: PlaneView, blob: Blob, extent: Extent) -> bool:
+    """Whether a candidate measured out of the plane, its cells or its points (no parallax) within EDGE_BAND_M of a
+    left or right side where the front's surface stopped (not at a gap, not at the view's border), is the edge of what
+    stands beside the front there: the surface just past that side stands out of the plane as far as the candidate,
+    within the margin a handle stands out by (the smoothed depth blends the two across the edge), or, past a strip
+    sunk into the plane, stands out of the plane by that margin (the trough between the front and a unit or wall
+    standing out beside it). A handle stands out of what is beside it too (a bar on a door's very edge has the room
+    past it, farther back); a pull's pocket cut along an edge has the carcass or the next front past it, no farther
+    out than the front."""
+    if blob.seen_in_colour_only:
+        return False
+    band = int(np.ceil(EDGE_BAND_M / view.res_m))
+    rows = slice(int(blob.rows.min()), int(blob.rows.max()) + 1)
+    cols = np.concatenate([blob.cols, view.col(blob.points[:, 0])])  # where it is seen, and where it is
+    margin = max(MIN_RELIEF_M, RELIEF_NOISE * blob.noise_m)
+    for side, short, past in (("left", cols.min() - extent.left, slice(max(extent.left - band, 0), extent.left)),
+                              ("right", extent.right - cols.max(), slice(extent.right + 1, extent.right + 1 + band))):
+        if extent.ended.get(side) != "surface" or short > band:
+            continue
+        beside = view.smooth_m[rows, past][view.seen[rows, past]]
+        beside = beside[~np.isnan(beside)]
+        out = float(np.median(beside)) if len(beside) >= MIN_POINTS else -np.inf
+        if out >= (blob.relief_m - margin if blob.relief_m > 0 else margin):
+            return True
+    return False
 
 
 def _joined_pieces(view: PlaneView, blobs: list[Blob], extent: Extent, camera_to_base: np.ndarray,
@@ -284,13 +312,14 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
     r, c = int(view.row(centre[1])), int(view.col(centre[0]))
     inside = extent.top <= r <= extent.bottom and extent.left <= c <= extent.right
     return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)),
-                _surface_around(view, rows, cols))
+                _surface_around(view, rows, cols, extent))
 
 
-def _surface_around(view: PlaneView, rows: np.ndarray, cols: np.ndarray) -> float:
-    """The median offset (m) from the plane of the measured cells JOIN_M to 2 JOIN_M around the cells (`rows`,
-    `cols`), past the pixels at a candidate's edges that mix its depth with what lies behind: the surface it stands on
-    or is sunk into (0 where none is measured)."""
+def _surface_around(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent) -> float:
+    """The median offset (m) from the plane of the front's measured cells (within `extent`) JOIN_M to 2 JOIN_M
+    around the cells (`rows`, `cols`), past the pixels at a candidate's edges that mix its depth with what lies
+    behind: the panel it stands on or is sunk into (0 where none is measured). What lies past the front's sides (a
+    carcass, a unit beside it) is not the panel."""
     join = max(int(round(JOIN_M / view.res_m)), 1)
     r0, c0 = max(int(rows.min()) - 2 * join, 0), max(int(cols.min()) - 2 * join, 0)
     box = (slice(r0, int(rows.max()) + 2 * join + 1), slice(c0, int(cols.max()) + 2 * join + 1))
@@ -298,7 +327,9 @@ def _surface_around(view: PlaneView, rows: np.ndarray, cols: np.ndarray) -> floa
     member[rows - r0, cols - c0] = 1
     near, far = (cv2.dilate(member, np.ones((2 * k * join + 1, 2 * k * join + 1), np.uint8)).astype(bool)
                  for k in (1, 2))
-    offsets = view.offset_m[box][far & ~near & view.seen[box]]
+    grid_r, grid_c = np.mgrid[box]
+    on_front = (grid_r >= extent.top) & (grid_r <= extent.bottom) & (grid_c >= extent.left) & (grid_c <= extent.right)
+    offsets = view.offset_m[box][far & ~near & view.seen[box] & on_front]
     offsets = offsets[~np.isnan(offsets)]
     return float(np.median(offsets)) if len(offsets) else 0.0
 
