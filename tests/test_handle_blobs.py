@@ -126,3 +126,17 @@ def test_a_dark_line_without_depth_along_the_fronts_side_is_no_handle():
     frame.depth_m[FRONT_V[0] + 40:FRONT_V[1] - 40, u + 36:u + 41] = 0.0
     frame.color[FRONT_V[0] + 40:FRONT_V[1] - 40, u + 36:u + 41] = (30, 30, 30)
     assert len(_firm_at(_blobs_of(frame), u + 38, v)) == 1
+
+
+def test_two_tabs_side_by_side_one_a_centimetre_higher_are_two_handles():
+    """Two tabs 1.2 cm thick standing 3 cm out, 18 cm long, overlapping by 3 cm along their length, one 1 cm higher
+    than the other (a door's tab on its bottom edge, the drawer's below on its top edge): two candidates, each where
+    its tab is; a straight tab of their joint length stays one."""
+    u, v = 320, 240
+    left, right = (slice(v - 3, v + 4), slice(u - 100, u + 10)), (slice(v + 3, v + 10), slice(u - 10, u + 100))
+    blobs = _blobs_of(_plain_frame([(*left, 0.97), (*right, 0.97)]))
+    assert len(_firm_at(blobs, u - 45, v)) == 1 and len(_firm_at(blobs, u + 45, v + 6)) == 1
+    (tab,) = _firm_at(blobs, u - 45, v)
+    assert abs(tab.length_m - 0.18) < 0.03
+    straight = _blobs_of(_plain_frame([(slice(v - 3, v + 4), slice(u - 100, u + 100), 0.97)]))
+    assert len([b for b in straight if b.firm]) == 1
