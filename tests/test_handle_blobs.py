@@ -6,7 +6,7 @@ knob is no firm handle, a knob is; a pull's pocket running under a counter's edg
 seen whole up to that edge; a dark line without depth along the front's side is no handle seen in colour only; a
 bump on a bowed panel, or a dip in a recessed window, is no firm handle when it stands out of the surface around it
 by less than a handle does; a strip along the side where the front's surface stops, standing out no farther than the
-unit beside it, is that unit's edge, not a handle."""
+unit beside it, is that unit's edge, not a handle; two tabs side by side, one a centimetre higher, are two handles."""
 
 from __future__ import annotations
 
@@ -168,3 +168,17 @@ def test_a_strip_sunk_along_the_side_next_to_a_unit_standing_out_is_no_pull():
     carcass = (slice(*FRONT_V), slice(FRONT_U[1] + 3, FRONT_U[1] + 60), 1.01)  # no farther out than the front: a
     # pull's pocket cut along the door's side
     assert _firm_at(_blobs_of(_plain_frame([strip, carcass]), right="surface", right_u=FRONT_U[1] + 3), u, v)
+
+
+def test_two_tabs_side_by_side_one_a_centimetre_higher_are_two_handles():
+    """Two tabs 1.2 cm thick standing 3 cm out, 18 cm long, overlapping by 3 cm along their length, one 1 cm higher
+    than the other (a door's tab on its bottom edge, the drawer's below on its top edge): two candidates, each where
+    its tab is; a straight tab of their joint length stays one."""
+    u, v = 320, 240
+    left, right = (slice(v - 3, v + 4), slice(u - 100, u + 10)), (slice(v + 3, v + 10), slice(u - 10, u + 100))
+    blobs = _blobs_of(_plain_frame([(*left, 0.97), (*right, 0.97)]))
+    assert len(_firm_at(blobs, u - 45, v)) == 1 and len(_firm_at(blobs, u + 45, v + 6)) == 1
+    (tab,) = _firm_at(blobs, u - 45, v)
+    assert abs(tab.length_m - 0.18) < 0.03
+    straight = _blobs_of(_plain_frame([(slice(v - 3, v + 4), slice(u - 100, u + 100), 0.97)]))
+    assert len([b for b in straight if b.firm]) == 1

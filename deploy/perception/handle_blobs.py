@@ -43,6 +43,11 @@ MIN_POCKET_ACROSS_M = 0.02  # a pull's pocket takes a fingertip (real ones 25-80
 # into the front is a seam, a gap between fronts or the depth's noise
 KNOB_MAX_M = 0.06  # a knob is at most this wide (real knobs 20-50 mm)
 OUTER_LAYER_M = 0.008  # a handle's front surface: its points this close to its outermost (a bar's radius)
+STEP_M = 0.005  # a handle's outline runs straight along it: both its edges stepping the same way by more than this
+# (and two cells: the outline's jitter) is two handles side by side at different heights (the tabs on the facing
+# edges of two fronts)
+STEP_WINDOW_M = 0.02  # an edge's step is sought over this stretch either side (a finger pad's width); a handle's end
+# (rounded, seen at a slant) takes at most this much of its length
 RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured,
 # and, for one measured standing out, not the room seen past the front's top or bottom edge) is the front's surface
 
@@ -149,9 +154,12 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
         if sunk.sum() > (member & out[box]).sum() and (sunk & inner_edge[box]).any() and bw >= plinth_cells \
                 and y + bh / 2 + r0 > middle:  # a recess across the front's whole lower edge, on to its sides: the
             continue  # plinth set back under it, not a pull cut into the panel
-        found = [blob_of(member, box)]
-        if found[0] is None:  # too large for a handle: taken apart where it crosses the front's sides (a handle
-            # joined to what lies beside the front, such as the IR shadow along a side edge)
+        parts = side_by_side(member, view.res_m)
+        found = [blob_of(part, box) for part in parts]
+        if len(parts) == 2 and any(b is None or b.seen_in_colour_only for b in found):  # both measured in depth:
+            parts, found = [member], [blob_of(member, box)]  # a lost bar's colour outline steps with its shadows
+        if len(parts) == 1 and found[0] is None:  # too large for a handle: taken apart where it crosses the
+            # front's sides (a handle joined to what lies beside the front, such as the IR shadow along a side edge)
             col = np.arange(box[1].start, box[1].start + member.shape[1])[None, :] + c0
             parts = [member & side for side in (col < extent.left, (col >= extent.left) & (col <= extent.right),
                                                 col > extent.right)]
@@ -160,6 +168,40 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
                   and not _edge_of_beside(view, b, extent)]
     blobs = _under_hidden_edges(view, extent, blobs, camera_to_base, K)
     return _joined_pieces(view, blobs, extent, camera_to_base, K)
+
+
+def side_by_side(member: np.ndarray, res_m: float) -> list[np.ndarray]:
+    """`member` (a candidate's cells, a grid) as one handle, or cut in two where both its edges along its length (the
+    grid's longer side) step the same way by at least STEP_M and two cells: two handles side by side that touch in the
+    view, one higher than the other (the higher one's top edge steps where it ends, the lower one's bottom edge where
+    it starts, at or before that). Each edge steps where the medians over STEP_WINDOW_M either side differ most, by
+    as much as the medians of its whole stretches either side differ (but for STEP_WINDOW_M at each end: a handle's
+    end is rounded and seen at a slant): a post or a bump in one edge moves neither level. The cut goes midway
+    between the two steps (where the handles overlap, the two edges are different handles'); each part keeps at
+    least two windows of length."""
+    grid = member if member.shape[1] >= member.shape[0] else member.T
+    used = np.flatnonzero(grid.any(axis=0))
+    window = max(int(np.ceil(STEP_WINDOW_M / res_m)), 2)
+    if len(used) < 4 * window:
+        return [member]
+    index = np.arange(grid.shape[0])[:, None]
+    edges = (np.where(grid, index, grid.shape[0]).min(axis=0)[used], np.where(grid, index, -1).max(axis=0)[used])
+    at = np.arange(2 * window, len(used) - 2 * window + 1)
+    steps = []
+    for edge in edges:  # where it steps most over a window either side; by how much its levels either side differ
+        local = np.array([np.median(edge[k:k + window]) - np.median(edge[k - window:k]) for k in at])
+        k = int(at[np.argmax(np.abs(local))])
+        level = np.median(edge[k:-window]) - np.median(edge[window:k])
+        steps.append((level if level * local[k - at[0]] > 0 else 0.0, k))
+    (top, k_top), (bottom, k_bottom) = steps
+    if top * bottom <= 0 or min(abs(top), abs(bottom)) < max(STEP_M / res_m, 2.0) or \
+            np.sign(top) * (k_top - k_bottom) < -window:  # the higher handle's top edge ends (or starts) where
+        return [member]  # the lower one's bottom edge starts (ends) or past it: they meet or overlap
+    cut = used[(k_top + k_bottom) // 2]
+    parts = [grid.copy(), grid.copy()]
+    parts[0][:, cut:] = False
+    parts[1][:, :cut] = False
+    return parts if grid is member else [part.T for part in parts]
 
 
 def _under_hidden_edges(view: PlaneView, extent: Extent, blobs: list[Blob], camera_to_base: np.ndarray,
