@@ -182,3 +182,12 @@ def test_two_tabs_side_by_side_one_a_centimetre_higher_are_two_handles():
     assert abs(tab.length_m - 0.18) < 0.03
     straight = _blobs_of(_plain_frame([(slice(v - 3, v + 4), slice(u - 100, u + 100), 0.97)]))
     assert len([b for b in straight if b.firm]) == 1
+
+
+def test_a_knob_at_the_views_border_is_measured():
+    """A knob standing out 3 cm at the rectified view's right border (the front running on to it): its surroundings
+    are read within the view."""
+    u, v = 522, 240
+    front = (slice(*FRONT_V), slice(FRONT_U[1], 531), 1.0)
+    knob = (slice(v - 8, v + 9), slice(u - 8, u + 9), 0.97)
+    assert len(_firm_at(_blobs_of(_plain_frame([front, knob]), right_u=531), u, v)) == 1
