@@ -67,7 +67,8 @@ class Blob:
     inside: bool
     rim: float  # the share of the ring around it that is the front's surface
     noise_m: float  # the D415's noise band there (NOISE_SIGMAS sigmas of one measurement)
-    base_m: float = 0.0  # the offset of the surface around it (`_surface_around`: a bowed panel, a window set in)
+    base_m: tuple[float, float] = (0.0, 0.0)  # the surface around it, offset from the plane (`_surface_around`: a
+    # bowed panel, a window set in)
 
     @property
     def relief_m(self) -> float:
@@ -84,7 +85,8 @@ class Blob:
         """Whether it is certainly a handle (not depth noise, not a neighbour's edge): large enough, with the front
         around it, standing clearly out of (or into, in a pocket wide enough for a fingertip) the front, or of another
         colour where depth has a hole."""
-        rise = abs(self.relief_m) - max(0.0, float(np.sign(self.relief_m)) * self.base_m)  # out of (into) the
+        low, high = self.base_m
+        rise = abs(self.relief_m) - max(0.0, low if self.relief_m > 0 else -high)  # out of (into) the
         # surface around it: a bump on a bowed panel, or a piece of a recessed window, is off the plane with it
         relief = self.seen_in_colour_only or rise >= max(MIN_RELIEF_M, RELIEF_NOISE * self.noise_m)
         slit = self.relief_m < 0 and self.across_m < MIN_POCKET_ACROSS_M
@@ -357,11 +359,12 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
                 _surface_around(view, rows, cols, extent))
 
 
-def _surface_around(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent) -> float:
-    """The median offset (m) from the plane of the front's measured cells (within `extent`) JOIN_M to 2 JOIN_M
-    around the cells (`rows`, `cols`), past the pixels at a candidate's edges that mix its depth with what lies
-    behind: the panel it stands on or is sunk into (0 where none is measured). What lies past the front's sides (a
-    carcass, a unit beside it) is not the panel."""
+def _surface_around(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent) -> tuple[float, float]:
+    """How far (m) the panel a candidate stands on or is sunk into lies off the plane: the quartiles of the offsets
+    of the front's measured cells (within `extent`: a carcass or a unit past its sides is no panel) JOIN_M to
+    2 JOIN_M around the cells (`rows`, `cols`), past the pixels at the candidate's edges that mix its depth with what
+    lies behind ((0, 0) where none is measured). A bowed panel or a window set in shifts the whole ring; a handle's
+    own mounts or a neighbouring handle shift part of it, which the quartile nearer the plane leaves out."""
     join = max(int(round(JOIN_M / view.res_m)), 1)
     r0, c0 = max(int(rows.min()) - 2 * join, 0), max(int(cols.min()) - 2 * join, 0)
     box = (slice(r0, int(rows.max()) + 2 * join + 1), slice(c0, int(cols.max()) + 2 * join + 1))
@@ -374,7 +377,7 @@ def _surface_around(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent:
     on_front = (grid_r >= extent.top) & (grid_r <= extent.bottom) & (grid_c >= extent.left) & (grid_c <= extent.right)
     offsets = view.offset_m[box][far & ~near & view.seen[box] & on_front]
     offsets = offsets[~np.isnan(offsets)]
-    return float(np.median(offsets)) if len(offsets) else 0.0
+    return tuple(float(q) for q in np.percentile(offsets, (25, 75))) if len(offsets) else (0.0, 0.0)
 
 
 def _extent_of(where: np.ndarray, res_m: float) -> tuple[np.ndarray, np.ndarray, float, float]:
