@@ -153,6 +153,8 @@ def test_a_strip_along_the_side_standing_out_no_farther_than_the_unit_beside_is_
     strip = (slice(v - 33, v + 33), slice(FRONT_U[1] - 8, FRONT_U[1]), 0.982)
     beside = (slice(*FRONT_V), slice(FRONT_U[1], FRONT_U[1] + 60), 0.975)
     assert not _firm_at(_blobs_of(_plain_frame([strip, beside]), right="surface"), u, v)
+    bar = (slice(v - 3, v + 4), slice(FRONT_U[1] - 120, FRONT_U[1] - 5), 0.97)  # a long bar across, ending by the side
+    assert _firm_at(_blobs_of(_plain_frame([bar, beside]), right="surface"), FRONT_U[1] - 60, v)
 
 
 def test_a_strip_sunk_along_the_side_next_to_a_unit_standing_out_is_no_pull():

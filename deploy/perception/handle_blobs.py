@@ -268,9 +268,10 @@ def _edge_of_beside(view: PlaneView, blob: Blob, extent: Extent) -> bool:
     sunk into the plane, stands out of the plane by that margin (the trough between the front and a unit or wall
     standing out beside it). A handle stands out of what is beside it too (a bar on a door's very edge has the room
     past it, farther back); a pull's pocket cut along an edge has the carcass or the next front past it, no farther
-    out than the front."""
-    if blob.seen_in_colour_only:
-        return False
+    out than the front. A bar lying across the side (a door's long horizontal bar ending near it) is not such an
+    edge, which runs along the side."""
+    if blob.seen_in_colour_only or (blob.elongation >= BAR_ELONGATION and abs(blob.axis[0]) > abs(blob.axis[1])):
+        return False  # a bar lying across the side, ending near it, is no edge running along it
     band = int(np.ceil(EDGE_BAND_M / view.res_m))
     rows = slice(int(blob.rows.min()), int(blob.rows.max()) + 1)
     cols = np.concatenate([blob.cols, view.col(blob.points[:, 0])])  # where it is seen, and where it is
