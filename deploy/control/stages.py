@@ -498,7 +498,7 @@ def _grasp_plan(episode: Episode, handle: Handle) -> tuple[np.ndarray, float, np
 
 def _planned_pulls(episode: Episode, handle: Handle, T_grasp: np.ndarray) -> list[list[np.ndarray]]:
     """The pulls the pre-grasp configuration is planned for, most wanted first: a door's arc about its likely
-    hinge (PLANNED_DOOR_ARCS_DEG; the wrist turns with the door from the start), then straight out along the front
+    hinge (`planned_door_arcs_deg`; the wrist turns with the door from the start), then straight out along the front
     normal, the drawer's whole pull (or PLANNED_DOOR_REACH_M for a door) and halves of it down to
     MIN_PLANNED_PULL_M."""
     pulls = []
@@ -506,10 +506,17 @@ def _planned_pulls(episode: Episode, handle: Handle, T_grasp: np.ndarray) -> lis
     if revolute and not episode.policy.straight_door(episode.state.joint):
         prior = _prior(episode, handle)
         pulls += [pull_poses(door_arc(T_grasp, prior, handle.found), np.radians(arc), PLANNED_ARC_STEP_RAD)
-                  for arc in PLANNED_DOOR_ARCS_DEG]
+                  for arc in planned_door_arcs_deg(np.degrees(episode.goal(JointType.REVOLUTE)))]
     length = PLANNED_DOOR_REACH_M if revolute else \
         episode.config.opening.target_distance_m + OVERSHOOT[JointType.PRISMATIC]
     return pulls + line_pulls(T_grasp, handle.normal, length)
+
+
+def planned_door_arcs_deg(goal_deg: float) -> tuple[float, ...]:
+    """The door arcs a pre-grasp is planned for, most wanted first: the whole arc to the goal when it is longer than
+    PLANNED_DOOR_ARCS_DEG's (a configuration that carries it spares the arm a joint limit late in the arc, where only
+    letting go would help), then those."""
+    return ((goal_deg,) if goal_deg > max(PLANNED_DOOR_ARCS_DEG, default=0.0) else ()) + PLANNED_DOOR_ARCS_DEG
 
 
 def _prior(episode: Episode, handle: Handle, side: float = 0.0) -> Axis:
