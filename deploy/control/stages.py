@@ -398,6 +398,17 @@ def step(episode: Episode, axis: Axis, source: str) -> None:
         return
     label = f"step {state.steps}: {source}"
     try:
+        _door_step(episode, axis, path, length, label, limits)
+    except (IKError, EpisodeStop) as out_of_reach:
+        if isinstance(out_of_reach, EpisodeStop) and out_of_reach.reason is not StopReason.IK_INFEASIBLE:
+            raise
+        _shorter_door_step(episode, axis, length, label, limits, out_of_reach)
+
+
+def _door_step(episode: Episode, axis: Axis, path: PathFn, length: float, label: str, limits: MotionLimits) -> None:
+    """A door's step; out of the arm's reach, its rest with the tool's orientation kept, or from a grasp with the
+    hand turned back, where the handle allows."""
+    try:
         checked_pull(episode, path, length, label, limits, step=True)
     except IKError as out_of_reach:
         if _turned_for_hand(episode, axis):
@@ -409,6 +420,23 @@ def step(episode: Episode, axis: Axis, source: str) -> None:
     except EpisodeStop as stop:
         if stop.reason is not StopReason.BLOCKED or not _may_go_on_blocked(episode, axis):
             raise
+
+
+def _shorter_door_step(episode: Episode, axis: Axis, length: float, label: str, limits: MotionLimits,
+                       out_of_reach: IKError | EpisodeStop) -> None:
+    """A door's step that nothing carries whole (`out_of_reach`) goes half as far, from where the arm stands with
+    the tool turning as the step's would (each length checked before the arm moves), halved down to the goal's
+    tolerance: the arm gets as near its reach's edge as it safely can, which may pass the target. Raises
+    `out_of_reach` when no length is carried."""
+    length /= 2
+    while length >= GOAL_TOLERANCE[JointType.REVOLUTE]:
+        path, _, _ = _step_path(episode, axis)
+        try:
+            checked_pull(episode, path, length, f"{label} (shortened)", limits, step=True)
+            return
+        except IKError:
+            length /= 2
+    raise out_of_reach
 
 
 def _may_go_on_blocked(episode: Episode, axis: Axis) -> bool:
