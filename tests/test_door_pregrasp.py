@@ -29,8 +29,13 @@ def test_a_door_pregrasp_planned_for_the_arc_carries_the_wrist_through_it():
     assert result["success"], result["message"]
 
 
+def _out_of_reach(episode, axis, length, label, limits, error):
+    raise error
+
+
 def test_planned_for_a_straight_pull_the_wrist_runs_out_of_speed_on_the_arc(monkeypatch):
-    monkeypatch.setattr(stages, "PLANNED_DOOR_ARCS_DEG", ())
+    monkeypatch.setattr(stages, "planned_door_arcs_deg", lambda goal_deg: ())
+    monkeypatch.setattr(stages, "_shorter_door_step", _out_of_reach)  # nor a shorter step after it
     monkeypatch.setattr(motion, "RETIME_TRIES", 0)  # at the arc's own speed (slowed down, the wrist keeps up)
     result = simulate_episode("door", FAR_DOOR_SEED, split="test", target=20.0, world="box")
     # the scenario does need the arc: the test above is not vacuous

@@ -96,8 +96,17 @@ def test_a_door_arc_out_of_reach_goes_on_from_a_grasp_turned_back():
     assert result["success"], result["message"]
 
 
+def _no_shorter_steps(monkeypatch) -> None:
+    """A step out of reach is not tried again shorter (`stages._shorter_door_step`): it ends the episode."""
+    def out_of_reach(episode, axis, length, label, limits, error):
+        raise error
+
+    monkeypatch.setattr(stages, "_shorter_door_step", out_of_reach)
+
+
 def test_without_turning_back_that_arc_ends_out_of_reach(monkeypatch):
     monkeypatch.setattr(stages, "MAX_TURNED_REGRASPS", 0)
+    _no_shorter_steps(monkeypatch)
     result = simulate_episode("door", FAR_ARC_SEED, split="test", target=70.0)
     # the scenario does need the re-grasp: the test above is not vacuous
     assert result["stop_reason"] == StopReason.IK_INFEASIBLE, result["message"]
@@ -147,6 +156,7 @@ def test_without_its_rule_that_door_is_lost(monkeypatch, seed, rule, stop):
     """The tests above are not vacuous: a hand that keeps its orientation loses door 50's tab; a turn with the door
     that does not give way to keeping the orientation ends door 9 out of reach."""
     monkeypatch.setattr(stages, rule, lambda *_: False)
+    _no_shorter_steps(monkeypatch)
     result = simulate_episode("door", seed, split="test", target=70.0)
     assert result["stop_reason"] == stop, result["message"]
 

@@ -398,6 +398,17 @@ def step(episode: Episode, axis: Axis, source: str) -> None:
         return
     label = f"step {state.steps}: {source}"
     try:
+        _door_step(episode, axis, path, length, label, limits)
+    except (IKError, EpisodeStop) as out_of_reach:
+        if isinstance(out_of_reach, EpisodeStop) and out_of_reach.reason is not StopReason.IK_INFEASIBLE:
+            raise
+        _shorter_door_step(episode, axis, length, label, limits, out_of_reach)
+
+
+def _door_step(episode: Episode, axis: Axis, path: PathFn, length: float, label: str, limits: MotionLimits) -> None:
+    """A door's step; out of the arm's reach, its rest with the tool's orientation kept, or from a grasp with the
+    hand turned back, where the handle allows."""
+    try:
         checked_pull(episode, path, length, label, limits, step=True)
     except IKError as out_of_reach:
         if _turned_for_hand(episode, axis):
@@ -409,6 +420,23 @@ def step(episode: Episode, axis: Axis, source: str) -> None:
     except EpisodeStop as stop:
         if stop.reason is not StopReason.BLOCKED or not _may_go_on_blocked(episode, axis):
             raise
+
+
+def _shorter_door_step(episode: Episode, axis: Axis, length: float, label: str, limits: MotionLimits,
+                       out_of_reach: IKError | EpisodeStop) -> None:
+    """A door's step that nothing carries whole (`out_of_reach`) goes half as far, from where the arm stands with
+    the tool turning as the step's would (each length checked before the arm moves), halved down to the goal's
+    tolerance: the arm gets as near its reach's edge as it safely can, which may pass the target. Raises
+    `out_of_reach` when no length is carried."""
+    length /= 2
+    while length >= GOAL_TOLERANCE[JointType.REVOLUTE]:
+        path, _, _ = _step_path(episode, axis)
+        try:
+            checked_pull(episode, path, length, f"{label} (shortened)", limits, step=True)
+            return
+        except IKError:
+            length /= 2
+    raise out_of_reach
 
 
 def _may_go_on_blocked(episode: Episode, axis: Axis) -> bool:
@@ -498,7 +526,7 @@ def _grasp_plan(episode: Episode, handle: Handle) -> tuple[np.ndarray, float, np
 
 def _planned_pulls(episode: Episode, handle: Handle, T_grasp: np.ndarray) -> list[list[np.ndarray]]:
     """The pulls the pre-grasp configuration is planned for, most wanted first: a door's arc about its likely
-    hinge (PLANNED_DOOR_ARCS_DEG; the wrist turns with the door from the start), then straight out along the front
+    hinge (`planned_door_arcs_deg`; the wrist turns with the door from the start), then straight out along the front
     normal, the drawer's whole pull (or PLANNED_DOOR_REACH_M for a door) and halves of it down to
     MIN_PLANNED_PULL_M."""
     pulls = []
@@ -506,10 +534,17 @@ def _planned_pulls(episode: Episode, handle: Handle, T_grasp: np.ndarray) -> lis
     if revolute and not episode.policy.straight_door(episode.state.joint):
         prior = _prior(episode, handle)
         pulls += [pull_poses(door_arc(T_grasp, prior, handle.found), np.radians(arc), PLANNED_ARC_STEP_RAD)
-                  for arc in PLANNED_DOOR_ARCS_DEG]
+                  for arc in planned_door_arcs_deg(np.degrees(episode.goal(JointType.REVOLUTE)))]
     length = PLANNED_DOOR_REACH_M if revolute else \
         episode.config.opening.target_distance_m + OVERSHOOT[JointType.PRISMATIC]
     return pulls + line_pulls(T_grasp, handle.normal, length)
+
+
+def planned_door_arcs_deg(goal_deg: float) -> tuple[float, ...]:
+    """The door arcs a pre-grasp is planned for, most wanted first: the whole arc to the goal when it is longer than
+    PLANNED_DOOR_ARCS_DEG's (a configuration that carries it spares the arm a joint limit late in the arc, where only
+    letting go would help), then those."""
+    return ((goal_deg,) if goal_deg > max(PLANNED_DOOR_ARCS_DEG, default=0.0) else ()) + PLANNED_DOOR_ARCS_DEG
 
 
 def _prior(episode: Episode, handle: Handle, side: float = 0.0) -> Axis:
