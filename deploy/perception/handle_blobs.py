@@ -368,9 +368,7 @@ def _surface_around(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent:
     own mounts or a neighbouring handle shift part of it, which the quartile nearer the plane leaves out."""
     join = max(int(round(JOIN_M / view.res_m)), 1)
     r0, c0 = max(int(rows.min()) - 2 * join, 0), max(int(cols.min()) - 2 * join, 0)
-    n_rows, n_cols = view.offset_m.shape
-    box = (slice(r0, min(int(rows.max()) + 2 * join + 1, n_rows)), slice(c0, min(int(cols.max()) + 2 * join + 1,
-                                                                                  n_cols)))
+    box = (slice(r0, int(rows.max()) + 2 * join + 1), slice(c0, int(cols.max()) + 2 * join + 1))
     member = np.zeros(view.offset_m[box].shape, np.uint8)
     member[rows - r0, cols - c0] = 1
     near, far = (cv2.dilate(member, np.ones((2 * k * join + 1, 2 * k * join + 1), np.uint8)).astype(bool)
