@@ -182,3 +182,13 @@ def test_two_tabs_side_by_side_one_a_centimetre_higher_are_two_handles():
     assert abs(tab.length_m - 0.18) < 0.03
     straight = _blobs_of(_plain_frame([(slice(v - 3, v + 4), slice(u - 100, u + 100), 0.97)]))
     assert len([b for b in straight if b.firm]) == 1
+
+
+def test_the_surface_around_a_candidate_at_the_views_corner_is_measured_within_the_view():
+    from types import SimpleNamespace
+
+    from deploy.perception.handle_blobs import _surface_around
+    offset = np.full((40, 50), 0.002, np.float32)
+    view = SimpleNamespace(res_m=0.003, offset_m=offset, seen=np.ones(offset.shape, bool))
+    rows, cols = np.array([37, 38, 38]), np.array([47, 47, 48])  # the box around it runs past the view's corner
+    assert abs(_surface_around(view, rows, cols, Extent(0, 39, 0, 49, {})) - 0.002) < 1e-6
