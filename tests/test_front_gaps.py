@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from deploy.perception.front import find_front
-from deploy.perception.front_extent import gap_lines
+from deploy.perception.front_extent import _faint_gaps, gap_lines
 from drivers.camera.base import Frame, Intrinsics
 
 K = Intrinsics(640, 480, 600.0, 600.0, 320.0, 240.0)
@@ -42,3 +42,31 @@ def test_a_line_across_the_middle_of_a_drawer_is_no_gap_but_one_along_its_side_i
 def test_a_recessed_pulls_slot_end_does_not_end_the_front(line_v, width_m):
     front = find_front(_frame(line_v), np.zeros((480, 640), bool), 160, 224)
     assert front.width_m == pytest.approx(width_m, abs=0.03)
+
+
+def _profile(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(grey, judged, offset) of 120 lines 90 cells long (3.3 mm cells) across a flat front lit evenly, the D415's
+    noise (1 mm, correlated over 3 cells) on its depth."""
+    rng = np.random.default_rng(seed)
+    noise = rng.normal(0.0, 0.001, (40, 30))
+    offset = np.kron(noise, np.ones((3, 3)))
+    grey = np.full(offset.shape, 0.4)
+    return grey, np.ones(offset.shape, bool), offset
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_a_gap_lit_like_its_fronts_is_a_gap_where_the_depth_sees_its_slit(seed):
+    grey, judged, offset = _profile(seed)
+    grey[60] += 0.004  # one 8-bit level lighter: too faint for GAP_CONTRAST
+    assert not gap_lines(grey, judged, 0.0033)[60]
+    assert not _faint_gaps(grey, judged, offset, judged, 0.0033).any()  # no slit in depth: a texture's line
+    offset[60] -= 0.006  # the D415 sees a few millimetres into the slit
+    assert np.flatnonzero(_faint_gaps(grey, judged, offset, judged, 0.0033)).tolist() == [60]
+
+
+def test_a_faint_line_over_a_dip_is_no_gap_on_a_grained_front():
+    grey, judged, offset = _profile(0)
+    rng = np.random.default_rng(1)
+    grey += np.kron(rng.normal(0.0, 0.01, (120, 1)), np.ones((1, 90)))  # grain: lines along the whole profile
+    offset[60] -= 0.006
+    assert not _faint_gaps(grey, judged, offset, judged, 0.0033).any()

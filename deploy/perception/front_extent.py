@@ -30,6 +30,12 @@ GAP_SEGMENT_M = 0.03  # the line is judged per stretch of this length along it .
 GAP_SHARE = 0.5  # ... and must show in at least this share of the stretches the band sees (a handle may hide it)
 GAP_MIN_STRETCHES = 2  # ... and in at least this many (or all the band has): a gap runs along a front's whole side,
 # 10 cm and more, while a handle's end, a knob's shadow or a post's edge beside the surface make a line one stretch long
+FAINT_CONTRAST = 0.001  # a gap lit like the fronts differs from them by less than an 8-bit level: a line this faint
+# (a quarter level, averaged along a stretch) is a gap where the surface dips in depth along it (SLIT_SIGMAS)
+SLIT_SIGMAS = 3.0  # a slit: the surface's depth, its median along a line, lies below both sides' by this many times
+# that dip's spread over the profile's lines (the D415's noise and the plane's own waviness along the band)
+CHANCE_LINES = 0.1  # faint lines and slits are taken together only while fewer than this many lines of the profile
+# would be both by chance (a grain's texture makes faint lines common: one of them meets the depth's noise)
 HANDLE_BAND_M = 0.10  # the widest stretch across a front that is not its surface: a handle, its shadow, a pocket
 RESUME_M = 0.04  # past a handle the front's surface goes on for at least this, or up to a gap (a surface crossing
 # the plane, such as the floor at a plinth's foot, lies on it within the D415's noise for a narrower band)
@@ -92,7 +98,9 @@ def _grow(view: PlaneView, surface: np.ndarray, depth_surface: np.ndarray, seed:
         cells, flat, grey, seen = surface[lo:hi + 1].T, depth_surface[lo:hi + 1].T, view.gray[lo:hi + 1].T, \
             view.seen[lo:hi + 1].T
     share = _share(cells, None, view.res_m)
-    lines = gap_lines(grey, (flat == 1.0) | (np.isnan(flat) & seen), view.res_m)
+    judged = (flat == 1.0) | (np.isnan(flat) & seen)
+    offset = view.offset_m[:, lo:hi + 1] if axis == 0 else view.offset_m[lo:hi + 1].T
+    lines = gap_lines(grey, judged, view.res_m) | _faint_gaps(grey, judged, offset, flat == 1.0, view.res_m)
     start = seed[axis]
     return _walk(share, lines, start, -1, view.res_m), _walk(share, lines, start, 1, view.res_m)
 
@@ -182,6 +190,47 @@ def gap_lines(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray
     return (shares >= GAP_SHARE) & (shown >= min(GAP_MIN_STRETCHES, stretches)) & at_end
 
 
+def _faint_gaps(grey: np.ndarray, judged: np.ndarray, offset: np.ndarray, on_plane: np.ndarray,
+                res_m: float) -> np.ndarray:
+    """Bool per line: a gap too faint in colour for `gap_lines` (lit like the fronts either side) that the depth
+    shows: a line of FAINT_CONTRAST along it (`judged` cells; wherever it ends: too faint to show where the
+    neighbours' own edges meet it, while the slit says it runs the band) over a slit (`slit_lines` of `offset` on
+    the plane's cells), on a profile where so few lines are either that a line both by chance is unlikely."""
+    shares, shown, stretches, _ = _gap_stretches(grey, judged, res_m, FAINT_CONTRAST)
+    faint = (shares >= GAP_SHARE) & (shown >= min(GAP_MIN_STRETCHES, stretches))
+    slit = slit_lines(offset, on_plane, res_m)
+    if np.sum(faint) * np.sum(slit) / max(len(faint), 1) >= CHANCE_LINES:
+        return np.zeros(len(faint), bool)
+    return faint & slit
+
+
+def slit_lines(offset: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
+    """Bool per line (row of `offset`, the depth's offset from the plane): the front's surface (`surface`, cells
+    on the plane: a handle, a knob or a pull's pocket left out) dips along it, or along a line beside it, below the
+    lines on both sides past a gap line's width by SLIT_SIGMAS times the spread of that dip over the lines: the slit
+    between two fronts, which the D415 sees into over a few millimetres however faintly it shows in colour."""
+    n_lines, length = offset.shape
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # lines with no surface cell
+        level = np.nanmedian(np.where(surface, offset, np.nan), axis=1)
+    level[np.sum(surface, axis=1) < MIN_SEEN_SHARE * length] = np.nan
+    k = max(int(round(GAP_LINE_M / res_m)), 1) + 1  # the sides, past the line's half-width and blur
+    padded = np.concatenate([np.full(k + 2, np.nan), level, np.full(k + 2, np.nan)])
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 3)  # window j: padded[j:j + 3]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # sides beyond the profile
+        sides = np.nanmedian(windows, axis=1)
+        dip = np.fmin(sides[:n_lines], sides[2 * k + 2:2 * k + 2 + n_lines]) - level
+        near = np.nanmax(np.stack([np.roll(dip, 1), dip, np.roll(dip, -1)]), axis=0)
+    known = near[~np.isnan(near)]
+    if len(known) < 10:
+        return np.zeros(n_lines, bool)
+    centre = np.median(known)
+    spread = 1.4826 * np.median(np.abs(known - centre))  # robust: the gaps and edges are few of the lines
+    with np.errstate(invalid="ignore"):
+        return near - centre >= SLIT_SIGMAS * spread
+
+
 def gap_line_shares(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
     """Per line (row of `grey`): the share of its judged stretches (GAP_SEGMENT_M long) along which a thin line of
     GAP_CONTRAST runs (0 where none is judged). `surface`: the cells of the front's surface, the only ones judged."""
@@ -195,11 +244,11 @@ def long_gap_line_shares(grey: np.ndarray, surface: np.ndarray, res_m: float) ->
     return np.where(shown >= GAP_MIN_STRETCHES, shares, 0.0)
 
 
-def _gap_stretches(grey: np.ndarray, surface: np.ndarray,
-                   res_m: float) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
-    """(per line: the best share of judged stretches showing a gap line, how many stretches show it at that share;
-    the number of stretches along a line; per line, whether the first or last judged stretch shows it at that
-    share): see `gap_line_shares`."""
+def _gap_stretches(grey: np.ndarray, surface: np.ndarray, res_m: float,
+                   contrast: float = GAP_CONTRAST) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+    """(per line: the best share of judged stretches showing a gap line of `contrast`, how many stretches show it at
+    that share; the number of stretches along a line; per line, whether the first or last judged stretch shows it
+    at that share): see `gap_line_shares`."""
     n_lines, length = grey.shape
     widest = max(int(round(GAP_LINE_M / res_m)), 1)
     segment = max(int(round(GAP_SEGMENT_M / res_m)), 4)
@@ -217,19 +266,19 @@ def _gap_stretches(grey: np.ndarray, surface: np.ndarray,
             response = np.where(g_judged, np.fmin(sign * (before - g), sign * (after - g)), np.nan)
             with np.errstate(invalid="ignore"):
                 per_segment = _segment_means(response, n_seg)
-                shown = np.sum(per_segment >= GAP_CONTRAST, axis=1)
+                shown = np.sum(per_segment >= contrast, axis=1)
                 judged_segments = np.sum(~np.isnan(per_segment), axis=1)
             share = shown / np.maximum(judged_segments, 1)
-            at_end = _shown_at_an_end(response, per_segment, n_seg)
+            at_end = _shown_at_an_end(response, per_segment, n_seg, contrast)
             better = share > best
             best, best_shown = np.where(better, share, best), np.where(better, shown, best_shown)
             best_end = np.where(better, at_end, best_end)
     return best, best_shown, n_seg, best_end
 
 
-def _shown_at_an_end(response: np.ndarray, per_segment: np.ndarray, n_seg: int) -> np.ndarray:
+def _shown_at_an_end(response: np.ndarray, per_segment: np.ndarray, n_seg: int, contrast: float) -> np.ndarray:
     """Per line: whether the line shows along most of the first or the last of its judged stretches (the median
-    response there at least GAP_CONTRAST: a line ending inside that stretch does not reach the end)."""
+    response there at least `contrast`: a line ending inside that stretch does not reach the end)."""
     n_lines, length = response.shape
     judged = ~np.isnan(per_segment)
     lines = np.arange(n_lines)
@@ -238,7 +287,7 @@ def _shown_at_an_end(response: np.ndarray, per_segment: np.ndarray, n_seg: int) 
     for end in (np.argmax(judged, axis=1), n_seg - 1 - np.argmax(judged[:, ::-1], axis=1)):
         with warnings.catch_warnings(), np.errstate(invalid="ignore"):
             warnings.simplefilter("ignore", RuntimeWarning)  # lines with no judged cell there
-            shown |= np.nanmedian(parts[lines, end], axis=1) >= GAP_CONTRAST
+            shown |= np.nanmedian(parts[lines, end], axis=1) >= contrast
     return shown
 
 
