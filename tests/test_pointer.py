@@ -455,3 +455,43 @@ def test_a_bar_whose_depth_is_lost_in_its_middle_is_one_handle_not_two_fronts():
     found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(200, 250))
     assert found.front.ended["left"] == "gap" and found.front.ended["right"] == "gap", found.front.ended
     assert found.handle.kind == "bar" and found.handle.length_m > 0.45
+
+
+def _set_back_surface(below_m: float, colour: tuple[int, int, int], shapes: list) -> Frame:
+    """A synthetic D415 frame, 1 m straight ahead: a surface of `colour` over columns 200-440 down to row 380, running
+    out of view at the top, between two pale units standing 15 cm out of it; under it, across, a face `below_m` away
+    (a plinth set back, or a counter's front standing out); nothing in view lies 15 cm behind the surface. `shapes`
+    ((row0, row1), (col0, col1), depth, RGB) on it."""
+    K = Intrinsics(640, 480, 600.0, 600.0, 320.0, 240.0)
+    depth = np.full((480, 640), 1.0, np.float32)
+    color = np.full((480, 640, 3), colour, np.uint8)
+    depth[:, :200], depth[:, 441:] = 0.85, 0.85
+    color[:, :200], color[:, 441:] = (225, 225, 220), (225, 225, 220)
+    depth[380:], color[380:] = below_m, (60, 55, 50)
+    for rows, cols, z, rgb in shapes:
+        depth[slice(*rows), slice(*cols)], color[slice(*rows), slice(*cols)] = z, rgb
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])  # optical z along base x
+    return Frame(0, 0.0, color, depth, K, T)
+
+
+def test_a_door_set_back_between_units_over_a_plinth_is_a_front_not_a_wall():
+    """A door set back 15 cm between two units, the camera so close that nothing in view lies far behind it: under
+    its bottom edge the view drops 7 cm behind it to the plinth's recess, as past a front's side (its gap, the
+    carcass's rim) and never past a wall's, so it is a front and its bar the handle (before: refused as a wall)."""
+    bar = ((60, 66), (250, 400), 0.97, (128, 128, 128))
+    frame = _set_back_surface(1.07, (150, 100, 60), [bar])
+    found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(320, 250))
+    assert found.handle.kind == "bar"
+    s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
+    assert np.linalg.norm([s, z] - _on_plane_at(found, 325, 63)) < GRIP_TOLERANCE_M
+
+
+def test_a_wall_between_units_over_a_counter_with_a_socket_is_refused():
+    """The same view on a pale wall between two units, over a counter's front standing out of it, a socket on it:
+    past every side of the wall stands what is in front of it, so it is refused as a wall."""
+    socket = ((200, 240), (300, 340), 0.98, (240, 240, 240))
+    frame = _set_back_surface(0.85, (200, 200, 190), [socket])
+    with pytest.raises(PointerError, match="a wall"):
+        point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(260, 300))
+

@@ -23,14 +23,19 @@ from deploy.perception.front import (
     find_front,
     plane_coordinates,
 )
+from deploy.perception.front_extent import Extent
 from deploy.perception.furniture import Furniture, find_furniture
 from deploy.perception.handle import GripperSize, Handle, describe, own_blob
 from deploy.perception.handle_blobs import handle_blobs
+from deploy.perception.plane_view import PlaneView
 from drivers.camera.base import Frame
 
 MIN_FRONT_M = 0.06  # the narrowest real fronts (a spice drawer) are about 10 cm: a face narrower is an edge
 WALL_BEHIND_M = 0.15  # furniture stands out of the wall by more than this (wall units 30 cm deep) ...
 WALL_SHARE = 0.005  # ... so around a front the camera sees at least this share of the image farther back
+SIDE_BAND_M = (0.01, 0.06)  # just past a front's side lie its gap, the carcass's rim or the plinth's recess ...
+SIDE_DROP_M = 0.02  # ... this far behind it at least (and beyond the D415's noise), over ...
+SIDE_DROP_SHARE = 0.5  # ... this share of what is seen there
 MIN_SEEN_SHARE = 0.3  # a front the arm hides more of than this is not seen well enough to grasp
 
 
@@ -120,8 +125,12 @@ def _check_seen(front: Front, pointer: Pointer, pixel: tuple[int, int]) -> None:
 def _check_not_wall(frame: Frame, robot: np.ndarray, front: Front, pointer: Pointer, pixel: tuple[int, int]) -> None:
     """PointerError when nothing in view lies behind the pointed surface's plane: furniture stands out of the room's
     walls (a counter's top, a unit's top, the wall above or beside it lie behind its fronts), a wall does not. A
-    surface cut from its neighbours by gaps on two sides is a front however close the camera is (walls have none)."""
+    surface cut from its neighbours by gaps on two sides, or of a front's size with a side past which the view drops
+    behind it (`side_drops_behind`), is a front however close the camera is and whatever hides the room behind."""
     if sum(why == "gap" for why in front.ended.values()) >= 2:
+        return
+    if front.width_m <= MAX_FRONT_WIDTH_M and front.height_m <= MAX_FRONT_HEIGHT_M and \
+            side_drops_behind(front.view, front.extent):
         return
     _, _, offset = plane_coordinates(front.plane, frame.depth_m, frame.intrinsics.K, frame.T_base_camera)
     with np.errstate(invalid="ignore"):
@@ -130,6 +139,31 @@ def _check_not_wall(frame: Frame, robot: np.ndarray, front: Front, pointer: Poin
         raise PointerError(f"{pointer}: pixel ({pixel[0]}, {pixel[1]}) is on the farthest vertical surface in view "
                            f"({front.width_m:.2f} x {front.height_m:.2f} m, nothing seen behind it): a wall, not a "
                            "front; point at the drawer's or door's front")
+
+
+def side_drops_behind(view: PlaneView, extent: Extent) -> bool:
+    """Whether, just past one of the rectangle's sides (SIDE_BAND_M out), most of what is seen (SIDE_DROP_SHARE, over
+    at least half the band) lies behind the plane by SIDE_DROP_M and the D415's noise: a front's side meets its gap,
+    the carcass's rim set back or the plinth's recess, while the room's wall is the farthest surface and what lies past
+    its sides (furniture, the floor, the next wall) stands in front of it."""
+    near, far = (max(int(round(m / view.res_m)), 1) for m in SIDE_BAND_M)
+    h, w = view.shape
+    e = extent
+    rows, cols = slice(e.top, e.bottom + 1), slice(e.left, e.right + 1)
+    bands = ((slice(max(e.top - far, 0), max(e.top - near + 1, 0)), cols),
+             (slice(min(e.bottom + near, h), min(e.bottom + far + 1, h)), cols),
+             (rows, slice(max(e.left - far, 0), max(e.left - near + 1, 0))),
+             (rows, slice(min(e.right + near, w), min(e.right + far + 1, w))))
+    for band, length in zip(bands, (e.right - e.left + 1,) * 2 + (e.bottom - e.top + 1,) * 2, strict=True):
+        seen = view.seen[band]
+        n_seen = np.count_nonzero(seen)
+        if n_seen < 0.5 * (far - near + 1) * length:
+            continue
+        with np.errstate(invalid="ignore"):
+            behind = view.smooth_m[band] < -np.maximum(view.tolerance_m[band], SIDE_DROP_M)
+        if np.count_nonzero(behind & seen) >= SIDE_DROP_SHARE * n_seen:
+            return True
+    return False
 
 
 def _check_is_front(front: Front, pointer: Pointer, pixel: tuple[int, int]) -> None:
