@@ -6,7 +6,8 @@ knob is no firm handle, a knob is; a pull's pocket running under a counter's edg
 seen whole up to that edge; a dark line without depth along the front's side is no handle seen in colour only; a
 bump on a bowed panel, or a dip in a recessed window, is no firm handle when it stands out of the surface around it
 by less than a handle does; a strip along the side where the front's surface stops, standing out no farther than the
-unit beside it, is that unit's edge, not a handle; two tabs side by side, one a centimetre higher, are two handles."""
+unit beside it, is that unit's edge, not a handle; two tabs side by side, one a centimetre higher, are two handles;
+the surface around a candidate running to the view's edge is read within the view."""
 
 from __future__ import annotations
 
@@ -182,3 +183,14 @@ def test_two_tabs_side_by_side_one_a_centimetre_higher_are_two_handles():
     assert abs(tab.length_m - 0.18) < 0.03
     straight = _blobs_of(_plain_frame([(slice(v - 3, v + 4), slice(u - 100, u + 100), 0.97)]))
     assert len([b for b in straight if b.firm]) == 1
+
+
+def test_the_surface_around_a_candidate_at_the_views_edge_is_read_within_the_view():
+    from types import SimpleNamespace
+
+    from deploy.perception.handle_blobs import _surface_around
+
+    view = SimpleNamespace(res_m=0.005, offset_m=np.full((40, 50), 0.002), seen=np.ones((40, 50), bool))
+    rows, cols = np.arange(30, 40), np.full(10, 47)  # a bar running to the view's bottom right corner
+    extent = Extent(0, 39, 0, 49, {})
+    assert np.isclose(_surface_around(view, rows, cols, extent), 0.002)

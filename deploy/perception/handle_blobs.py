@@ -369,7 +369,7 @@ def _surface_around(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent:
     member[rows - r0, cols - c0] = 1
     near, far = (cv2.dilate(member, np.ones((2 * k * join + 1, 2 * k * join + 1), np.uint8)).astype(bool)
                  for k in (1, 2))
-    grid_r, grid_c = np.mgrid[box]
+    grid_r, grid_c = np.indices(member.shape) + np.array([r0, c0])[:, None, None]  # the box as cut at the view's edge
     on_front = (grid_r >= extent.top) & (grid_r <= extent.bottom) & (grid_c >= extent.left) & (grid_c <= extent.right)
     offsets = view.offset_m[box][far & ~near & view.seen[box] & on_front]
     offsets = offsets[~np.isnan(offsets)]
