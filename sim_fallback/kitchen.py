@@ -3,8 +3,9 @@ it, z up from the floor; metres.
 
 Every kitchen has a floor and a back wall. Base units stand in a run against the wall, touching each other, with the
 same finishes and their own fronts and handles, under a countertop that overhangs their fronts; a tall unit may end
-the run and a side wall close it; wall units may hang above the counter; a free-standing chest or cupboard may stand
-further along the wall; boxes and cylinders stand on the counter and on the floor.
+the run (packed out from the wall when shallower than it: a fitted kitchen's fronts line up) and a side wall close
+it; wall units may hang above the counter; a free-standing chest or cupboard may stand further along the wall; boxes
+and cylinders stand on the counter and on the floor.
 
 The target (a procedural unit or any `Furniture`, e.g. a PartNet-Mobility model) takes its place by its size: up to
 TALL_FROM_M high and no deeper than MAX_RUN_DEPTH_M it stands in the run, which takes its height and depth; taller,
@@ -125,7 +126,10 @@ def random_room(target: Furniture, role: Role, split: Split, look: Look, rng: np
             random_carcass(split, "tall", rng), look, split, rng, f"{source} tall unit").furniture()
         width, depth, _ = tall.size_m
         y = ends[1] + width / 2 if tall_end > 0 else ends[0] - width / 2
-        room.add(tall, depth / 2, y, target=role == "tall")
+        x = max(depth, run.depth_m) - depth / 2  # a tall unit shallower than the run is packed out from the wall,
+        # its front level with the run's (a fitted kitchen's fronts line up): the run's fronts and counter would
+        # otherwise stand out beside its door's edge, boxing in a handle there
+        room.add(tall, x, y, target=role == "tall")
     all_ends = room.y_range()
     closed = all_ends[1] if tall_end > 0 else all_ends[0]  # the end (past a tall unit) a side wall may stand beyond
     if role == "wall" or rng.random() < 0.7:

@@ -253,8 +253,8 @@ def _covered_above(part: PartGeometry) -> str:
 def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, room: Room, part: PartGeometry,
           condition: Condition, reach: Reach, opening: float) -> KitchenScenario:
     """The robot parked in front of `part` (its grip in `reach`) where the part opens to `opening` (m or rad)
-    without passing through the robot's stand or arm column and the arm grasps it (`arm_grasps`), as a user parks
-    it; the camera placed; all in the robot base frame."""
+    without passing through the robot's stand or arm column, the arm grasps it (`arm_grasps`) and a camera sees it
+    past the arm, as a user parks it; the camera placed; all in the robot base frame."""
     rng = np.random.default_rng([SPLITS.index(split), KINDS.index(task), seed, 3])
     placed = room.furniture[room.target]
     T_room = placed.T
@@ -263,6 +263,8 @@ def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, r
     others = [p.footprint() for k, p in enumerate(room.furniture) if k != room.target]
     others += [s.footprint() for s in room.statics if s.name != "floor"]  # walls too: a corner's side wall
     lo, hi = base_heights(_grip_height(placed, part), task, reach)  # type: ignore[misc]
+    error = SceneError(f"{placed.furniture.source}, {part.name}: no parking spot in reach lets the arm grasp it "
+                       "and it open clear of the robot's stand and arm; give another seed")
     for _ in range(PARKINGS):
         try:
             T = park_robot(grip, normal, task, others, rng, reach)
@@ -270,18 +272,20 @@ def _park(cls: type[KitchenScenario], task: PartKind, seed: int, split: Split, r
             raise SceneError(f"{placed.furniture.source}, {part.name}: {exc}") from None
         height = float(rng.uniform(lo, hi))
         T[2, 3] = -height
-        if not meets_robot(part, T @ T_room, height, opening) and arm_grasps(reach, T, grip, normal):
-            break
-    else:
-        raise SceneError(f"{placed.furniture.source}, {part.name}: no parking spot in reach lets the arm grasp it "
-                         "and it open clear of the robot's stand and arm; give another seed")
-    layout = Layout(tuple(room.furniture), tuple(room.statics), room.target, part.name).moved(T)
-    if height > 0.01:
-        stand = StaticShape("robot stand", "box", (2 * STAND_HALF_M, 2 * STAND_HALF_M, height - 0.002),
-                            (0.0, 0.0, -height / 2 - 0.001, 0.0), STAND)
-        layout = Layout(layout.furniture, (*layout.statics, stand), layout.target, layout.part)
-    camera = _camera(layout, part, T @ T_room, -height, task, rng, arm_at_start(reach, task))
-    return cls(task, seed, split, layout, height, camera, random_start(rng), condition)
+        if meets_robot(part, T @ T_room, height, opening) or not arm_grasps(reach, T, grip, normal):
+            continue
+        layout = Layout(tuple(room.furniture), tuple(room.statics), room.target, part.name).moved(T)
+        if height > 0.01:
+            stand = StaticShape("robot stand", "box", (2 * STAND_HALF_M, 2 * STAND_HALF_M, height - 0.002),
+                                (0.0, 0.0, -height / 2 - 0.001, 0.0), STAND)
+            layout = Layout(layout.furniture, (*layout.statics, stand), layout.target, layout.part)
+        try:  # a parking from which no camera sees the part past the arm at its start is parked again
+            camera = _camera(layout, part, T @ T_room, -height, task, rng, arm_at_start(reach, task))
+        except SceneError as exc:
+            error = exc
+            continue
+        return cls(task, seed, split, layout, height, camera, random_start(rng), condition)
+    raise error
 
 
 def arm_grasps(reach: Reach, T_base_room: np.ndarray, grip: np.ndarray, normal: np.ndarray) -> bool:
