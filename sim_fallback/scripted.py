@@ -39,6 +39,7 @@ from sim_fallback.arm import SimArm
 from sim_fallback.cabinet_urdf import Kind, Split
 from sim_fallback.camera import SimCamera, d415_intrinsics
 from sim_fallback.kitchen_scenario import KitchenScenario, recording_camera
+from sim_fallback.scenario import Scenario
 from sim_fallback.scenes import scenario_object, scene_scenario
 from sim_fallback.start import Q_START
 from sim_fallback.world import JointTruth, SimWorld
@@ -170,7 +171,7 @@ class RecordingSummary:
                 f"({self.wall_time_s:.1f} s wall)")
 
 
-def _filmed(scenario):
+def _filmed(scenario: Scenario | KitchenScenario) -> Scenario | KitchenScenario:
     """The scenario with a kitchen's camera set up to film its part (`recording_camera`)."""
     return replace(scenario, camera=recording_camera(scenario)) if isinstance(scenario, KitchenScenario) else scenario
 

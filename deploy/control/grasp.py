@@ -13,7 +13,7 @@ from scipy.stats import theilslopes
 from deploy.geometry.boxes import front_direction
 from deploy.geometry.types import Axis, Box, JointType
 from deploy.perception.handle import Handle as PointedHandle
-from drivers.arm.grasping import GRASP_DEPTH_M, GRASP_PITCH_RAD, LIMIT_MARGIN_RAD, UP, pregrasp_pose
+from drivers.arm.grasping import GRASP_DEPTH_M, GRASP_PITCH_RAD, LIMIT_MARGIN_RAD, UP, approach_poses
 from drivers.arm.grasping import grasp_pose as bar_grasp_pose
 from drivers.arm.kinematics import Kinematics, well_conditioned_start
 from drivers.arm.motion import PathFn
@@ -224,8 +224,7 @@ def pregrasp_either_way(
 def _carried_pull(kin: Kinematics, q_start: np.ndarray, T_grasp: np.ndarray, pulls: Sequence[list[np.ndarray]],
                   approach_m: float, swung: bool) -> tuple[int, np.ndarray] | None:
     """(index of the first of `pulls` some seed carries, its pre-grasp joints); None when none is carried."""
-    n = max(1, int(np.ceil(approach_m / APPROACH_STEP_M)))
-    approach = [pregrasp_pose(T_grasp, approach_m * (n - k) / n) for k in range(n)]  # from the pre-grasp pose on
+    approach = approach_poses(T_grasp, approach_m, max(1, int(np.ceil(approach_m / APPROACH_STEP_M))))
     for index, poses in enumerate(pulls):
         best = well_conditioned_start(kin, [*approach, T_grasp, *poses], q_start, LIMIT_MARGIN_RAD, swung)
         if best is not None:

@@ -17,7 +17,6 @@ from deploy.control.grasp import (
     find_handle,
     grasp_pose,
     pointed_handle,
-    pregrasp_pose,
     protruding_points,
 )
 from deploy.control.policy import opening
@@ -27,6 +26,7 @@ from deploy.geometry.cloud import points_to_pixels
 from deploy.geometry.types import Axis, JointType
 from deploy.perception.base import Pointer
 from deploy.perception.pointing import point_at
+from drivers.arm.grasping import pregrasp_pose
 from drivers.arm.motion import Outcome, PathFn, arc_path, follow_cartesian_path, line_path, move_to_pose
 from drivers.arm.trajectory import MotionLimits
 from drivers.arm.wrench import WrenchEstimator, torque_offset

@@ -39,3 +39,9 @@ def pregrasp_pose(T_grasp: np.ndarray, distance_m: float) -> np.ndarray:
     T = np.array(T_grasp, float)
     T[:3, 3] -= distance_m * T[:3, 2]
     return T
+
+
+def approach_poses(T_grasp: np.ndarray, approach_m: float, steps: int) -> list[np.ndarray]:
+    """A straight approach to the grasp pose over its last `approach_m`: `steps` poses from the pre-grasp pose on,
+    the grasp pose itself not included."""
+    return [pregrasp_pose(T_grasp, approach_m * (steps - k) / steps) for k in range(steps)]

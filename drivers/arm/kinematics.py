@@ -10,7 +10,7 @@ from xml.etree import ElementTree
 import numpy as np
 import pinocchio as pin
 
-from drivers.arm.grasping import GRASP_DEPTH_M, LIMIT_MARGIN_RAD, UP, grasp_pose, pregrasp_pose
+from drivers.arm.grasping import GRASP_DEPTH_M, LIMIT_MARGIN_RAD, UP, approach_poses, grasp_pose
 from drivers.arm.robots import RobotSpec, panda
 from drivers.errors import ArmError, IKError, JointSpeedError
 
@@ -348,7 +348,7 @@ def grasps_grip(kin: Kinematics, q_template: np.ndarray, grip: np.ndarray, norma
     normal = np.asarray(normal, float)
     for bar in (UP, np.cross(UP, normal)):
         T = grasp_pose(grip, normal, bar, GRASP_DEPTH_M, pitch_rad)
-        approach = [pregrasp_pose(T, approach_m * (steps - k) / steps) for k in range(steps)]
+        approach = approach_poses(T, approach_m, steps)
         pull = [T.copy() for _ in range(steps)]
         for k, P in enumerate(pull, 1):
             P[:3, 3] += normal * pull_m * k / steps
