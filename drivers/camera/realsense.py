@@ -91,9 +91,7 @@ class RealSenseCamera(Camera):
             ) from None
         try:
             self.link.prepare(stream.device)
-            for _ in range(c.warmup_frames):  # auto exposure settles; a silent camera is handled by read()
-                if stream.poll(c.frame_timeout_s) is None and stream.timed_out:
-                    break
+            _warm_up(stream, c.warmup_frames, c.frame_timeout_s)
         except BaseException:
             stream.stop()
             raise
@@ -155,3 +153,17 @@ class RealSenseCamera(Camera):
             self._t_offset = self._last.t + 1.0 / self._fps
             self._index_offset = self._last.index + 1
         self.connect()
+
+
+def _warm_up(stream: RealSenseStream, frames: int, timeout_s: float) -> None:
+    """Drop the first `frames` whole framesets while auto exposure settles. Skipped partial framesets do not count
+    (at most as many again are polled); a silent camera ends the wait early and is handled by read()."""
+    dropped = 0
+    for _ in range(2 * frames):
+        if dropped == frames:
+            return
+        if stream.poll(timeout_s) is not None:
+            dropped += 1
+        elif stream.timed_out:
+            return
+
