@@ -200,14 +200,14 @@ def record_scripted(
     handle, T_base_camera, joint positions, tool pose and `grasped` per frame: false over the approach until the
     gripper has closed on the handle, true from then on) plus truth.json with the true joint type, axis (base
     frame; positive opens), the joint value at every frame, the world and the part. `target`: opening in m (drawer,
-    default 0.2) or rad (door, default 30 deg). progress(phase, frames) follows every frame written (phase: "grasp",
-    "open" or "hold").
+    default 0.2) or rad (door, default 30 deg), which the robot is parked to make. progress(phase, frames) follows
+    every frame written (phase: "grasp", "open" or "hold").
     """
     out = Path(out_dir)
     wall0 = time.perf_counter()
-    scenario = _filmed(scene_scenario(world, task, seed, split, part, assets, object_id, scale))
-    task = scenario.task
+    task = task or scene_scenario(world, task, seed, split, part, assets, object_id, scale).task  # the object's
     target = DEFAULT_TARGET[task] if target is None else float(target)
+    scenario = _filmed(scene_scenario(world, task, seed, split, part, assets, object_id, scale, opening=target))
     log.info("scripted %s opening from GROUND TRUTH (data generator, not the policy): %s seed %d, split %s, %s",
              task, world, seed, split, scenario_object(scenario))
     with SimWorld(scenario) as sim:
