@@ -7,7 +7,7 @@ Robot base frame = world frame: origin at the Panda's base, x forward, z up; the
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -47,6 +47,7 @@ ARM_COLUMN_M = 0.35  # the arm's base and shoulder stand this high above its bas
 ARM_BASE_HALF_M = 0.11  # and this far either side of its axis (the Panda's base: about 0.2 m across)
 PARK_APPROACH_M, PARK_PULL_M = 0.1, 0.05  # a parking lets the arm approach the grip this far straight in (the
 # episode's default approach) and pull it this far straight out (the shortest pull its grasp planner asks for)
+SCAN_STEP_M = 0.02  # a short pull's band is scanned down in height and across in distance this finely
 SWEEP_STEPS = 10  # the part's openings checked against the robot, from closed to the task's
 HAND_ABOVE_M = 0.15  # a hand grasping a drawer's level bar from above reaches this far above the grip (the Panda's
 # hand, 0.2 m along the way its fingers close, stands tilted up along it)
@@ -132,8 +133,8 @@ def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Ge
     geometry = measure_parts(placed.furniture)
     if text is not None:
         chosen = resolve(placed.furniture, geometry, task, text)
-        placing = named_reach(placed, chosen, task, reach)
-        roomy = geometry if placing == reach else room_from_above(geometry)
+        placing = named_reach(placed, chosen, task, reach, opening)
+        roomy = _roomy(geometry, task, reach, placing)
         cover = covering_part(chosen, geometry)
         if cover is not None:
             raise PartError(f"--part {text!r}: {chosen.name} of {placed.furniture.source} stands behind its {cover}'s "
@@ -147,8 +148,7 @@ def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Ge
                              f"reach: {_reach(placed, [chosen], task, reach)}")
         return chosen, placing
     placing = placing_reach(placed, geometry, task, reach, opening)
-    roomy = geometry if placing == reach else room_from_above(geometry)
-    reachable = reachable_parts(placed, roomy, task, placing, opening)
+    reachable = reachable_parts(placed, _roomy(geometry, task, reach, placing), task, placing, opening)
     if not reachable:
         raise PartError(_no_part(placed, geometry, task, reach, opening))
     return reachable[int(rng.integers(len(reachable)))], placing
@@ -156,25 +156,33 @@ def _choose_part(room: Room, task: PartKind, text: str | None, rng: np.random.Ge
 
 def placing_reach(placed: Placed, geometry: list[PartGeometry], task: PartKind, reach: Reach,
                   opening: float = 0.0) -> Reach:
-    """The reach the furniture's parts are placed in: `reach` when some part of the task's kind that opens at least
-    `opening` lies in its usual bands, else its reach from above (a user grasps a low handle from above only when
-    nothing is at a comfortable height) when a part there leaves a hand room above its grip, else `reach`."""
-    low = reach.from_above(task)
-    if (low is None or reachable_parts(placed, geometry, task, reach, opening)
-            or not reachable_parts(placed, room_from_above(geometry), task, low, opening)):
-        return reach
-    return low
+    """The reach the furniture's parts are placed in: the first of `reach`, its usual grasp lowered for a pull of
+    `opening` (`short_pull_reach`) and its reach from above (a user grasps a low handle from above only when nothing
+    is at a comfortable height) in which some part of the task's kind that opens at least `opening` lies (a drawer
+    grasped from above with room for a hand above its grip), else `reach`."""
+    for placing in _reaches(reach, task, opening):
+        if reachable_parts(placed, _roomy(geometry, task, reach, placing), task, placing, opening):
+            return placing
+    return reach
 
 
-def named_reach(placed: Placed, part: PartGeometry, task: PartKind, reach: Reach) -> Reach:
-    """The reach a part a user names is placed in: `reach` when its grip lies in the usual bands, else its reach from
-    above when the grip lies in that one (a user who names a low part grasps it from above, whatever the other parts'
-    heights), else `reach`."""
-    low = reach.from_above(task)
+def named_reach(placed: Placed, part: PartGeometry, task: PartKind, reach: Reach, opening: float = 0.0) -> Reach:
+    """The reach a part a user names is placed in: the first of `reach`, its usual grasp lowered for a pull of
+    `opening` and its reach from above whose bands hold its grip (a user who names a low part grasps it from above,
+    whatever the other parts' heights), else `reach`."""
     grip = _grip_height(placed, part)
-    if base_heights(grip, task, reach) is not None or low is None or base_heights(grip, task, low) is None:
-        return reach
-    return low
+    return next((r for r in _reaches(reach, task, opening) if base_heights(grip, task, r) is not None), reach)
+
+
+def _reaches(reach: Reach, task: PartKind, opening: float) -> list[Reach]:
+    """The reaches a part is placed in, in the order a user tries them: `reach`, its usual grasp lowered for a pull
+    of `opening`, its reach from above (those the arm has)."""
+    return [r for r in (reach, short_pull_reach(reach, task, opening), reach.from_above(task)) if r is not None]
+
+
+def _roomy(geometry: list[PartGeometry], task: PartKind, reach: Reach, placing: Reach) -> list[PartGeometry]:
+    """The parts a hand can grasp when placed in `placing`: all, but for a reach from above (`room_from_above`)."""
+    return room_from_above(geometry) if placing != reach and placing == reach.from_above(task) else geometry
 
 
 def room_from_above(geometry: list[PartGeometry]) -> list[PartGeometry]:
@@ -189,7 +197,7 @@ def reach_problem(furniture: Furniture, task: PartKind, reach: Reach = PANDA_REA
     `reach` can reach (one line); None when it has one."""
     placed, geometry = Placed(furniture, (0.0, 0.0, standing_height(furniture), 0.0)), measure_parts(furniture)
     placing = placing_reach(placed, geometry, task, reach, opening)
-    if reachable_parts(placed, geometry if placing == reach else room_from_above(geometry), task, placing, opening):
+    if reachable_parts(placed, _roomy(geometry, task, reach, placing), task, placing, opening):
         return None
     return _no_part(placed, geometry, task, reach, opening)
 
@@ -299,6 +307,35 @@ def arm_grasps(reach: Reach, T_base_room: np.ndarray, grip: np.ndarray, normal: 
     normal_base = T_base_room[:3, :3] @ normal
     return any(grasps_grip(kin, q_ready, grip_base, normal_base, pitch, PARK_APPROACH_M, PARK_PULL_M)
                for pitch in (GRASP_PITCH_RAD, *FROM_ABOVE_RAD))
+
+
+def short_pull_reach(reach: Reach, task: PartKind, opening: float) -> Reach | None:
+    """The usual grasp of a drawer pulled only `opening` (at least PARK_PULL_M), shorter than the pull its drawer
+    bands are set for (`reach.drawer_pull_m`): the same distance band, the height band lowered to the lowest height
+    down to which the arm of `reach.model` grasps the grip and pulls it that far at every distance of the band (a
+    short pull leaves the arm clear of its joint limits lower down). None for a door, an arm with no model, a pull
+    as long as the bands', or one the arm carries no lower."""
+    pull = max(opening, PARK_PULL_M)
+    if task != "drawer" or reach.model is None or pull >= reach.drawer_pull_m:
+        return None
+    low, high = reach.drawer_height_m
+    lowest = _lowest_grip(reach.model, reach.drawer_distance_m, low, round(pull, 3))
+    return None if lowest >= low else replace(reach, drawer_height_m=(lowest, high))
+
+
+@functools.cache
+def _lowest_grip(model: str, distance_m: tuple[float, float], height_m: float, pull_m: float) -> float:
+    """The lowest height, down from `height_m` in SCAN_STEP_M steps, to which every height grasps a grip at each
+    distance of `distance_m` (SCAN_STEP_M apart) facing the arm and pulls it `pull_m` straight out, at the usual
+    pitch (`grasps_grip`)."""
+    kin, q_ready = _arm_model(model)
+    distances = np.linspace(*distance_m, int(np.ceil((distance_m[1] - distance_m[0]) / SCAN_STEP_M)) + 1)
+    height = height_m
+    while height - SCAN_STEP_M > 0.0 and all(
+            grasps_grip(kin, q_ready, np.array([d, 0.0, height - SCAN_STEP_M]), np.array([-1.0, 0.0, 0.0]),
+                        GRASP_PITCH_RAD, PARK_APPROACH_M, pull_m) for d in distances):
+        height -= SCAN_STEP_M
+    return round(float(height), 3)
 
 
 @functools.cache

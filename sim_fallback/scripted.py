@@ -52,6 +52,10 @@ FINGERTIP_CLEARANCE_M = 0.003
 PREGRASP_MARGIN_M = 0.015  # the open fingers clear the handle by this much each side
 CLOSE_TIME_S = 0.5
 DEFAULT_TARGET = {"drawer": 0.20, "door": float(np.radians(30.0))}  # m, rad
+GRASPS = ((GRASP_PITCH_RAD, False), *((p, False) for p in FROM_ABOVE_RAD), (0.0, False), (-GRASP_PITCH_RAD, False),
+          *((p, True) for p in (GRASP_PITCH_RAD, 0.0, -GRASP_PITCH_RAD)))  # (pitch, elbow swung out) tried in turn:
+# the usual grasp, from above (a low handle), level and tilted up (a bar under an overhang), then the elbow swung out
+APPROACH_CHECKS = 5  # the hand is checked clear at this many poses along its straight approach
 APPROACH_LIMITS = MotionLimits(0.10, 0.5, 5.0)  # m/s, m/s^2, m/s^3 along the approach line
 OPENED_SHARE = 0.5  # a recording whose part opened less than this share of the target is refused (kept on disk)
 OPEN_LIMITS = {"drawer": MotionLimits(0.10, 0.3, 3.0), "door": MotionLimits(0.25, 0.6, 6.0)}  # m or rad
@@ -85,21 +89,51 @@ def opening_path(T_start: np.ndarray, truth: JointTruth) -> PathFn:
 
 
 def pregrasp_configuration(kin: Kinematics, world: SimWorld, length: float) -> tuple[np.ndarray, np.ndarray]:
-    """(grasp pose, joint positions at its pre-grasp pose) from which the approach and the opening path along the
-    true axis stay farthest from singularities (largest smallest singular value of the Jacobian along them; the Panda
-    is redundant and per-tick IK near a singularity spins joints 1 and 3): the usual grasp, else one from above
-    (FROM_ABOVE_RAD, a low handle)."""
-    truth = world.truth()
-    for pitch in (GRASP_PITCH_RAD, *FROM_ABOVE_RAD):
+    """(grasp pose, joint positions at its pre-grasp pose) of the first grasp of GRASPS from which the approach and
+    the opening path along the true axis stay clear of joint limits (the seed farthest from singularities: largest
+    smallest singular value of the Jacobian along them; the Panda is redundant and per-tick IK near a singularity
+    spins joints 1 and 3) and whose hand meets nothing around the furniture along its approach (`hand_clear`); when
+    every such grasp meets something, the first of them."""
+    truth, width, first = world.truth(), pregrasp_width(world), None
+    for pitch, swung in GRASPS:
         T_grasp = grasp_pose(world, pitch)
         opening = opening_path(T_grasp, truth)
         poses = [pregrasp_pose(T_grasp, PREGRASP_M), T_grasp, *(opening(s) for s in np.linspace(0.0, length, 12)[1:])]
-        best = well_conditioned_start(kin, poses, Q_START, LIMIT_MARGIN_RAD)
-        if best is not None:
+        best = well_conditioned_start(kin, poses, Q_START, LIMIT_MARGIN_RAD, swung=swung)
+        if best is None:
+            continue
+        approach = [pregrasp_pose(T_grasp, d) for d in np.linspace(PREGRASP_M, 0.0, APPROACH_CHECKS)]
+        if hand_clear(world, kin.solve_path(approach, best, restarts=0), width):
             return T_grasp, best
+        first = first or (T_grasp, best)
+    if first is not None:
+        return first
     raise ArmError(f"scripted grasp: no arm configuration reaches the handle and follows the opening "
                    f"by {length:.3f} (m or rad) clear of joint limits and singularities, whether from the front or "
                    "from above; try another seed or a smaller target")
+
+
+def hand_clear(world: SimWorld, qs: np.ndarray, width_m: float) -> bool:
+    """Whether the hand (the robot's links past its last arm joint), its fingers open `width_m`, meets nothing around
+    the target's furniture at each of the arm's joint positions `qs`: no other furniture, counter, wall or object.
+    The furniture's own frame and fronts beside the handle it may brush, at any pitch. Ground truth; the joints are
+    put back as they were."""
+    c, robot, spec = world.client, world.robot_id, world.robot_spec
+    joints = [world.robot_joints[name] for name in (*spec.arm_joints, *spec.finger_joints)]
+    held = [pb.getJointState(robot, j, physicsClientId=c)[:2] for j in joints]
+    hand = range(world.robot_joints[spec.arm_joints[-1]] + 1, pb.getNumJoints(robot, physicsClientId=c))
+    around = [b for b in (pb.getBodyUniqueId(k, physicsClientId=c) for k in range(pb.getNumBodies(physicsClientId=c)))
+              if b not in (robot, world.truth().body_id)]
+    try:
+        for q in qs:
+            for j, value in zip(joints, [*q, *spec.finger_positions(width_m)], strict=True):
+                pb.resetJointState(robot, j, float(value), physicsClientId=c)
+            if any(pb.getClosestPoints(robot, body, 0.0, link, physicsClientId=c) for body in around for link in hand):
+                return False
+        return True
+    finally:
+        for j, (q, dq) in zip(joints, held, strict=True):
+            pb.resetJointState(robot, j, q, dq, physicsClientId=c)
 
 
 def grasp_handle(
@@ -200,14 +234,14 @@ def record_scripted(
     handle, T_base_camera, joint positions, tool pose and `grasped` per frame: false over the approach until the
     gripper has closed on the handle, true from then on) plus truth.json with the true joint type, axis (base
     frame; positive opens), the joint value at every frame, the world and the part. `target`: opening in m (drawer,
-    default 0.2) or rad (door, default 30 deg). progress(phase, frames) follows every frame written (phase: "grasp",
-    "open" or "hold").
+    default 0.2) or rad (door, default 30 deg), which the robot is parked to make. progress(phase, frames) follows
+    every frame written (phase: "grasp", "open" or "hold").
     """
     out = Path(out_dir)
     wall0 = time.perf_counter()
-    scenario = _filmed(scene_scenario(world, task, seed, split, part, assets, object_id, scale))
-    task = scenario.task
+    task = task or scene_scenario(world, task, seed, split, part, assets, object_id, scale).task  # the object's
     target = DEFAULT_TARGET[task] if target is None else float(target)
+    scenario = _filmed(scene_scenario(world, task, seed, split, part, assets, object_id, scale, opening=target))
     log.info("scripted %s opening from GROUND TRUTH (data generator, not the policy): %s seed %d, split %s, %s",
              task, world, seed, split, scenario_object(scenario))
     with SimWorld(scenario) as sim:

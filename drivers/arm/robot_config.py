@@ -80,7 +80,8 @@ class ComplianceConfig(StrictModel):
 
 class ReachConfig(StrictModel):
     """Where simulated scenes put the grip of the part to open, in the base frame (m): its horizontal distance from
-    the base and its height above it, per task (`drivers.arm.robots.Reach`; defaults: the Panda's usual bands); the
+    the base and its height above it, per task (`drivers.arm.robots.Reach`; defaults: the Panda's usual bands);
+    `drawer_pull_m` the pull the drawer bands are set for; the
     `low_*` bands where the arm grasps a low handle from above (default: none); `model`: the robot config whose
     kinematics check a scene's parking (default: none, the bands alone)."""
 
@@ -88,6 +89,7 @@ class ReachConfig(StrictModel):
     drawer_height_m: tuple[float, float] = Reach.drawer_height_m
     door_distance_m: tuple[float, float] = Reach.door_distance_m
     door_height_m: tuple[float, float] = Reach.door_height_m
+    drawer_pull_m: float = Field(Reach.drawer_pull_m, ge=0.0)
     low_drawer_distance_m: tuple[float, float] | None = None
     low_drawer_height_m: tuple[float, float] | None = None
     low_door_distance_m: tuple[float, float] | None = None
@@ -97,7 +99,7 @@ class ReachConfig(StrictModel):
     @model_validator(mode="after")
     def _bands(self) -> ReachConfig:
         for key, band in self:
-            if band is None or key == "model":
+            if band is None or key in ("model", "drawer_pull_m"):
                 continue
             lo, hi = band
             if lo > hi:

@@ -16,6 +16,9 @@ class Reach:
     falls in these bands, as a user parks an arm in front of what it must open (`scripts/reach_scan.py` maps an
     arm's). The defaults are the Panda's: a 45 cm drawer pull and a door's swing stay clear of its joint limits.
 
+    `drawer_pull_m`: the pull the drawer bands are set for; a drawer pulled less is grasped the usual way lower down
+    where the arm's kinematics carry the shorter pull (sim_fallback/kitchen_scenario.py `short_pull_reach`).
+
     `low_*`: the bands where the arm grasps a low handle from above (the approach tilted steeply down) and pulls it,
     for furniture with no part in the usual bands (None: the arm has none measured for that task). `model`: the robot
     config (a shipped name or a TOML file) whose kinematics a scene's parking is checked with, as a user tries the arm
@@ -25,6 +28,7 @@ class Reach:
     drawer_height_m: tuple[float, float] = (0.72, 0.86)
     door_distance_m: tuple[float, float] = (0.5, 0.85)
     door_height_m: tuple[float, float] = (0.62, 0.78)
+    drawer_pull_m: float = 0.45
     low_drawer_distance_m: tuple[float, float] | None = None
     low_drawer_height_m: tuple[float, float] | None = None
     low_door_distance_m: tuple[float, float] | None = None
@@ -46,9 +50,10 @@ class Reach:
         return replace(self, **{f"{task}_distance_m": distance, f"{task}_height_m": height})
 
     def usual(self) -> Reach:
-        """This reach without its bands from above."""
+        """This reach without its bands from above, its drawer bands serving every pull (none lowered for a short
+        one)."""
         return replace(self, low_drawer_distance_m=None, low_drawer_height_m=None, low_door_distance_m=None,
-                       low_door_height_m=None)
+                       low_door_height_m=None, drawer_pull_m=0.0)
 
 
 # The Panda's, from above: a low bar grasped with the approach tilted 0.7 or 1.1 rad down (drivers/arm/
