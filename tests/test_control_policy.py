@@ -77,6 +77,19 @@ def test_a_short_knob_is_held_with_the_fingers_short_of_the_front_behind_it(clea
     assert handle.depth_m >= -0.005 and (T[:3, 3] - centre) @ T[:3, 2] >= -0.005 - 1e-9  # the pads still reach it
 
 
+
+@pytest.mark.parametrize(("length", "horizontal"), [(0.027, False), (0.040, True)])
+def test_a_knob_that_is_not_round_is_held_across_its_narrow_side(length, horizontal):
+    """A door's knob-sized handle 19 mm tall (a cup half hidden by a neighbour reads 40 mm wide): a round one is held
+    with the fingers closing level, one twice as wide as tall with them closing across its height (level, they pass
+    beside its shell and close on nothing)."""
+    knob = PointedHandle("pull", "knob", np.array([0.48, 0.2, 0.6]), np.array([0, 1.0, 0]), np.array([0, 0, 1.0]),
+                         np.array([-1.0, 0, 0]), length, 0.019, 0.02, 0.02, 1.0, 0.0, "a knob", 0.08)
+    handle = pointed_handle(knob, vertical_default=True)
+    closing = grasp_pose(handle)[:3, 1]
+    assert abs(closing[1]) < 1e-9 if horizontal else abs(closing[2]) < 1e-9  # across the shell, or level
+    assert abs(abs(handle.bar[1 if horizontal else 2]) - 1) < 1e-9
+
 def test_knob_and_empty_handle():
     knob = np.random.default_rng(1).normal([0.47, 0.2, 0.6], 0.005, (50, 3))
     handle = find_handle(knob, np.zeros((0, 3)), BODY, VIEW, vertical_default=True)  # no front: the box's

@@ -44,10 +44,11 @@ class FakeEpisode:
 
     grip_force_n = 40.0
 
-    def __init__(self, offset_m: float, measured_thickness_m: float, together: bool = False) -> None:
+    def __init__(self, offset_m: float, measured_thickness_m: float, together: bool = False,
+                 opened: float = 0.0) -> None:
         self.p, self.bar_z = np.zeros(3), offset_m
         self.arm = FakeGripper(self, together)
-        self.state = SimpleNamespace(handle=SimpleNamespace(thickness_m=measured_thickness_m))
+        self.state = SimpleNamespace(handle=SimpleNamespace(thickness_m=measured_thickness_m), opened=opened)
 
     def tool(self) -> np.ndarray:
         T = np.eye(4)
@@ -89,3 +90,12 @@ def test_a_bar_as_thick_as_the_closed_width_is_not_probed():
     episode = FakeEpisode(0.012, measured_thickness_m=0.03)
     hand.close_and_check(episode, OPEN_M, StopReason.GRASP_FAILED)
     assert episode.p == pytest.approx(np.zeros(3))
+
+
+def test_an_opened_part_is_not_probed_by_width():
+    """Re-grasping a door opened 0.3 rad: the fingers, closed wider than the handle, stay where they closed (each
+    probe would open them, and the door, let go, swings back on its spring between the probes)."""
+    episode = FakeEpisode(0.008, measured_thickness_m=0.006, opened=0.3)
+    hand.close_and_check(episode, OPEN_M, StopReason.GRASP_LOST)
+    assert episode.p == pytest.approx(np.zeros(3))
+    assert episode.arm.width == pytest.approx(0.008 + THICKNESS_M / 2)  # one finger on it, as it closed

@@ -166,8 +166,9 @@ def ease_off_press(episode: Episode) -> None:
 def close_and_check(episode: Episode, open_width: float, failure: StopReason, context: str = "") -> None:
     """Close on the handle; when one finger alone pressed it, centre it (`centre_on_handle`), open and close again
     so that both fingers squeeze it; when the fingers closed wider than the handle is thick without the arm feeling
-    it, centre it by the closed width (`centre_by_width`). EpisodeStop(`failure`) when the gripper closed on
-    nothing."""
+    it, centre it by the closed width (`centre_by_width`), unless the part has opened: that probing opens the gripper
+    at every step, and an opened part, let go, moves back (a self-closing spring) between the probes. EpisodeStop(
+    `failure`) when the gripper closed on nothing."""
     width = _close(episode, open_width, failure, context)
     moved = centre_on_handle(episode, width)
     if moved:
@@ -177,7 +178,8 @@ def close_and_check(episode: Episode, open_width: float, failure: StopReason, co
         episode.wait(CLOSE_TIME_S)
         width = _close(episode, open_width, failure, context)
     handle = episode.state.handle
-    if handle is not None and handle.thickness_m is not None and width > handle.thickness_m:
+    opened = episode.state.opened > 0.0
+    if handle is not None and handle.thickness_m is not None and width > handle.thickness_m and not opened:
         moved = centre_by_width(episode, width, open_width)
         log.info("the fingers closed to %.1f mm on a %.1f mm handle: the tool moved %.1f mm across them to where "
                  "they close narrowest", width * 1e3, handle.thickness_m * 1e3, moved * 1e3)
