@@ -495,3 +495,35 @@ def test_a_wall_between_units_over_a_counter_with_a_socket_is_refused():
     with pytest.raises(PointerError, match="a wall"):
         point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(260, 300))
 
+
+
+def _shaker_door(bar_cols: tuple[int, int], bar_depth_m: float) -> Frame:
+    """A synthetic D415 frame, 1 m straight ahead: a 60 x 60 cm frame-and-panel door (rows 60-420, columns 140-500)
+    before a pale wall at 1.4 m, its 5 cm stiles and rails at 1.0 m, its panel (columns 170-470) set back 1.5 cm; a
+    vertical bar 20 cm long over `bar_cols` of the right stile at `bar_depth_m` (0: the D415 lost it)."""
+    K = Intrinsics(640, 480, 600.0, 600.0, 320.0, 240.0)
+    depth = np.full((480, 640), 1.4, np.float32)
+    color = np.full((480, 640, 3), (200, 200, 195), np.uint8)
+    depth[60:420, 140:500], color[60:420, 140:500] = 1.0, (150, 100, 60)
+    depth[90:390, 170:470] = 1.015
+    depth[150:270, slice(*bar_cols)], color[150:270, slice(*bar_cols)] = bar_depth_m, (128, 128, 128)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])  # optical z along base x
+    return Frame(0, 0.0, color, depth, K, T)
+
+
+@pytest.mark.parametrize(("bar_cols", "bar_depth_m"), [((474, 482), 0.97), ((486, 494), 0.97), ((486, 494), 0.0)])
+def test_a_bar_on_the_stile_of_a_door_whose_panel_is_set_into_its_frame_is_its_handle(bar_cols, bar_depth_m):
+    """Pointed on the panel of a frame-and-panel door: the plane is the panel's, and its rectangle stops where the
+    frame rises out of it; the frame's strips past it (a stile's width, a panel's set-back proud, falling at the
+    door's edge) are the door's, so the door is the frame's rectangle in the frame's plane, and the bar on its right
+    stile is its handle: measured beside the panel (which, set back, is no pull's pocket to join it to) or by the
+    door's edge (the room past the edge is no ring around it against it), or seen in colour only by the edge (on the
+    stile, not the gap's line past it). Before: the rectangle was the panel, the bar outside it, and the door refused
+    as a front without a handle (PartNet-Mobility's 45213 door)."""
+    frame = _shaker_door(bar_cols, bar_depth_m)
+    found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(300, 250))
+    s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
+    assert np.linalg.norm([s, z] - _on_plane_at(found, sum(bar_cols) / 2, 210)) < GRIP_TOLERANCE_M, found.handle
+    assert abs(found.front.width_m - 0.6) < 0.03 and found.front.ended["right"] == "frame", found.front.ended
+    assert abs(found.front.plane.coordinates(np.array([[1.0, 0.0, 0.0]]))[0, 2]) < 0.003  # the frame's plane

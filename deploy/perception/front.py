@@ -26,6 +26,7 @@ from deploy.perception.handle_blobs import (
     segment_distance,
     span_m,
 )
+from deploy.perception.panel_frame import framed_panel
 from deploy.perception.plane_view import D415, NOISE_SIGMAS, QUANTUM_M, UP, PlaneFrame, PlaneView, rectify
 from drivers.camera.base import Frame
 
@@ -54,7 +55,8 @@ class Front:
     it: top left, top right, bottom right, bottom left; `mask` (H, W) its pixels (not its handle); `ended` what
     ended each side ("gap", "surface", "view": the image's border, the side is cut and the front may be larger);
     `view` and `extent` the rectified view and the rectangle's cells in it (for the handle search). Sides also end at
-    "handle" (cut between two handles: the gap was not seen) and "box" (the user's box)."""
+    "handle" (cut between two handles: the gap was not seen), "box" (the user's box) and "frame" (the edge of the
+    frame a panel is set into: panel_frame.py)."""
 
     plane: PlaneFrame
     width_m: float
@@ -233,6 +235,11 @@ def find_front(frame: Frame, robot: np.ndarray, u: int, v: int,
     view = rectify(frame, robot, plane, s_range, z_range, res_m)
     seed = (int(view.row(0.0)), int(view.col(0.0)))
     extent = front_extent(view, seed, enclosed_pockets(view))  # a pull's pocket is crossed like a handle
+    framed = framed_panel(view, extent)
+    if framed is not None:  # a panel set into its front's frame: the front is the frame's rectangle and plane
+        extent, level = framed
+        plane = PlaneFrame(plane.point(0.0, 0.0, level), plane.normal, plane.right, plane.up)
+        view = rectify(frame, robot, plane, s_range, z_range, res_m)
     extent = split_wide(view, extent)
     extent = split_by_handles(view, extent, handle_blobs(view, extent, frame.T_base_camera, frame.intrinsics.K))
     if box is not None:

@@ -49,7 +49,7 @@ STEP_M = 0.005  # a handle's outline runs straight along it: both its edges step
 STEP_WINDOW_M = 0.02  # an edge's step is sought over this stretch either side (a finger pad's width); a handle's end
 # (rounded, seen at a slant) takes at most this much of its length
 RIM_SHARE = 0.6  # a handle sits on its front: at least this share of the ring around it (where depth is measured,
-# and, for one measured standing out, not the room seen past the front's top or bottom edge) is the front's surface
+# and, for one measured standing out, not the room seen past the front's edges) is the front's surface
 
 
 @dataclass(frozen=True)
@@ -119,7 +119,7 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
            extent.left - c0 + inner:extent.right - c0 + 1 - inner] = True
     with np.errstate(invalid="ignore"):
         out = (offset > tolerance) & (offset <= MAX_STANDOFF_M)
-        pocket = inside & (offset < -tolerance) & (offset >= -MAX_POCKET_M)
+        pocket = _pull_sized(inside & (offset < -tolerance) & (offset >= -MAX_POCKET_M), view.res_m)
     other = view.no_depth[sl] & (colour_distance(view.lab[sl], front_colour(view, extent)) > COLOUR_DELTA_E)  # a
     # hole of another colour than the front's: a handle the D415 lost (shadows keep their depth on the plane)
     inner_edge = inside & ~cv2.erode(inside.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
@@ -131,9 +131,11 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     joined = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
     count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
     surface, measured = view.on_plane[sl], view.seen[sl] & ~view.no_depth[sl]
-    open_past = view.behind[sl] & ~_within_rows(offset.shape, extent.top - r0, extent.bottom - r0)  # the room seen
-    # past the front's top or bottom edge: an edge pull's tab, measured standing out, stands over it and is no less
-    # the front's; a line there not measured out of the plane (a shadow, what lies beyond) is judged by its whole ring
+    open_past = view.behind[sl] & ~_within(offset.shape, (extent.top - r0, extent.bottom - r0),
+                                           (extent.left - c0, extent.right - c0))  # the room seen past the front's
+    # edges: an edge pull's tab or a bar on a stile by a door's edge, measured standing out, stands before it and is
+    # no less the front's; a line there not measured out of the plane (a shadow, what lies beyond) is judged by its
+    # whole ring
     ring_kernel = np.ones((2 * join + 1, 2 * join + 1), np.uint8)
     smallest = MIN_SIZE_M / view.res_m
 
@@ -170,6 +172,14 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
                   and not _edge_of_beside(view, b, extent)]
     blobs = _under_hidden_edges(view, extent, blobs, camera_to_base, K)
     return _joined_pieces(view, blobs, extent, camera_to_base, K)
+
+
+def _pull_sized(sunk: np.ndarray, res_m: float) -> np.ndarray:
+    """`sunk` without its pieces wider than a pull's pocket both ways (MAX_ACROSS_M): a panel set back into its
+    frame, which must not join the handle on the frame beside it into one candidate too large for a handle."""
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(sunk.astype(np.uint8), connectivity=8)
+    wide = np.flatnonzero(np.minimum(stats[:, 2], stats[:, 3]) * res_m > MAX_ACROSS_M)
+    return sunk & ~np.isin(labels, wide[wide > 0])
 
 
 def side_by_side(member: np.ndarray, res_m: float) -> list[np.ndarray]:
@@ -249,15 +259,18 @@ def _under_hidden_edges(view: PlaneView, extent: Extent, blobs: list[Blob], came
 def _edge_line(view: PlaneView, blob: Blob, extent: Extent) -> bool:
     """Whether a candidate seen in colour only is a line along one of the rectangle's sides, its middle within
     EDGE_BAND_M of it: the dark line of the gap there or the front's edge seen at a slant (a thin dark bar that the
-    D415 loses stands off its front's edges; one on the very edge stands out, and is measured)."""
+    D415 loses stands off its front's edges; one on the very edge stands out, and is measured). A side that ends at
+    a frame's edge ("frame": where the depth falls past the frame's strip, panel_frame.py) has its gap past it: a line
+    inside the rectangle there lies on the strip (a bar on a stile)."""
     if not blob.seen_in_colour_only or blob.elongation < BAR_ELONGATION:
         return False
     band = EDGE_BAND_M / view.res_m
     if abs(blob.axis[0]) >= abs(blob.axis[1]):
-        row = float(view.row(blob.centre[1]))
-        return min(abs(row - extent.top), abs(row - extent.bottom)) <= band
-    col = float(view.col(blob.centre[0]))
-    return min(abs(col - extent.left), abs(col - extent.right)) <= band
+        at, sides = float(view.row(blob.centre[1])), {"top": (extent.top, -1), "bottom": (extent.bottom, 1)}
+    else:
+        at, sides = float(view.col(blob.centre[0])), {"left": (extent.left, -1), "right": (extent.right, 1)}
+    return any(abs(at - line) <= band and (extent.ended.get(side) != "frame" or (at - line) * outward > 0)
+               for side, (line, outward) in sides.items())
 
 
 def _edge_of_beside(view: PlaneView, blob: Blob, extent: Extent) -> bool:
@@ -411,10 +424,10 @@ def _hidden_sides(view: PlaneView, extent: Extent, lines: int) -> set[str]:
     return hidden
 
 
-def _within_rows(shape: tuple[int, int], top: int, bottom: int) -> np.ndarray:
-    """A grid of `shape`, True in rows `top` to `bottom` (inclusive)."""
-    rows = np.arange(shape[0])[:, None]
-    return np.broadcast_to((rows >= top) & (rows <= bottom), shape)
+def _within(shape: tuple[int, int], rows: tuple[int, int], cols: tuple[int, int]) -> np.ndarray:
+    """A grid of `shape`, True in the rectangle of `rows` and `cols` (first and last, inclusive)."""
+    r, c = np.arange(shape[0])[:, None], np.arange(shape[1])[None, :]
+    return (r >= rows[0]) & (r <= rows[1]) & (c >= cols[0]) & (c <= cols[1])
 
 
 def enclosed_pockets(view: PlaneView) -> np.ndarray:
