@@ -444,6 +444,21 @@ def test_a_neighbours_bar_just_past_a_handleless_doors_gap_is_not_its_handle():
         point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(300, 220))
 
 
+def test_a_bar_overhanging_a_doors_edge_with_the_room_past_it_is_its_handle():
+    """A door whose left edge has a wall of a like colour 40 cm behind it, its bar standing 3 cm out over that edge
+    (a refrigerator's), the D415's shadow beside the bar: the band just past the side is the bar's own overhang, so
+    what stands beside the door is judged past the bar, the wall farther back, and the bar is the handle (before: its
+    overhang, standing out as far as the bar, made the bar the edge of a unit beside the door, and the door was
+    refused as showing no handle)."""
+    bar, shadow = ((170, 270), (92, 108), 0.97, (128, 128, 128)), ((160, 280), (83, 92), 0.0, (140, 95, 60))
+    frame = _fronts_ahead((98, 341), (441,), [bar, shadow])
+    frame.color[:, :92] = (140, 95, 60)
+    found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(250, 220))
+    assert found.front.ended["left"] == "surface" and found.handle.kind == "bar"
+    s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
+    assert np.linalg.norm([s, z] - _on_plane_at(found, 100, 220)) < GRIP_TOLERANCE_M
+
+
 def test_the_gaps_of_a_tall_drawer_that_loses_its_depth_in_patches_bound_it():
     """Three coplanar drawers with a bar near each one's top, the middle one 47 cm tall, their finish losing the
     D415's dots in specks over half of them (dark or pale finishes do). Pointed low on the middle drawer: its dark
