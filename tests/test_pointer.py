@@ -415,6 +415,50 @@ def test_a_slit_sunk_into_the_front_is_no_pull():
     assert np.linalg.norm([s, z] - _on_plane_at(found, 320, 123)) < 0.03
 
 
+def _door_ahead(bar_cols: tuple[int, int], panel: bool = True) -> Frame:
+    """A 40 x 40 cm door (columns 200-440, rows 100-340) between coplanar neighbours, a 17 cm bar 3 cm out at the
+    columns `bar_cols`; with `panel`, a panel inside the door framed by lines as dark as its gaps (a glass pane's or a
+    panel's edge: columns 230 and 380, rows 130 and 310)."""
+    lines = ((130, 132), (230, 382)), ((310, 312), (230, 382)), ((130, 312), (230, 232)), ((130, 312), (380, 382))
+    shapes = [(rows, cols, 1.0, (40, 30, 20)) for rows, cols in lines] if panel else []
+    return _fronts_ahead((98, 341), (198, 441), shapes + [((170, 270), bar_cols, 0.97, (128, 128, 128))])
+
+
+def test_a_doors_handle_on_its_stile_past_the_panels_frame_line_is_its_handle():
+    """A framed door whose bar sits on its right stile, 4 cm past the panel's frame line: pointed on the panel, the
+    frame's line bounds a rectangle with no handle, but a strip narrower than any front with a handle on it is the
+    door's stile, so the door grows through it to its gap and the bar is its handle (before: refused, no handle)."""
+    frame = _door_ahead((405, 412))
+    found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(300, 220))
+    s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
+    assert np.linalg.norm([s, z] - _on_plane_at(found, 408, 220)) < GRIP_TOLERANCE_M
+    assert found.front.ended["right"] == "gap" and 0.33 < found.front.width_m < 0.37, found.front.ended
+
+
+def test_a_neighbours_bar_just_past_a_handleless_doors_gap_is_not_its_handle():
+    """A door without a handle beside another whose bar sits 4 cm past their gap: grown through to that bar, the
+    front runs on over the whole neighbour, far past the bar (a handle sits by its front's opening edge), so the bar
+    is the neighbour's and the pointed door is refused as showing no handle."""
+    frame = _door_ahead((465, 472), panel=False)
+    with pytest.raises(PointerError, match="no handle"):
+        point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(300, 220))
+
+
+def test_a_bar_overhanging_a_doors_edge_with_the_room_past_it_is_its_handle():
+    """A door whose left edge has a wall of a like colour 40 cm behind it, its bar standing 3 cm out over that edge
+    (a refrigerator's), the D415's shadow beside the bar: the band just past the side is the bar's own overhang, so
+    what stands beside the door is judged past the bar, the wall farther back, and the bar is the handle (before: its
+    overhang, standing out as far as the bar, made the bar the edge of a unit beside the door, and the door was
+    refused as showing no handle)."""
+    bar, shadow = ((170, 270), (92, 108), 0.97, (128, 128, 128)), ((160, 280), (83, 92), 0.0, (140, 95, 60))
+    frame = _fronts_ahead((98, 341), (441,), [bar, shadow])
+    frame.color[:, :92] = (140, 95, 60)
+    found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(250, 220))
+    assert found.front.ended["left"] == "surface" and found.handle.kind == "bar"
+    s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
+    assert np.linalg.norm([s, z] - _on_plane_at(found, 100, 220)) < GRIP_TOLERANCE_M
+
+
 def test_the_gaps_of_a_tall_drawer_that_loses_its_depth_in_patches_bound_it():
     """Three coplanar drawers with a bar near each one's top, the middle one 47 cm tall, their finish losing the
     D415's dots in specks over half of them (dark or pale finishes do). Pointed low on the middle drawer: its dark

@@ -7,7 +7,8 @@ self-filter's mask) and the user's pixel. Base frame, metres, z up.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -16,7 +17,7 @@ from deploy.errors import PointerError
 from deploy.geometry.cloud import depth_to_points
 from deploy.geometry.planes import dominant_plane
 from deploy.perception.front_extent import Extent, front_extent, gap_line_shares, long_gap_line_shares
-from deploy.perception.handle import EDGE_BAND_M, spills_over_edge, tab_over_top
+from deploy.perception.handle import EDGE_BAND_M, own_blob, spills_over_edge, tab_over_top
 from deploy.perception.handle_blobs import (
     MAX_POCKET_M,
     Blob,
@@ -234,14 +235,24 @@ def find_front(frame: Frame, robot: np.ndarray, u: int, v: int,
     res_m = depth / frame.intrinsics.fx  # a cell is about a pixel at the seed
     view = rectify(frame, robot, plane, s_range, z_range, res_m)
     seed = (int(view.row(0.0)), int(view.col(0.0)))
-    extent = front_extent(view, seed, enclosed_pockets(view))  # a pull's pocket is crossed like a handle
+    pockets = enclosed_pockets(view)  # a pull's pocket is crossed like a handle
+    extent = front_extent(view, seed, pockets)
     framed = framed_panel(view, extent)
     if framed is not None:  # a panel set into its front's frame: the front is the frame's rectangle and plane
         extent, level = framed
         plane = PlaneFrame(plane.point(0.0, 0.0, level), plane.normal, plane.right, plane.up)
         view = rectify(frame, robot, plane, s_range, z_range, res_m)
+        pockets = enclosed_pockets(view)
+
+    def blobs_of(extent: Extent) -> list[Blob]:
+        return handle_blobs(view, extent, frame.T_base_camera, frame.intrinsics.K)
+
     extent = split_wide(view, extent)
-    extent = split_by_handles(view, extent, handle_blobs(view, extent, frame.T_base_camera, frame.intrinsics.K))
+    blobs = blobs_of(extent)
+    split = split_by_handles(view, extent, blobs)
+    extent, blobs = split, (blobs if split == extent else blobs_of(split))
+    if own_blob(blobs, view, extent) is None:
+        extent = past_stile_line(view, extent, seed, pockets, blobs_of)
     if box is not None:
         extent = _clipped(frame, view, extent, box)
     s0, s1 = view.s(extent.left - 0.5), view.s(extent.right + 0.5)
@@ -251,6 +262,38 @@ def find_front(frame: Frame, robot: np.ndarray, u: int, v: int,
     corners = plane.point(np.array([s0, s1, s1, s0]), np.array([z1, z1, z0, z0]))
     mask = front_pixels(frame, robot, plane, (s0, s1), (z0, z1))
     return Front(centred, float(s1 - s0), float(z1 - z0), corners, mask, dict(extent.ended), view, extent)
+
+
+def past_stile_line(view: PlaneView, extent: Extent, seed: tuple[int, int], crossed: np.ndarray,
+                    blobs_of: Callable[[Extent], list[Blob]]) -> Extent:
+    """The rectangle of a front that shows no handle grown past a side line with a handle just beyond it: a door's
+    handle sits on its stile by the opening edge, and a frame's inner line (a glass pane's, a panel's) bounding the
+    stile is taken for the door's side as a gap would be. Looked for past a left or right side that ended at a gap,
+    within NARROW_FRONT_M (a strip narrower than any front is no front of its own): a firm handle beside the
+    rectangle. The front is grown again through the strip up to the handle's far edge (no gap looked for there),
+    then cut between handles (`split_by_handles`); it is taken when it holds the handle as its own and its new side
+    lies within NARROW_FRONT_M past the handle's centre (a handle sits by its front's opening edge: a side farther
+    past it is another front's, whose handle this is). Among several: the handle nearest the seed."""
+    reach = int(round(NARROW_FRONT_M / view.res_m))
+    found = []
+    for side, step in (("left", -1), ("right", 1)):
+        line = getattr(extent, side)
+        if extent.ended.get(side) != "gap":
+            continue
+        beyond = replace(extent, **{side: int(np.clip(line + step * reach, 0, view.shape[1] - 1))})
+        for blob in blobs_of(beyond):
+            col, row = float(view.col(blob.centre[0])), float(view.row(blob.centre[1]))
+            if not blob.firm or not extent.top <= row <= extent.bottom or (col - line) * step <= 0:
+                continue
+            far = int(blob.cols.min() if step < 0 else blob.cols.max())
+            strip = np.zeros(view.shape, bool)
+            strip[extent.top:extent.bottom + 1, min(line, far):max(line, far) + 1] = True
+            grown = split_wide(view, front_extent(view, seed, crossed, strip))
+            grown = split_by_handles(view, grown, blobs_of(grown))
+            past = (getattr(grown, side) - col) * step
+            if 0 <= past < reach and own_blob(blobs_of(grown), view, grown) is not None:
+                found.append((segment_distance(blob, np.zeros(2)), grown))
+    return min(found, key=lambda f: f[0])[1] if found else extent
 
 
 def _clipped(frame: Frame, view: PlaneView, extent: Extent, box: tuple[float, float, float, float]) -> Extent:

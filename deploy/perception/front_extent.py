@@ -62,9 +62,10 @@ class Extent:
     ended: dict[str, str]
 
 
-def front_extent(view: PlaneView, seed: tuple[int, int], crossed: np.ndarray | None = None) -> Extent:
+def front_extent(view: PlaneView, seed: tuple[int, int], crossed: np.ndarray | None = None,
+                 through: np.ndarray | None = None) -> Extent:
     """The front's rectangle around the seed cell (row, col) of `view` (see the module docstring); `crossed`: cells
-    crossed as unseen."""
+    crossed as unseen; `through`: cells crossed whatever lines they show (no gap is looked for there)."""
     half = max(int(round(START_HALF_M / view.res_m)), 2)
     r, c = seed
     depth_surface = _surface(view)
@@ -72,24 +73,25 @@ def front_extent(view: PlaneView, seed: tuple[int, int], crossed: np.ndarray | N
     # the front's cells: on its plane and of its colour; a hole of another colour is not the front, one of its colour
     # is not known (a pale wall and a dark front alike lose the D415's dots)
     surface = np.where(np.isnan(depth_surface) & view.seen, np.where(same > 0, np.nan, 0.0), depth_surface * same)
-    if crossed is not None:
-        surface[crossed] = np.nan
+    for cells in (crossed, through):
+        if cells is not None:
+            surface[cells] = np.nan
     rows, cols = (r, r), (c - half, c + half)
     ended: dict[str, str] = {}
     for _ in range(2):
-        (top, ended["top"]), (bottom, ended["bottom"]) = _grow(view, surface, depth_surface, seed, cols, axis=0)
+        (top, ended["top"]), (bottom, ended["bottom"]) = _grow(view, surface, depth_surface, seed, cols, 0, through)
         rows = (top, bottom)
-        (left, ended["left"]), (right, ended["right"]) = _grow(view, surface, depth_surface, seed, rows, axis=1)
+        (left, ended["left"]), (right, ended["right"]) = _grow(view, surface, depth_surface, seed, rows, 1, through)
         cols = (left, right)
     return Extent(rows[0], rows[1], cols[0], cols[1], ended)
 
 
 def _grow(view: PlaneView, surface: np.ndarray, depth_surface: np.ndarray, seed: tuple[int, int],
-          band: tuple[int, int], axis: int) -> tuple[tuple[int, str], tuple[int, str]]:
+          band: tuple[int, int], axis: int, through: np.ndarray | None) -> tuple[tuple[int, str], tuple[int, str]]:
     """Both ends along `axis` (0: rows, up and down; 1: columns) of the front through `seed`, judged over the
     cells `band` (inclusive) across it: `surface` the front's cells (1, 0, NaN unknown); gaps are looked for between
     cells of the plane's surface in depth (`depth_surface`), whatever their colour, and seen cells without depth (a
-    dark or pale finish loses the D415's dots in patches, a gap's slit too)."""
+    dark or pale finish loses the D415's dots in patches, a gap's slit too), but for the cells `through`."""
     lo, hi = max(band[0], 0), min(band[1], surface.shape[1 - axis] - 1)
     if axis == 0:
         cells, flat, grey, seen = surface[:, lo:hi + 1], depth_surface[:, lo:hi + 1], view.gray[:, lo:hi + 1], \
@@ -99,6 +101,8 @@ def _grow(view: PlaneView, surface: np.ndarray, depth_surface: np.ndarray, seed:
             view.seen[lo:hi + 1].T
     share = _share(cells, None, view.res_m)
     judged = (flat == 1.0) | (np.isnan(flat) & seen)
+    if through is not None:
+        judged &= ~(through[:, lo:hi + 1] if axis == 0 else through[lo:hi + 1].T)
     offset = view.offset_m[:, lo:hi + 1] if axis == 0 else view.offset_m[lo:hi + 1].T
     lines = gap_lines(grey, judged, view.res_m) | _faint_gaps(grey, judged, offset, flat == 1.0, view.res_m)
     start = seed[axis]

@@ -276,7 +276,8 @@ def _edge_line(view: PlaneView, blob: Blob, extent: Extent) -> bool:
 def _edge_of_beside(view: PlaneView, blob: Blob, extent: Extent) -> bool:
     """Whether a candidate measured out of the plane, its cells or its points (no parallax) within EDGE_BAND_M of a
     left or right side where the front's surface stopped (not at a gap, not at the view's border), is the edge of what
-    stands beside the front there: the surface just past that side stands out of the plane as far as the candidate,
+    stands beside the front there: the surface just past that side (past the candidate's cells where they run over
+    it: a bar overhanging the door's very edge covers the band) stands out of the plane as far as the candidate,
     within the margin a handle stands out by (the smoothed depth blends the two across the edge), or, past a strip
     sunk into the plane, stands out of the plane by that margin (the trough between the front and a unit or wall
     standing out beside it). A handle stands out of what is beside it too (a bar on a door's very edge has the room
@@ -289,8 +290,10 @@ def _edge_of_beside(view: PlaneView, blob: Blob, extent: Extent) -> bool:
     rows = slice(int(blob.rows.min()), int(blob.rows.max()) + 1)
     cols = np.concatenate([blob.cols, view.col(blob.points[:, 0])])  # where it is seen, and where it is
     margin = max(MIN_RELIEF_M, RELIEF_NOISE * blob.noise_m)
-    for side, short, past in (("left", cols.min() - extent.left, slice(max(extent.left - band, 0), extent.left)),
-                              ("right", extent.right - cols.max(), slice(extent.right + 1, extent.right + 1 + band))):
+    lo, hi = int(blob.cols.min()), int(blob.cols.max())  # cells running over a side cover the band past it
+    left, right = lo if lo < extent.left <= hi else extent.left, hi if lo <= extent.right < hi else extent.right
+    for side, short, past in (("left", cols.min() - extent.left, slice(max(left - band, 0), left)),
+                              ("right", extent.right - cols.max(), slice(right + 1, right + 1 + band))):
         if extent.ended.get(side) != "surface" or short > band:
             continue
         beside = view.smooth_m[rows, past][view.seen[rows, past]]
