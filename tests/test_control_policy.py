@@ -272,3 +272,20 @@ def test_a_front_turned_too_little_places_no_hinge():
     turned, grip_now = _swung_door(hinge, grip, normal, 3.0, 0.0)
     assert hinge_from_turn(on_front, grip, grip_now, normal, turned, min_turn_deg=5.0) is None
     assert hinge_from_turn(on_front, grip, grip_now, normal, np.array([0.0, 0.0, 1.0]), min_turn_deg=5.0) is None
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_a_front_seen_turned_the_other_way_keeps_the_hinge_placed_before(side):
+    # a 0.3 m door facing -x, opened 20 deg and then 32: the first view of its turn placed the hinge; the second
+    # sees another surface as the front, turned as much the other way round (the hinge would move past the grip)
+    normal, hinge = np.array([-1.0, 0.0, 0.0]), np.array([0.7, 0.3 * side, 0.65])
+    grip = np.array([0.66, 0.0, 0.65])
+    turned, grip_now = _swung_door(hinge, grip, normal, 20.0, 0.0)
+    placed = hinge_from_turn(hinge, grip, grip_now, normal, turned, min_turn_deg=5.0)
+    assert placed is not None
+    turned, grip_now = _swung_door(hinge, grip, normal, 32.0, 0.0)
+    mirrored = turned * np.array([1.0, -1.0, 1.0])
+    assert hinge_from_turn(hinge, grip, grip_now, normal, mirrored, 5.0, placed) is placed
+    seen = hinge_from_turn(hinge, grip, grip_now, normal, turned, 5.0, placed)  # the front seen as it turned
+    np.testing.assert_allclose(seen.origin[:2], hinge[:2], atol=1e-6)
+    assert seen.direction @ placed.direction > 0

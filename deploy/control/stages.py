@@ -325,7 +325,7 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
             else None
         state.estimated |= chosen is not None and turned is None
         if turned is not None:
-            chosen, source = turned, "front turn"
+            chosen, source, state.turn_hinge = turned, "front turn", turned
         elif chosen is None:
             chosen = state.axis if state.axis is not None else Axis(JointType.PRISMATIC, state.p_grasp, pull,
                                                                     confidence=0.0)
@@ -340,8 +340,9 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
 
 def _hinge_seen_turning(episode: Episode) -> Axis | None:
     """The door's hinge where the closed front meets the front as the camera sees it turned around the grip now
-    (`hinge_from_turn`; the hinge prior gives the closed front's plane); None when the front turned too little to
-    tell, or for a policy acting on vision alone."""
+    (`hinge_from_turn`; the hinge prior gives the closed front's plane), or the one an earlier view placed when this
+    one sees the front turned the other way round; None when the front turned too little to tell, or for a policy
+    acting on vision alone."""
     state, observer = episode.state, episode.observer
     seen, first = observer.latest_view(), observer.first_look
     if seen is None or first is None or state.handle is None or state.axis is None \
@@ -351,7 +352,7 @@ def _hinge_seen_turning(episode: Episode) -> Axis | None:
     grip = episode.tool()[:3, 3]
     normal = front_normal(observer.points(frame, mask), grip, first.body_box, viewpoint(frame))
     return hinge_from_turn(state.axis.origin, state.handle.center, grip, state.handle.normal, normal,
-                           MIN_SEEN_TURN_DEG)
+                           MIN_SEEN_TURN_DEG, state.turn_hinge)
 
 
 def _grip_path_axis(poses: np.ndarray, joint: JointType | None) -> AxisResult:
