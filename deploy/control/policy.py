@@ -62,6 +62,18 @@ def hinge_from_turn(on_front: np.ndarray, grip_before: np.ndarray, grip_now: np.
     return Axis(JointType.REVOLUTE, origin, direction, confidence=0.0)
 
 
+def holds_path(axis: AxisResult, points: np.ndarray) -> bool:
+    """Whether a hinge fitted to a grip's path (`points`, N x 3) can carry it: no two points of a circle of radius r
+    lie farther apart than 2 r, so a path spread farther than that along its main direction does not lie on the
+    fitted circle (a fit bent by a straight start reads the grip swung about a line beside it). True for any other
+    axis."""
+    if not isinstance(axis, Axis) or axis.joint_type is not JointType.REVOLUTE or axis.radius_m is None:
+        return True
+    centred = np.asarray(points, float) - np.mean(points, axis=0)
+    spread = float(np.ptp(centred @ np.linalg.svd(centred, full_matrices=False)[2][0]))
+    return spread <= 2.0 * axis.radius_m
+
+
 def _horizontal(v: np.ndarray) -> np.ndarray | None:
     """`v` without its vertical part, unit; None when it is vertical."""
     h = np.array([v[0], v[1], 0.0], float)

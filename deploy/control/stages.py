@@ -37,7 +37,14 @@ from deploy.control.hand import (
     turns_with_door,
 )
 from deploy.control.out_of_reach import PLANNED_ARC_STEP_RAD, line_pulls, regrasp_turned, reseat
-from deploy.control.policy import choose_axis, hinge_from_turn, opening, orient_axis, seen_opening
+from deploy.control.policy import (
+    choose_axis,
+    hinge_from_turn,
+    holds_path,
+    opening,
+    orient_axis,
+    seen_opening,
+)
 from deploy.control.scene_clearance import clear_grasps, scene_tree
 from deploy.control.state import EpisodeStop, StopReason, opening_unit
 from deploy.control.view import step_log
@@ -358,11 +365,16 @@ def _hinge_seen_turning(episode: Episode) -> Axis | None:
 def _grip_path_axis(poses: np.ndarray, joint: JointType | None) -> AxisResult:
     """The axis fitted to the tool poses measured while pulling (NoAxis before any pull was measured: the first one
     ran out of reach). A parallel gripper's fingers let the handle turn in them, so its own turn is not the door's: a
-    hinge is fitted to the grip point's path alone (the turn still helps tell a hinge from a slide)."""
+    hinge is fitted to the grip point's path alone (the turn still helps tell a hinge from a slide); NoAxis for one
+    that cannot carry the path (`holds_path`)."""
     if len(poses) == 0:
         return NoAxis("no pull measured yet")
     turns = None if joint is JointType.REVOLUTE else Rotation.from_matrix(poses[:, :3, :3]).as_quat()
-    return fit_trajectory(poses[:, :3, 3], turns, joint)
+    fitted = fit_trajectory(poses[:, :3, 3], turns, joint)
+    if not holds_path(fitted, poses[:, :3, 3]):
+        return NoAxis(f"the hinge fitted to the grip's path, {fitted.radius_m:.3f} m from it, is nearer than half "
+                      "the path's extent: no such circle holds the path")
+    return fitted
 
 
 def _follow_vision_alone(episode: Episode, vision: AxisResult, pull: np.ndarray) -> None:
