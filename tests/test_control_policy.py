@@ -17,7 +17,7 @@ from deploy.control.grasp import (
     hinge_side_sure,
     pointed_handle,
 )
-from deploy.control.policy import choose_axis, hinge_from_turn, opening, orient_axis, seen_opening
+from deploy.control.policy import choose_axis, hinge_from_turn, holds_path, opening, orient_axis, seen_opening
 from deploy.geometry.clearance import parallel_gripper
 from deploy.geometry.types import Axis, Box, JointType, NoAxis
 from deploy.perception.handle import Handle as PointedHandle
@@ -285,3 +285,36 @@ def test_a_front_turned_too_little_places_no_hinge():
     turned, grip_now = _swung_door(hinge, grip, normal, 3.0, 0.0)
     assert hinge_from_turn(on_front, grip, grip_now, normal, turned, min_turn_deg=5.0) is None
     assert hinge_from_turn(on_front, grip, grip_now, normal, np.array([0.0, 0.0, 1.0]), min_turn_deg=5.0) is None
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_a_front_seen_turned_the_other_way_keeps_the_hinge_placed_before(side):
+    # a 0.3 m door facing -x, opened 20 deg and then 32: the first view of its turn placed the hinge; the second
+    # sees another surface as the front, turned as much the other way round (the hinge would move past the grip)
+    normal, hinge = np.array([-1.0, 0.0, 0.0]), np.array([0.7, 0.3 * side, 0.65])
+    grip = np.array([0.66, 0.0, 0.65])
+    turned, grip_now = _swung_door(hinge, grip, normal, 20.0, 0.0)
+    placed = hinge_from_turn(hinge, grip, grip_now, normal, turned, min_turn_deg=5.0)
+    assert placed is not None
+    turned, grip_now = _swung_door(hinge, grip, normal, 32.0, 0.0)
+    mirrored = turned * np.array([1.0, -1.0, 1.0])
+    assert hinge_from_turn(hinge, grip, grip_now, normal, mirrored, 5.0, placed) is placed
+    seen = hinge_from_turn(hinge, grip, grip_now, normal, turned, 5.0, placed)  # the front seen as it turned
+    np.testing.assert_allclose(seen.origin[:2], hinge[:2], atol=1e-6)
+    assert seen.direction @ placed.direction > 0
+
+
+def test_a_hinge_fitted_nearer_the_grip_than_half_its_path_is_refused():
+    # a 0.5 m door's grip pulled 5 cm straight out, then swung 25 deg: a circle of 8 cm radius does not hold that path
+    hinge, grip = np.array([0.7, 0.5, 0.65]), np.array([0.66, 0.0, 0.65])
+    straight = grip + np.outer(np.linspace(0.0, 0.05, 10), [-1.0, 0.0, 0.0])
+    swing = Rotation.from_euler("z", -np.radians(np.linspace(0.0, 25.0, 30))[:, None])
+    turns = swing.apply(straight[-1] - hinge) + hinge
+    path = np.vstack([straight, turns])
+    near = Axis(JointType.REVOLUTE, np.array([0.6, 0.1, 0.65]), np.array([0.0, 0.0, 1.0]), confidence=0.0,
+                radius_m=0.08)
+    true = Axis(JointType.REVOLUTE, hinge, np.array([0.0, 0.0, -1.0]), confidence=0.0, radius_m=0.5)
+    assert not holds_path(near, path)
+    assert holds_path(true, path)
+    assert holds_path(Axis(JointType.PRISMATIC, grip, np.array([-1.0, 0.0, 0.0]), confidence=0.0), path)
+    assert holds_path(NoAxis("no pull measured yet"), path)

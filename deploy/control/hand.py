@@ -7,10 +7,12 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from deploy.axis_pipeline import viewpoint
 from deploy.control.context import MIN_GRASP_WIDTH_M, SETTLE_S, Episode
 from deploy.control.grasp import (
+    HALF_TURN,
     REGRASP_RADIUS_M,
     Handle,
     back_along_path,
@@ -88,7 +90,7 @@ def regrasp(episode: Episode) -> None:
         raise EpisodeStop(StopReason.GRASP_LOST, f"the handle slipped out of the gripper and was not found again "
                           f"within {REGRASP_RADIUS_M * 100:.0f} cm of where it was held or of the estimated path "
                           "back to the start: check the view of the handle")
-    T_grasp = grasp_pose(handle)
+    T_grasp = held_way_round(grasp_pose(handle), T)
     episode.view.grasp(episode.now(), T_grasp)
     move_to_pose(arm, kin, pregrasp_pose(T_grasp, RETREAT_M), episode.joint_limits)
     episode.wait(SETTLE_S)
@@ -99,6 +101,17 @@ def regrasp(episode: Episode) -> None:
     if state.axis is not None:
         state.opened = min(state.opened, state.opened_before + opening(state.axis, state.p_grasp, p_new))
     state.opened_before, state.p_grasp = state.opened, p_new
+
+
+def held_way_round(T_grasp: np.ndarray, T_tool: np.ndarray) -> np.ndarray:
+    """`T_grasp`, or it turned half a turn about its approach, whichever turns the hand the less from `T_tool`: a
+    parallel gripper holds a handle either way round, and the hand holds it again the way round its grasp was planned
+    (`pregrasp_either_way` may have turned it to keep the wrist's last joint off its limit)."""
+    def turn(T: np.ndarray) -> float:
+        return Rotation.from_matrix(np.asarray(T_tool, float)[:3, :3].T @ T[:3, :3]).magnitude()
+
+    turned = np.asarray(T_grasp, float) @ HALF_TURN
+    return turned if turn(turned) < turn(T_grasp) else T_grasp
 
 
 def _slipped_handle(episode: Episode, frame: Frame, points: np.ndarray, robot: np.ndarray, held: np.ndarray

@@ -38,16 +38,20 @@ def opening(axis: Axis, p_start: np.ndarray, p_now: np.ndarray) -> float:
 
 
 def hinge_from_turn(on_front: np.ndarray, grip_before: np.ndarray, grip_now: np.ndarray, normal_before: np.ndarray,
-                    normal_now: np.ndarray, min_turn_deg: float) -> Axis | None:
+                    normal_now: np.ndarray, min_turn_deg: float, placed: Axis | None = None) -> Axis | None:
     """A door's hinge from how its front turned: the vertical line where the closed front's plane (through the point
     `on_front`, normal `normal_before`) meets the turned front's, which keeps the grip's depth in front of it
     (`grip_before` closed, `grip_now` with the front's normal `normal_now` as the camera sees it around the grip).
     Both planes hold the hinge, so the line needs no radius and no grip path (a handle may slide along the fingers'
     pads). Directed so that opening turns the grip out along `normal_before`; None when the front turned less than
-    `min_turn_deg` (the planes meet too far off to tell)."""
+    `min_turn_deg` (the planes meet too far off to tell). `placed`: the hinge an earlier view of the turn placed; a
+    front seen turned the other way round, which puts the hinge on the grip's other side, is another surface taken
+    for the front (a door opening turns one way), and `placed` stands."""
     n0, n1 = _horizontal(normal_before), _horizontal(normal_now)
     if n0 is None or n1 is None or np.degrees(np.arccos(np.clip(n0 @ n1, -1.0, 1.0))) < min_turn_deg:
         return None
+    if placed is not None and np.cross(n0, n1)[2] * placed.direction[2] < 0:
+        return placed
     grip_before, grip_now = np.asarray(grip_before, float), np.asarray(grip_now, float)
     proud = float(n0 @ (grip_before - on_front))  # the grip in front of the hinge's plane
     A = np.array([n0[:2], n1[:2]])
@@ -56,6 +60,18 @@ def hinge_from_turn(on_front: np.ndarray, grip_before: np.ndarray, grip_now: np.
     up = np.array([0.0, 0.0, 1.0])
     direction = up if np.cross(up, grip_before - origin) @ n0 >= 0 else -up
     return Axis(JointType.REVOLUTE, origin, direction, confidence=0.0)
+
+
+def holds_path(axis: AxisResult, points: np.ndarray) -> bool:
+    """Whether a hinge fitted to a grip's path (`points`, N x 3) can carry it: no two points of a circle of radius r
+    lie farther apart than 2 r, so a path spread farther than that along its main direction does not lie on the
+    fitted circle (a fit bent by a straight start reads the grip swung about a line beside it). True for any other
+    axis."""
+    if not isinstance(axis, Axis) or axis.joint_type is not JointType.REVOLUTE or axis.radius_m is None:
+        return True
+    centred = np.asarray(points, float) - np.mean(points, axis=0)
+    spread = float(np.ptp(centred @ np.linalg.svd(centred, full_matrices=False)[2][0]))
+    return spread <= 2.0 * axis.radius_m
 
 
 def _horizontal(v: np.ndarray) -> np.ndarray | None:

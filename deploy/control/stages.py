@@ -37,7 +37,14 @@ from deploy.control.hand import (
     turns_with_door,
 )
 from deploy.control.out_of_reach import PLANNED_ARC_STEP_RAD, line_pulls, regrasp_turned, reseat
-from deploy.control.policy import choose_axis, hinge_from_turn, opening, orient_axis, seen_opening
+from deploy.control.policy import (
+    choose_axis,
+    hinge_from_turn,
+    holds_path,
+    opening,
+    orient_axis,
+    seen_opening,
+)
 from deploy.control.scene_clearance import clear_grasps, scene_tree
 from deploy.control.state import EpisodeStop, StopReason, opening_unit
 from deploy.control.view import step_log
@@ -325,7 +332,7 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
             else None
         state.estimated |= chosen is not None and turned is None
         if turned is not None:
-            chosen, source = turned, "front turn"
+            chosen, source, state.turn_hinge = turned, "front turn", turned
         elif chosen is None:
             chosen = state.axis if state.axis is not None else Axis(JointType.PRISMATIC, state.p_grasp, pull,
                                                                     confidence=0.0)
@@ -340,8 +347,9 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
 
 def _hinge_seen_turning(episode: Episode) -> Axis | None:
     """The door's hinge where the closed front meets the front as the camera sees it turned around the grip now
-    (`hinge_from_turn`; the hinge prior gives the closed front's plane); None when the front turned too little to
-    tell, or for a policy acting on vision alone."""
+    (`hinge_from_turn`; the hinge prior gives the closed front's plane), or the one an earlier view placed when this
+    one sees the front turned the other way round; None when the front turned too little to tell, or for a policy
+    acting on vision alone."""
     state, observer = episode.state, episode.observer
     seen, first = observer.latest_view(), observer.first_look
     if seen is None or first is None or state.handle is None or state.axis is None \
@@ -351,17 +359,22 @@ def _hinge_seen_turning(episode: Episode) -> Axis | None:
     grip = episode.tool()[:3, 3]
     normal = front_normal(observer.points(frame, mask), grip, first.body_box, viewpoint(frame))
     return hinge_from_turn(state.axis.origin, state.handle.center, grip, state.handle.normal, normal,
-                           MIN_SEEN_TURN_DEG)
+                           MIN_SEEN_TURN_DEG, state.turn_hinge)
 
 
 def _grip_path_axis(poses: np.ndarray, joint: JointType | None) -> AxisResult:
     """The axis fitted to the tool poses measured while pulling (NoAxis before any pull was measured: the first one
     ran out of reach). A parallel gripper's fingers let the handle turn in them, so its own turn is not the door's: a
-    hinge is fitted to the grip point's path alone (the turn still helps tell a hinge from a slide)."""
+    hinge is fitted to the grip point's path alone (the turn still helps tell a hinge from a slide); NoAxis for one
+    that cannot carry the path (`holds_path`)."""
     if len(poses) == 0:
         return NoAxis("no pull measured yet")
     turns = None if joint is JointType.REVOLUTE else Rotation.from_matrix(poses[:, :3, :3]).as_quat()
-    return fit_trajectory(poses[:, :3, 3], turns, joint)
+    fitted = fit_trajectory(poses[:, :3, 3], turns, joint)
+    if not holds_path(fitted, poses[:, :3, 3]):
+        return NoAxis(f"the hinge fitted to the grip's path, {fitted.radius_m:.3f} m from it, is nearer than half "
+                      "the path's extent: no such circle holds the path")
+    return fitted
 
 
 def _follow_vision_alone(episode: Episode, vision: AxisResult, pull: np.ndarray) -> None:

@@ -62,6 +62,7 @@ class EpisodeState:
     reseats: int = 0  # a drawer's handle taken again from another arm configuration (its pull out of reach)
     turned_regrasps: int = 0  # a door's handle held again with the hand turned back toward the robot
     prior_blocks: int = 0  # a door's steps blocked across their arc about the hinge prior that went on
+    turn_hinge: Axis | None = None  # the door's hinge its front's turn placed last (`stages._hinge_seen_turning`)
     followed: bool = False  # the camera saw the pointed drawer leave its place (`stages._check_followed`)
     peak_pull_force_n: float = 0.0  # the largest force the tool applied while pulling (N, joint torques)
     across_force_n: float = 0.0  # the last pull's largest force across its path (N): its axis was off
