@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from deploy.perception.front import find_front
-from deploy.perception.front_extent import _faint_gaps, gap_lines
+from deploy.perception.front_extent import _faint_gaps, gap_lines, slit_lines
 from drivers.camera.base import Frame, Intrinsics
 
 K = Intrinsics(640, 480, 600.0, 600.0, 320.0, 240.0)
@@ -86,3 +86,16 @@ def test_a_bar_across_a_drawer_too_thin_for_the_smoothed_depth_does_not_end_its_
     T[:3, :3] = np.column_stack([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
     front = find_front(Frame(0, 0.0, color, depth, K, T), np.zeros((480, 640), bool), 300, 250)
     assert front.height_m == pytest.approx(120 * DEPTH_M / K.fx, abs=0.03)
+
+
+def test_a_slit_lies_below_the_surface_on_both_its_sides():
+    """A handle's band off the plane (no surface cells) beside a line lower than the surface past it: one side is
+    not known, so the line is no slit (before: compared with its known side alone, every edge of a handle's band
+    that the depth dips at was one, and they made slits common enough to refuse the faint gaps), while a dip with
+    the surface on both sides is."""
+    _, judged, offset = _profile(0)
+    surface = judged.copy()
+    surface[50:60] = False
+    offset[60] -= 0.006
+    offset[90] -= 0.006
+    assert np.flatnonzero(slit_lines(offset, surface, 0.0033)).tolist() == [89, 90, 91]

@@ -102,9 +102,10 @@ def _grow(view: PlaneView, surface: np.ndarray, depth_surface: np.ndarray, seed:
     share = _share(cells, None, view.res_m)
     offset = view.offset_m[:, lo:hi + 1] if axis == 0 else view.offset_m[lo:hi + 1].T
     tolerance = view.tolerance_m[:, lo:hi + 1] if axis == 0 else view.tolerance_m[lo:hi + 1].T
-    judged = ((flat == 1.0) | (np.isnan(flat) & seen)) & ~raised_cells(np.where(seen, offset, np.nan), tolerance,
-                                                                       view.res_m)
-    lines = gap_lines(grey, judged, view.res_m) | _faint_gaps(grey, judged, offset, flat == 1.0, view.res_m)
+    raised = raised_cells(np.where(seen, offset, np.nan), tolerance, view.res_m)
+    judged = ((flat == 1.0) | (np.isnan(flat) & seen)) & ~raised
+    lines = gap_lines(grey, judged, view.res_m) | _faint_gaps(grey, judged, offset, (flat == 1.0) & ~raised,
+                                                              view.res_m)
     start = seed[axis]
     return _walk(share, lines, start, -1, view.res_m), _walk(share, lines, start, 1, view.res_m)
 
@@ -244,7 +245,7 @@ def slit_lines(offset: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndar
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # sides beyond the profile
         sides = np.nanmedian(windows, axis=1)
-        dip = np.fmin(sides[:n_lines], sides[2 * k + 2:2 * k + 2 + n_lines]) - level
+        dip = np.minimum(sides[:n_lines], sides[2 * k + 2:2 * k + 2 + n_lines]) - level
         near = np.nanmax(np.stack([np.roll(dip, 1), dip, np.roll(dip, -1)]), axis=0)
     known = near[~np.isnan(near)]
     if len(known) < 10:
