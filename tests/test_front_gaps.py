@@ -1,6 +1,6 @@
 """Gap lines between fronts against lines inside a front, on synthetic D415 frames: the end of a recessed pull's
 slot (a short dark line across a thin drawer's middle) does not end the drawer's front; a gap running along the
-drawer's whole side does."""
+drawer's whole side does; a bar across a drawer, seen in colour as lines, does not."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from deploy.perception.front import find_front
-from deploy.perception.front_extent import _faint_gaps, gap_lines
+from deploy.perception.front_extent import _faint_gaps, gap_lines, slit_lines
 from drivers.camera.base import Frame, Intrinsics
 
 K = Intrinsics(640, 480, 600.0, 600.0, 320.0, 240.0)
@@ -70,3 +70,32 @@ def test_a_faint_line_over_a_dip_is_no_gap_on_a_grained_front():
     grey += np.kron(rng.normal(0.0, 0.01, (120, 1)), np.ones((1, 90)))  # grain: lines along the whole profile
     offset[60] -= 0.006
     assert not _faint_gaps(grey, judged, offset, judged, 0.0033).any()
+
+
+def test_a_bar_across_a_drawer_too_thin_for_the_smoothed_depth_does_not_end_its_front():
+    """A 10 mm bar 3 cm proud across nearly the whole width of a 0.40 m drawer: the smoothed depth averages it into
+    the plane and its bright outline is a thin line along the band, but its measured depth stands out of the front
+    there: no surface a gap is judged on, so the front goes on past it up to the drawer's top (before: it ended
+    under the bar, and the bar outside it was refused as the drawer's handle)."""
+    depth = np.full((480, 640), 2.4, np.float32)
+    color = np.full((480, 640, 3), 210, np.uint8)
+    drawer = (slice(160, 280), slice(110, 500))
+    depth[drawer], color[drawer] = DEPTH_M, (150, 100, 60)
+    depth[180:183, 115:495], color[180:183, 115:495] = DEPTH_M - 0.03, (230, 230, 230)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+    front = find_front(Frame(0, 0.0, color, depth, K, T), np.zeros((480, 640), bool), 300, 250)
+    assert front.height_m == pytest.approx(120 * DEPTH_M / K.fx, abs=0.03)
+
+
+def test_a_slit_lies_below_the_surface_on_both_its_sides():
+    """A handle's band off the plane (no surface cells) beside a line lower than the surface past it: one side is
+    not known, so the line is no slit (before: compared with its known side alone, every edge of a handle's band
+    that the depth dips at was one, and they made slits common enough to refuse the faint gaps), while a dip with
+    the surface on both sides is."""
+    _, judged, offset = _profile(0)
+    surface = judged.copy()
+    surface[50:60] = False
+    offset[60] -= 0.006
+    offset[90] -= 0.006
+    assert np.flatnonzero(slit_lines(offset, surface, 0.0033)).tolist() == [89, 90, 91]

@@ -36,6 +36,8 @@ SLIT_SIGMAS = 3.0  # a slit: the surface's depth, its median along a line, lies 
 # that dip's spread over the profile's lines (the D415's noise and the plane's own waviness along the band)
 CHANCE_LINES = 0.1  # faint lines and slits are taken together only while fewer than this many lines of the profile
 # would be both by chance (a grain's texture makes faint lines common: one of them meets the depth's noise)
+RELIEF_M = 0.01  # a handle stands at least this far out of its front (bars 25-50 mm): cells whose line stands out this
+# far over a stretch are a bar too thin for the smoothed depth to leave the plane, not the surface a gap is judged on
 HANDLE_BAND_M = 0.10  # the widest stretch across a front that is not its surface: a handle, its shadow, a pocket
 RESUME_M = 0.04  # past a handle the front's surface goes on for at least this, or up to a gap (a surface crossing
 # the plane, such as the floor at a plinth's foot, lies on it within the D415's noise for a narrower band)
@@ -93,18 +95,19 @@ def _grow(view: PlaneView, surface: np.ndarray, depth_surface: np.ndarray, seed:
     cells of the plane's surface in depth (`depth_surface`), whatever their colour, and seen cells without depth (a
     dark or pale finish loses the D415's dots in patches, a gap's slit too), but for the cells `through`."""
     lo, hi = max(band[0], 0), min(band[1], surface.shape[1 - axis] - 1)
-    if axis == 0:
-        cells, flat, grey, seen = surface[:, lo:hi + 1], depth_surface[:, lo:hi + 1], view.gray[:, lo:hi + 1], \
-            view.seen[:, lo:hi + 1]
-    else:
-        cells, flat, grey, seen = surface[lo:hi + 1].T, depth_surface[lo:hi + 1].T, view.gray[lo:hi + 1].T, \
-            view.seen[lo:hi + 1].T
+
+    def cut(a: np.ndarray) -> np.ndarray:  # the band's cells, along `axis` first
+        return a[:, lo:hi + 1] if axis == 0 else a[lo:hi + 1].T
+
+    cells, flat, grey, seen, offset = cut(surface), cut(depth_surface), cut(view.gray), cut(view.seen), \
+        cut(view.offset_m)
     share = _share(cells, None, view.res_m)
-    judged = (flat == 1.0) | (np.isnan(flat) & seen)
+    raised = raised_cells(np.where(seen, offset, np.nan), cut(view.tolerance_m), view.res_m)
+    judged = ((flat == 1.0) | (np.isnan(flat) & seen)) & ~raised
     if through is not None:
-        judged &= ~(through[:, lo:hi + 1] if axis == 0 else through[lo:hi + 1].T)
-    offset = view.offset_m[:, lo:hi + 1] if axis == 0 else view.offset_m[lo:hi + 1].T
-    lines = gap_lines(grey, judged, view.res_m) | _faint_gaps(grey, judged, offset, flat == 1.0, view.res_m)
+        judged &= ~cut(through)
+    lines = gap_lines(grey, judged, view.res_m) | _faint_gaps(grey, judged, offset, (flat == 1.0) & ~raised,
+                                                              view.res_m)
     start = seed[axis]
     return _walk(share, lines, start, -1, view.res_m), _walk(share, lines, start, 1, view.res_m)
 
@@ -208,6 +211,26 @@ def _faint_gaps(grey: np.ndarray, judged: np.ndarray, offset: np.ndarray, on_pla
     return faint & slit
 
 
+def raised_cells(offset: np.ndarray, tolerance: np.ndarray, res_m: float) -> np.ndarray:
+    """Bool per cell (`offset`: the depth's offset from the plane along lines, NaN where none or not seen): the median
+    offset of its line over its stretch (GAP_SEGMENT_M) stands out of the plane by RELIEF_M and the noise band
+    (`tolerance`): a bar across the front, whose thin relief the smoothed depth averages into the plane, while its
+    outline and shadow draw lines in colour."""
+    n_lines, length = offset.shape
+    segment = max(int(round(GAP_SEGMENT_M / res_m)), 4)
+    usable = max(length // segment, 1) * segment
+    raised = np.zeros(offset.shape, bool)
+    if usable > length:
+        return raised
+    parts = offset[:, :usable].reshape(n_lines, -1, segment)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # stretches without depth
+        level = np.repeat(np.nanmedian(parts, axis=2), segment, axis=1)
+    with np.errstate(invalid="ignore"):
+        raised[:, :usable] = level >= np.maximum(RELIEF_M, tolerance[:, :usable])
+    return raised
+
+
 def slit_lines(offset: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
     """Bool per line (row of `offset`, the depth's offset from the plane): the front's surface (`surface`, cells
     on the plane: a handle, a knob or a pull's pocket left out) dips along it, or along a line beside it, below the
@@ -224,7 +247,7 @@ def slit_lines(offset: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndar
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # sides beyond the profile
         sides = np.nanmedian(windows, axis=1)
-        dip = np.fmin(sides[:n_lines], sides[2 * k + 2:2 * k + 2 + n_lines]) - level
+        dip = np.minimum(sides[:n_lines], sides[2 * k + 2:2 * k + 2 + n_lines]) - level
         near = np.nanmax(np.stack([np.roll(dip, 1), dip, np.roll(dip, -1)]), axis=0)
     known = near[~np.isnan(near)]
     if len(known) < 10:
