@@ -78,11 +78,11 @@ def test_a_short_knob_is_held_with_the_fingers_short_of_the_front_behind_it(clea
 
 
 
-@pytest.mark.parametrize(("length", "horizontal"), [(0.027, False), (0.040, True)])
+@pytest.mark.parametrize(("length", "horizontal"), [(0.027, False), (0.033, False), (0.040, True)])
 def test_a_knob_that_is_not_round_is_held_across_its_narrow_side(length, horizontal):
-    """A door's knob-sized handle 19 mm tall (a cup half hidden by a neighbour reads 40 mm wide): a round one is held
-    with the fingers closing level, one twice as wide as tall with them closing across its height (level, they pass
-    beside its shell and close on nothing)."""
+    """A door's knob-sized handle 19 mm tall (a cup half hidden by a neighbour reads 40 mm wide; a round knob seen at
+    a slant from above reads up to 33 mm): a round one is held with the fingers closing level, one twice as wide as
+    tall with them closing across its height (level, they pass beside its shell and close on nothing)."""
     knob = PointedHandle("pull", "knob", np.array([0.48, 0.2, 0.6]), np.array([0, 1.0, 0]), np.array([0, 0, 1.0]),
                          np.array([-1.0, 0, 0]), length, 0.019, 0.02, 0.02, 1.0, 0.0, "a knob", 0.08)
     handle = pointed_handle(knob, vertical_default=True)

@@ -21,8 +21,6 @@ from drivers.errors import IKError
 
 BAR_HALF_THICKNESS_M = 0.008  # the grip centre lies this far behind the bar's front surface
 BAR_ELONGATION = 2.0  # principal spread ratio above which the handle is a bar with a direction
-ROUND_KNOB_RATIO = 1.5  # a knob longer than this many times its thickness is not round (an oval knob, a cup whose
-# other half the arm or a neighbour hides): it has a direction, and the fingers close across its narrow side
 MIN_HANDLE_POINTS = 5
 FRONT_RADIUS_M = 0.15  # the front face is fitted to object points this close to the handle
 MIN_FRONT_POINTS = 30
@@ -64,12 +62,13 @@ class Handle:
 def pointed_handle(handle: PointedHandle, vertical_default: bool) -> Handle:
     """The grasp's handle of a pointed front's (deploy/perception/handle.py): its grip centre, the front's normal
     made horizontal (fronts are vertical; the grasp tilts its own approach) and the bar across the fingers' closing
-    direction, in the front's plane; a round knob (no longer than ROUND_KNOB_RATIO times its thickness), held the
-    same way round, gets a vertical bar when `vertical_default` (a door's: the fingers then close level, as the door
-    turns) and else a horizontal one."""
+    direction, in the front's plane. A round knob (shorter than BAR_ELONGATION times its thickness: a round knob seen
+    at a slant reads longer, a cup half hidden by a neighbour twice as long or more), held the same way round, gets a
+    vertical bar when `vertical_default` (a door's: the fingers then close level, as the door turns) and else a
+    horizontal one."""
     normal = np.array([handle.normal[0], handle.normal[1], 0.0])
     normal /= np.linalg.norm(normal)
-    if handle.kind == "knob" and handle.length_m <= ROUND_KNOB_RATIO * handle.thickness_m:
+    if handle.kind == "knob" and handle.length_m < BAR_ELONGATION * handle.thickness_m:
         bar = UP.copy() if vertical_default else np.cross(normal, UP)
     else:
         bar = np.cross(normal, handle.close)
