@@ -28,6 +28,7 @@ from sim_fallback.furniture_body import grip_frame, link_indices, link_pose, loa
 from sim_fallback.kitchen_scenario import KitchenScenario
 from sim_fallback.layout import Layout, Placed
 from sim_fallback.mechanisms import JointMechanism, MechanismForces, set_friction
+from sim_fallback.resting import release_resting_contacts
 from sim_fallback.scenario import Scenario
 from sim_fallback.start import Q_START
 from sim_fallback.static_body import static_body
@@ -154,6 +155,7 @@ class SimWorld:
                  *((self.statics_id, k - 1) for k in range(len(layout.statics)))]
         for body, link in fixed:  # what cannot move never collides with what cannot move: no contacts to solve
             pb.setCollisionFilterGroupMask(body, link, FIXED_GROUP, ALL_GROUPS ^ FIXED_GROUP, physicsClientId=c)
+        release_resting_contacts(c, [*self.furniture_ids, self.statics_id])  # parts clear what they stand on
         self._mechanisms = MechanismForces(c, joints)
         self._mechanisms.apply()
         self.clock.add_hook(self._mechanisms.apply)
