@@ -12,6 +12,9 @@ from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from deploy.errors import PointerError
 from deploy.geometry.cloud import depth_to_points
@@ -85,8 +88,10 @@ def seed_plane(frame: Frame, robot: np.ndarray, u: int, v: int) -> tuple[np.ndar
     """(point, unit normal, depth at the pixel) of the surface at pixel (u, v): RANSAC over the depth close to it,
     within the D415's noise, in the nearest window (SEED_RADII_PX) with enough depth whose plane stands within
     FRONT_TILT_DEG of vertical, else in the nearest window with enough depth (at a metre and more, the noise over a
-    window a few centimetres wide tilts its plane by as much). Raises PointerError when there is no depth around the
-    pixel."""
+    window a few centimetres wide tilts its plane by as much). A window's plane that is not vertical is fitted again
+    to the window's piece of surface holding the pixel (`_own_surface`): a plane may join two surfaces a step apart
+    (a low front under a counter's edge, seen from above, and that edge). Raises PointerError when there is no depth
+    around the pixel."""
     h, w = frame.depth_m.shape
     nearest = None
     for radius in SEED_RADII_PX:
@@ -98,16 +103,35 @@ def seed_plane(frame: Frame, robot: np.ndarray, u: int, v: int) -> tuple[np.ndar
         points = depth_to_points(frame.depth_m, frame.intrinsics.K, window, frame.T_base_camera)
         depth = float(np.median(frame.depth_m[window]))
         tolerance = NOISE_SIGMAS * float(D415.sigma_m(depth, frame.intrinsics.fx)) + QUANTUM_M / 2
-        inside = points[dominant_plane(points, tolerance)]
-        centre = inside.mean(axis=0)
-        fit = centre, np.linalg.svd(inside - centre, full_matrices=False)[2][2], depth
+        fit = _plane_fit(points, tolerance) + (depth,)
         if tilt_deg(fit[1]) <= FRONT_TILT_DEG:
             return fit
+        rows, cols = np.nonzero(window)
+        own = points[_own_surface(points, int(np.argmin(np.hypot(rows - v, cols - u))), tolerance)]
+        if len(own) >= MIN_SEED_POINTS and tilt_deg((own_fit := _plane_fit(own, tolerance))[1]) <= FRONT_TILT_DEG:
+            return own_fit + (depth,)
         nearest = nearest or fit
     if nearest is None:
         raise PointerError(f"pixel ({u}, {v}) has no depth within {SEED_RADII_PX[-1]} px (too close, too far, or a "
                            "dark or shiny surface): point at the front's panel where the depth image shows it")
     return nearest
+
+
+def _plane_fit(points: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """(centre, unit normal) of the points' dominant plane (RANSAC within `tolerance_m`, then least squares)."""
+    inside = points[dominant_plane(points, tolerance_m)]
+    centre = inside.mean(axis=0)
+    return centre, np.linalg.svd(inside - centre, full_matrices=False)[2][2]
+
+
+def _own_surface(points: np.ndarray, index: int, step_m: float) -> np.ndarray:
+    """Mask of the `points` joined to points[index] through points less than `step_m` apart (the depth's noise):
+    the piece of surface it lies on, cut from what lies a step in front of or behind it."""
+    pairs = cKDTree(points).query_pairs(step_m, output_type="ndarray")
+    n = len(points)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    labels = connected_components(graph, directed=False)[1]
+    return labels == labels[index]
 
 
 def box_seed(frame: Frame, robot: np.ndarray, box: tuple[float, float, float, float]) -> tuple[int, int]:
