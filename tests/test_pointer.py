@@ -571,3 +571,35 @@ def test_a_bar_on_the_stile_of_a_door_whose_panel_is_set_into_its_frame_is_its_h
     assert np.linalg.norm([s, z] - _on_plane_at(found, sum(bar_cols) / 2, 210)) < GRIP_TOLERANCE_M, found.handle
     assert abs(found.front.width_m - 0.6) < 0.03 and found.front.ended["right"] == "frame", found.front.ended
     assert abs(found.front.plane.coordinates(np.array([[1.0, 0.0, 0.0]]))[0, 2]) < 0.003  # the frame's plane
+
+
+def test_fronts_side_by_side_whose_bottom_edges_do_not_line_up_are_cut_at_the_step():
+    """Three coplanar fronts of one finish, no gap seen between them, a short bar near each one's top: the left one
+    (a unit of its own) reaches 2 cm lower than the pair of doors beside it, whose bars face each other across their
+    meeting edge. Pointed on the left door of the pair, nearer the left front's bar than its own: a front's edge is
+    straight, so the rectangle's bottom edge stepping up there is where the fronts meet, and the door's own bar is
+    its handle (before: cut midway between the bars, the pointed door's rectangle held the left front's bar)."""
+    bars = [((120, 126), cols, 0.97, (128, 128, 128)) for cols in ((205, 240), (380, 415), (465, 500))]
+    frame = _fronts_ahead((98,), (), bars)
+    frame.depth_m[341:, 100:250], frame.color[341:, 100:250] = 1.3, (200, 200, 200)
+    frame.depth_m[330:, 250:], frame.color[330:, 250:] = 1.3, (200, 200, 200)
+    found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(300, 220))
+    s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
+    assert np.linalg.norm([s, z] - _on_plane_at(found, 397, 123)) < GRIP_TOLERANCE_M
+    assert 0.29 < found.front.width_m < 0.34, found.front.ended
+
+
+def test_edge_pulls_joined_by_the_dark_band_under_the_fronts_are_two_handles():
+    """Two coplanar doors of one finish, no gap seen between them, each with an edge pull on its bottom edge; under
+    the edge a dark band without depth runs the doors' width (the shadow under them). Joined through the band the
+    pulls made one candidate, whose centre lay between them: the band past the edge is no part of a handle, so each
+    pull is a handle of its own, the doors are cut between them and the pointed door's pull is its handle."""
+    pulls = [((318, 330), cols, 0.97, (128, 128, 128)) for cols in ((260, 330), (420, 490))]
+    frame = _fronts_ahead((98,), (), pulls)
+    frame.depth_m[330:345, 100:560], frame.color[330:345, 100:560] = 0.0, (40, 30, 20)
+    frame.depth_m[345:, 100:], frame.color[345:, 100:] = 1.3, (200, 200, 200)
+    frame.depth_m[:, 560:], frame.color[:, 560:] = 1.4, (200, 200, 200)
+    found = point_at(frame, np.zeros(frame.depth_m.shape, bool), Pointer(200, 220))
+    assert found.handle.kind == "edge pull"
+    s, z, _ = found.front.plane.coordinates(found.handle.centre[None])[0]
+    assert np.linalg.norm([s, z] - _on_plane_at(found, 295, 324)) < GRIP_TOLERANCE_M

@@ -7,6 +7,7 @@ self-filter's mask) and the user's pixel. Base frame, metres, z up.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
@@ -23,6 +24,7 @@ from deploy.perception.front_extent import Extent, front_extent, gap_line_shares
 from deploy.perception.handle import EDGE_BAND_M, own_blob, spills_over_edge, tab_over_top
 from deploy.perception.handle_blobs import (
     MAX_POCKET_M,
+    STEP_WINDOW_M,
     Blob,
     bounds,
     enclosed_pockets,
@@ -45,6 +47,9 @@ FLOOR_STEP_M = 0.05  # a horizontal surface with things more than this below it 
 FLOOR_SHARE = 0.02  # ... when they fill at least this share of the view (more than depth noise and flying pixels)
 WEAK_GAP_SHARE = 0.25  # between two handles a line showing a gap along this share of its length is the gap
 HANDLE_CLEARANCE_M = 0.02  # ... at least this far from either handle (its edge, its shadow)
+EDGE_STEP_M = 0.01  # a front's edge is straight to a cell or two: where the rectangle's edge steps by this much
+# between two handles, two fronts whose edges do not line up meet (units of different heights side by side)
+EDGE_WINDOW_M = 0.05  # ... the edge's place per line looked for this far either side of the rectangle's side
 MAX_FRONT_WIDTH_M = 1.2  # the widest drawer or door fronts of real furniture
 WIDE_FRONT_M = 1.0  # fronts are rarely wider: a rectangle wider than this is looked over for the faint gaps of
 # fronts side by side
@@ -450,12 +455,12 @@ def _handle_cuts(view: PlaneView, extent: Extent, own: Blob, other: Blob,
     mid = (own.centre + other.centre) / 2
     apart_s, apart_z = max(o0 - s1, s0 - o1), max(p0 - z1, z0 - p1)
     right = other.centre[0] > own.centre[0]
-    col = _cut(view, (extent.top, extent.bottom), (s1, o0) if right else (o1, s0), mid[0], 1)
+    col = _cut(view, extent, (s1, o0) if right else (o1, s0), mid[0], 1)
     beside = ("right" if right else "left"), col
     above = other.centre[1] > own.centre[1]
     lower = min(own.centre[1], other.centre[1])
     guess = mid[1] if drop is None else min(lower + drop, mid[1])
-    row = _cut(view, (extent.left, extent.right), (p0, z1) if above else (z0, p1), guess, 0)
+    row = _cut(view, extent, (p0, z1) if above else (z0, p1), guess, 0)
     stacked = ("top" if above else "bottom"), row
     cuts = [beside, stacked] if apart_s >= apart_z else [stacked, beside]
     return cuts if min(apart_s, apart_z) > 0 else cuts[:1]
@@ -472,18 +477,20 @@ def _seed_side(view: PlaneView, side: str, line: int) -> bool:
     return {"right": col < line, "left": col > line, "top": row > line, "bottom": row < line}[side]
 
 
-def _cut(view: PlaneView, band: tuple[int, int], between: tuple[float, float], guess: float, axis: int) -> int:
-    """Where to cut between two handles: the line (a row for axis 0, a column for 1, over the cells `band` across
-    it) between the handles' facing edges (`between`, plane coordinates) most of whose length shows a gap, at least
-    WEAK_GAP_SHARE of it; else the line through `guess` (plane coordinate), kept off the handles."""
+def _cut(view: PlaneView, extent: Extent, between: tuple[float, float], guess: float, axis: int) -> int:
+    """Where to cut the rectangle `extent` between two handles: the line (a row for axis 0, a column for 1, over the
+    rectangle's cells across it) between the handles' facing edges (`between`, plane coordinates) most of whose
+    length shows a gap, at least WEAK_GAP_SHARE of it; else where an edge of the rectangle steps (`_edge_step`); else
+    the line through `guess` (plane coordinate), kept off the handles."""
     index = view.row if axis == 0 else view.col
-    a, b = sorted(int(i) for i in index(np.array(between)))
+    ends = tuple(sorted(int(i) for i in index(np.array(between))))
     margin = max(int(round(HANDLE_CLEARANCE_M / view.res_m)), 1)  # not a handle's own edge or shadow
-    a, b = a + margin, b - margin
+    a, b = ends[0] + margin, ends[1] - margin
     if b <= a:
         return int(index(guess))
-    fallback = int(np.clip(index(guess), a, b))
-    lo, hi = max(band[0], 0), band[1] + 1
+    step = _edge_step(view, extent, ends, axis)
+    fallback = int(np.clip(index(guess), a, b)) if step is None else step
+    lo, hi = (max(extent.left, 0), extent.right + 1) if axis == 0 else (max(extent.top, 0), extent.bottom + 1)
     judged = view.on_plane | view.no_depth  # the surface, and cells without depth (patches, a slit)
     surface = judged[:, lo:hi] if axis == 0 else judged[lo:hi].T
     grey = view.gray[:, lo:hi] if axis == 0 else view.gray[lo:hi].T
@@ -493,6 +500,44 @@ def _cut(view: PlaneView, band: tuple[int, int], between: tuple[float, float], g
         return fallback
     best = int(np.argmax(shares))
     return a + best if shares[best] >= WEAK_GAP_SHARE else fallback
+
+
+def _edge_step(view: PlaneView, extent: Extent, ends: tuple[int, int], axis: int) -> int | None:
+    """The first line past a step, between two handles' facing edges (`ends`: columns for axis 1, rows for 0), of an
+    edge of the rectangle running across those lines (its top or bottom for columns, a side for rows) that ended at a
+    gap or where the surface stopped: two fronts whose edges do not line up meet there. The edge's place per line is
+    its outermost cell on the plane within EDGE_WINDOW_M of the rectangle's side; it steps where its medians over
+    STEP_WINDOW_M either side differ most, and its medians over the whole stretches either side, up to the handles,
+    differ the same way by EDGE_STEP_M. None when no edge steps."""
+    on, seen = (view.on_plane, view.seen) if axis == 1 else (view.on_plane.T, view.seen.T)
+    sides = (("top", extent.top, -1), ("bottom", extent.bottom, 1)) if axis == 1 else \
+        (("left", extent.left, -1), ("right", extent.right, 1))
+    reach = int(round(EDGE_WINDOW_M / view.res_m))
+    window = max(int(np.ceil(STEP_WINDOW_M / view.res_m)), 2)
+    least = EDGE_STEP_M / view.res_m
+    lines = np.arange(max(ends[0], 0), min(ends[1], on.shape[1] - 1) + 1)
+    at = np.arange(window, len(lines) - window + 1)
+    if len(at) == 0:
+        return None
+    best = None
+    for side, line, outward in sides:
+        if extent.ended.get(side) not in ("gap", "surface"):
+            continue
+        r0, r1 = max(line - reach, 0), min(line + reach + 1, on.shape[0])
+        band = on[r0:r1, lines]
+        place = np.arange(r0, r1)[:, None] * outward  # the larger, the farther out
+        edge = np.where(band, place, -np.inf).max(axis=0)
+        edge = np.where(band.any(axis=0) & seen[r0:r1, lines].all(axis=0), edge, np.nan)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # stretches the arm hides
+            local = np.array([np.nanmedian(edge[k:k + window]) - np.nanmedian(edge[k - window:k]) for k in at])
+            if np.all(np.isnan(local)):
+                continue
+            k = int(at[np.nanargmax(np.abs(local))])
+            level = np.nanmedian(edge[k:]) - np.nanmedian(edge[:k])
+        if abs(level) >= least and level * local[k - at[0]] > 0 and (best is None or abs(level) > best[0]):
+            best = abs(level), int(lines[k])
+    return None if best is None else best[1]
 
 
 def plane_coordinates(plane: PlaneFrame, depth_m: np.ndarray, K: np.ndarray,
