@@ -77,7 +77,8 @@ def regrasp(episode: Episode) -> None:
     """Open, back off along the approach, find the handle again in a fresh frame near where it was held or,
     released, gone back along the estimated path (a door swinging shut), approach it and close. The opening is
     the one measured before the slipping pull (its share is not counted: the arm errs toward opening further),
-    or less where the handle is found gone back; later travel counts from the new grip."""
+    or less where the handle is found gone back; later travel counts from the new grip, and the grip's path fitted
+    for the axis starts there (the fingers hold the handle at another point of it: they slid along it)."""
     arm, kin, state = episode.arm, episode.kin, episode.state
     held = episode.tool()[:3, 3]
     arm.set_gripper(state.open_width_m)
@@ -100,7 +101,7 @@ def regrasp(episode: Episode) -> None:
     p_new = episode.tool()[:3, 3]
     if state.axis is not None:
         state.opened = min(state.opened, state.opened_before + opening(state.axis, state.p_grasp, p_new))
-    state.opened_before, state.p_grasp = state.opened, p_new
+    state.opened_before, state.p_grasp, state.grip_start = state.opened, p_new, len(state.measured)
 
 
 def held_way_round(T_grasp: np.ndarray, T_tool: np.ndarray) -> np.ndarray:

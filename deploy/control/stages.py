@@ -320,7 +320,7 @@ def estimate(episode: Episode, pull: np.ndarray) -> tuple[Axis, str]:
         state.estimated = True
     else:
         joint = state.joint or (vision.joint_type if isinstance(vision, Axis) else None)
-        trajectory = _grip_path_axis(np.array(state.measured), joint)
+        trajectory = _grip_path_axis(np.array(state.measured[state.grip_start:]), joint)
         strained = state.across_force_n >= episode.config.opening.force_cue_n
         result, source = choose_axis(vision, trajectory, state.joint, state.opened, episode.config.opening, strained)
         chosen = orient_axis(result, _measured_pull(episode, pull), state.p_grasp) \
@@ -363,10 +363,10 @@ def _hinge_seen_turning(episode: Episode) -> Axis | None:
 
 
 def _grip_path_axis(poses: np.ndarray, joint: JointType | None) -> AxisResult:
-    """The axis fitted to the tool poses measured while pulling (NoAxis before any pull was measured: the first one
-    ran out of reach). A parallel gripper's fingers let the handle turn in them, so its own turn is not the door's: a
-    hinge is fitted to the grip point's path alone (the turn still helps tell a hinge from a slide); NoAxis for one
-    that cannot carry the path (`holds_path`)."""
+    """The axis fitted to the tool poses measured while pulling with the current grip (`EpisodeState.grip_start`;
+    NoAxis before any pull was measured: the first one ran out of reach). A parallel gripper's fingers let the handle
+    turn in them, so its own turn is not the door's: a hinge is fitted to the grip point's path alone (the turn still
+    helps tell a hinge from a slide); NoAxis for one that cannot carry the path (`holds_path`)."""
     if len(poses) == 0:
         return NoAxis("no pull measured yet")
     turns = None if joint is JointType.REVOLUTE else Rotation.from_matrix(poses[:, :3, :3]).as_quat()

@@ -70,6 +70,8 @@ class EpisodeState:
     estimates: list[dict] = field(default_factory=list)
     commanded: list[np.ndarray] = field(default_factory=list)
     measured: list[np.ndarray] = field(default_factory=list)
+    grip_start: int = 0  # where in `measured` the current grip's poses begin (a re-grasp after a slip holds the
+    # handle at another point of it)
     opening_curve: list[tuple[float, float]] = field(default_factory=list)  # (arm time s, opening SI)
     timings: dict[str, float] = field(default_factory=lambda: {
         "perceive_s": 0.0, "grasp_s": 0.0, "motion_s": 0.0, "estimate_s": 0.0})
