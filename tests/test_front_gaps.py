@@ -99,3 +99,21 @@ def test_a_slit_lies_below_the_surface_on_both_its_sides():
     offset[60] -= 0.006
     offset[90] -= 0.006
     assert np.flatnonzero(slit_lines(offset, surface, 0.0033)).tolist() == [89, 90, 91]
+
+
+def test_a_door_beside_a_lower_neighbour_level_with_it_keeps_its_own_width_and_height():
+    """A tall door with a lower unit beside it, their fronts in one plane, a pale bar standing out along the unit's
+    edge (off the plane, wider than a gap line), a wall behind above the unit; pointed above the unit. Walked over
+    the door's height, the columns run over the unit's front; the rows walked over those columns must not lose the
+    door."""
+    depth = np.full((480, 640), 2.4, np.float32)
+    color = np.full((480, 640, 3), 210, np.uint8)
+    door, unit = (slice(40, 440), slice(330, 450)), (slice(180, 440), slice(150, 322))
+    for part in (door, unit):
+        depth[part], color[part] = DEPTH_M, (150, 100, 60)
+    depth[180:440, 322:330], color[180:440, 322:330] = DEPTH_M - 0.02, 240
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+    front = find_front(Frame(0, 0.0, color, depth, K, T), np.zeros((480, 640), bool), 400, 80)
+    assert front.width_m == pytest.approx(120 * DEPTH_M / K.fx, abs=0.03)
+    assert front.height_m == pytest.approx(400 * DEPTH_M / K.fx, abs=0.03)

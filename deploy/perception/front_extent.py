@@ -81,6 +81,15 @@ def front_extent(view: PlaneView, seed: tuple[int, int], crossed: np.ndarray | N
     rows, cols = (r, r), (c - half, c + half)
     ended: dict[str, str] = {}
     for _ in range(2):
+        if _share(surface[r:r + 1, max(cols[0], 0):cols[1] + 1], None, view.res_m)[0] < SURFACE_SHARE:
+            # the columns walked over the front's rows reached past its side, along rows where a surface level
+            # with it goes on (a neighbour's front, its gap missed): the seed's own row bounds the columns
+            (left, ended["left"]), (right, ended["right"]) = _grow(view, surface, depth_surface, seed, (r, r), 1,
+                                                                   through)
+            cols = (left, right)
+            (top, ended["top"]), (bottom, ended["bottom"]) = _grow(view, surface, depth_surface, seed, cols, 0,
+                                                                   through)
+            return Extent(top, bottom, left, right, ended)
         (top, ended["top"]), (bottom, ended["bottom"]) = _grow(view, surface, depth_surface, seed, cols, 0, through)
         rows = (top, bottom)
         (left, ended["left"]), (right, ended["right"]) = _grow(view, surface, depth_surface, seed, rows, 1, through)
