@@ -75,7 +75,8 @@ def checked_pull(episode: Episode, path: PathFn, length: float, label: str, limi
 
 def regrasp(episode: Episode) -> None:
     """Open, back off along the approach, find the handle again in a fresh frame near where it was held or,
-    released, gone back along the estimated path (a door swinging shut), approach it and close. The opening is
+    released, gone back along the estimated path (a door swinging shut), approach it, ease off a press left at the
+    approach's end (`ease_off_press`, as the first grasp does) and close. The opening is
     the one measured before the slipping pull (its share is not counted: the arm errs toward opening further),
     or less where the handle is found gone back; later travel counts from the new grip, and the grip's path fitted
     for the axis starts there (the fingers hold the handle at another point of it: they slid along it)."""
@@ -97,6 +98,7 @@ def regrasp(episode: Episode) -> None:
     episode.wait(SETTLE_S)
     T = episode.tool()
     follow_cartesian_path(arm, kin, line_path(T, T[:3, 2]), RETREAT_M, episode.line_limits(), episode.show_arm)
+    ease_off_press(episode)
     close_and_check(episode, state.open_width_m, StopReason.GRASP_LOST, "re-grasp after a slip failed: ")
     p_new = episode.tool()[:3, 3]
     if state.axis is not None:
