@@ -138,3 +138,11 @@ def test_a_bar_standing_past_its_fronts_found_edge_is_no_obstacle_to_its_own_gra
     result = simulate_episode("drawer", 46, "test", target=0.1)
     assert blind and blind[0].found == "bar"
     assert result["success"] and result["true_opened_m"] >= 0.1, result["message"]
+
+
+def test_the_benchmarks_drawer_in_a_stack_of_three_is_not_cut_at_a_step_along_its_sides(blind):
+    """The pointed drawer of the stack (the benchmark's 30 cm episode): no gap is seen between its bar and the next
+    one's, and the rectangle's side, which ended where the surface stopped, steps between them; stacked fronts share
+    one carcass's sides, so the cut is not put at that step (it was, and the neighbour's drawer was held)."""
+    result = simulate_episode("drawer", THREE_DRAWERS, "test", target=0.30)
+    assert result["stop_reason"] == StopReason.TARGET_REACHED and result["success"], result["message"]

@@ -480,15 +480,15 @@ def _seed_side(view: PlaneView, side: str, line: int) -> bool:
 def _cut(view: PlaneView, extent: Extent, between: tuple[float, float], guess: float, axis: int) -> int:
     """Where to cut the rectangle `extent` between two handles: the line (a row for axis 0, a column for 1, over the
     rectangle's cells across it) between the handles' facing edges (`between`, plane coordinates) most of whose
-    length shows a gap, at least WEAK_GAP_SHARE of it; else where an edge of the rectangle steps (`_edge_step`); else
-    the line through `guess` (plane coordinate), kept off the handles."""
+    length shows a gap, at least WEAK_GAP_SHARE of it; else, side by side, where the rectangle's top or bottom edge
+    steps (`_edge_step`); else the line through `guess` (plane coordinate), kept off the handles."""
     index = view.row if axis == 0 else view.col
     ends = tuple(sorted(int(i) for i in index(np.array(between))))
     margin = max(int(round(HANDLE_CLEARANCE_M / view.res_m)), 1)  # not a handle's own edge or shadow
     a, b = ends[0] + margin, ends[1] - margin
     if b <= a:
         return int(index(guess))
-    step = _edge_step(view, extent, ends, axis)
+    step = _edge_step(view, extent, ends) if axis == 1 else None
     fallback = int(np.clip(index(guess), a, b)) if step is None else step
     lo, hi = (max(extent.left, 0), extent.right + 1) if axis == 0 else (max(extent.top, 0), extent.bottom + 1)
     judged = view.on_plane | view.no_depth  # the surface, and cells without depth (patches, a slit)
@@ -502,16 +502,15 @@ def _cut(view: PlaneView, extent: Extent, between: tuple[float, float], guess: f
     return a + best if shares[best] >= WEAK_GAP_SHARE else fallback
 
 
-def _edge_step(view: PlaneView, extent: Extent, ends: tuple[int, int], axis: int) -> int | None:
-    """The first line past a step, between two handles' facing edges (`ends`: columns for axis 1, rows for 0), of an
-    edge of the rectangle running across those lines (its top or bottom for columns, a side for rows) that ended at a
-    gap or where the surface stopped: two fronts whose edges do not line up meet there. The edge's place per line is
-    its outermost cell on the plane within EDGE_WINDOW_M of the rectangle's side; it steps where its medians over
-    STEP_WINDOW_M either side differ most, and its medians over the whole stretches either side, up to the handles,
-    differ the same way by EDGE_STEP_M. None when no edge steps."""
-    on, seen = (view.on_plane, view.seen) if axis == 1 else (view.on_plane.T, view.seen.T)
-    sides = (("top", extent.top, -1), ("bottom", extent.bottom, 1)) if axis == 1 else \
-        (("left", extent.left, -1), ("right", extent.right, 1))
+def _edge_step(view: PlaneView, extent: Extent, ends: tuple[int, int]) -> int | None:
+    """The first column past a step, between two handles side by side (`ends`: their facing edges' columns), of the
+    rectangle's top or bottom edge where it ended at a gap or where the surface stopped: two units of different
+    heights meet there. (Stacked fronts share their sides, one carcass's, so a side tells nothing of where they
+    meet.) The edge's place per column is its outermost cell on the plane within EDGE_WINDOW_M of the rectangle's
+    edge; it steps where its medians over STEP_WINDOW_M either side differ most, and its medians over the whole
+    stretches either side, up to the handles, differ the same way by EDGE_STEP_M. None when no edge steps."""
+    on, seen = view.on_plane, view.seen
+    sides = (("top", extent.top, -1), ("bottom", extent.bottom, 1))
     reach = int(round(EDGE_WINDOW_M / view.res_m))
     window = max(int(np.ceil(STEP_WINDOW_M / view.res_m)), 2)
     least = EDGE_STEP_M / view.res_m
