@@ -52,8 +52,8 @@ def test_every_grasp_is_tried_with_the_usual_postures_before_the_elbow_swings_ou
     before the tilted-up one with the elbow swung out; the tilted-up one alone is planned swung out."""
     up, down = grasp_pose(BAR, pitch_rad=-GRASP_PITCH_RAD), grasp_pose(BAR)
     monkeypatch.setattr(stages, "scene_tree", lambda frame, pointed: None)
-    grasps = [(up, 0.08, False), (down, 0.08, False)]
-    monkeypatch.setattr(stages, "ranked_grasps", lambda *args: grasps)
+    grasps = [(up, 0.08), (down, 0.08)]
+    monkeypatch.setattr(stages, "clear_grasps", lambda *args: grasps)
     episode = _episode(kin)
     T, _, q = stages._grasp_plan(episode, BAR)
     assert np.allclose(T, down)
@@ -63,13 +63,3 @@ def test_every_grasp_is_tried_with_the_usual_postures_before_the_elbow_swings_ou
     T, _, q = stages._grasp_plan(episode, BAR)  # as found the swung-out elbow carries half the pull, turned half a
     # turn about its approach the whole of it
     assert np.allclose(T, up @ HALF_TURN) and np.allclose(kin.fk(q), pregrasp_pose(T, 0.1), atol=1e-3)
-
-
-def test_a_grasp_keeping_out_of_the_scene_with_the_elbow_swung_out_goes_before_one_grazing_it(kin, monkeypatch):
-    """Tilted up, the hand keeps out of a counter's edge but only the swung-out elbow carries it; level, a usual
-    posture carries it but the hand grazes the edge (within the calibration's error): the tilted-up one is planned."""
-    up, level = grasp_pose(BAR, pitch_rad=-GRASP_PITCH_RAD), grasp_pose(BAR, pitch_rad=0.0)
-    monkeypatch.setattr(stages, "scene_tree", lambda frame, pointed: None)
-    monkeypatch.setattr(stages, "ranked_grasps", lambda *args: [(up, 0.08, False), (level, 0.08, True)])
-    T, _, q = stages._grasp_plan(_episode(kin), BAR)
-    assert np.allclose(T[:3, 2], up[:3, 2]) and np.allclose(kin.fk(q), pregrasp_pose(T, 0.1), atol=1e-3)

@@ -79,24 +79,17 @@ def scene_tree(frame: Frame, pointed: PointedPart) -> Scene:
 
 def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, max_opening_m: float
                  ) -> list[tuple[np.ndarray, float]]:
-    """The grasps (pose and finger opening) of `ranked_grasps`, in its order."""
-    return [(T, opening) for T, opening, _ in ranked_grasps(handle, scene, pulls, approach_m, max_opening_m)]
-
-
-def ranked_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, max_opening_m: float
-                  ) -> list[tuple[np.ndarray, float, bool]]:
-    """The grasps (pose, finger opening and whether the approach grazes the scene) whose approach (from `approach_m`
-    out, the fingers open) and first planned pull (the fingers closed on the handle) keep clear of `scene`
-    (CLEARANCE_M), the approach in front of the fronts' plane too (PLANE_BAND_M deep at most; a tilted finger's far
-    corner dips toward it; a recessed pull's pocket lies behind it), in the order wanted: where the first planned pull
-    is straight (a drawer's), those whose approach keeps out of the scene before those grazing it (`_ranked`), and of
-    each those keeping KEEP_CLEAR_M from the scene and in front of the fronts' plane (but into a pocket) first, then the
-    others, the nearer to the scene or the deeper behind the plane the later; along an arc (a door's) as tried, none
-    taken as grazing, which is what the arc asks (the tilt down keeps the wrist off its limit, a knob's fingers close
-    level as the door turns); ties as tried: a knob held as found then turned a quarter, each going in as deep as the
-    handle asks, then for a recessed pull to POCKET_DEPTH_M, each tilted down, level, then up (PITCHES_RAD; level first
-    into a recessed pull), each with the fingers opened as the handle asks, then only as wide as it needs (its thickness
-    and GRIP_MARGIN_M each side); the grasps from above (FROM_ABOVE_RAD) after all of those. EpisodeStop saying where
+    """The grasps (pose and finger opening) whose approach (from `approach_m` out, the fingers open) and first planned
+    pull (the fingers closed on the handle) keep clear of `scene` (CLEARANCE_M), the approach in front of the fronts'
+    plane too (PLANE_BAND_M deep at most; a tilted finger's far corner dips toward it; a recessed pull's pocket lies
+    behind it), in the order wanted: where the first planned pull is straight (a drawer's), those whose approach
+    keeps KEEP_CLEAR_M from the scene and in front of the fronts' plane (but into a pocket) first, then the others,
+    the nearer to the scene or the deeper behind the plane the later; along an arc (a door's) as tried, which is
+    what the arc asks (the tilt down keeps the wrist off its limit, a knob's fingers close level as the door turns);
+    ties as tried: a knob held as found then turned a quarter, each going in as deep as the handle asks, then for a
+    recessed pull to POCKET_DEPTH_M, each tilted down, level, then up (PITCHES_RAD; level first into a recessed
+    pull), each with the fingers opened as the handle asks, then only as wide as it needs (its thickness and
+    GRIP_MARGIN_M each side); the grasps from above (FROM_ABOVE_RAD) after all of those. EpisodeStop saying where
     the gripper would touch the scene when none does."""
     openings = [handle.open_m or max_opening_m]
     closed = 0.0 if handle.thickness_m is None else handle.thickness_m
@@ -126,27 +119,24 @@ def ranked_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float,
             if touch is None and handle.found != "recessed pull":
                 touch = first_behind(path, gripper, scene.origin, scene.normal, PLANE_BAND_M)
             if touch is None:
-                kept = (False, 0.0) if swings else _ranked(handle, scene, path, gripper)
-                clear.append((pitch in FROM_ABOVE_RAD, *kept, len(clear), T, opening))
+                kept = 0.0 if swings else -_kept(handle, scene, path, gripper)
+                clear.append((pitch in FROM_ABOVE_RAD, kept, len(clear), T, opening))
             elif contact is None:
                 contact, during = touch, "first pull" if pull is not None else "approach"
     if clear:
-        return [(T, opening, grazes) for _, grazes, *_, T, opening in sorted(clear, key=lambda c: c[:4])]
+        return [(T, opening) for *_, T, opening in sorted(clear, key=lambda c: c[:3])]
     p = contact.point
     raise EpisodeStop(StopReason.NO_CLEAR_PATH, f"the gripper's {contact.box} would touch the scene at ({p[0]:.2f}, "
                       f"{p[1]:.2f}, {p[2]:.2f}) m during the {during} ({_where(p, handle)}), however it approached: "
                       "clear what stands there, or move the robot so that it reaches the handle from another side")
 
 
-def _ranked(handle: Handle, scene: Scene, path: list[np.ndarray], gripper: tuple[ToolBox, ...]) -> tuple[bool, float]:
-    """Where the gripper moving through `path` ranks, the smaller the sooner: whether it grazes `scene` (a point of it
-    inside the gripper: what stands there is fixed, and a hand resting on a counter's edge cannot give way to centre
-    the fingers on the handle as they close, while a finger within the plane's band presses the front it will pull),
-    then less how far it keeps from the scene (KEEP_CLEAR_M at most) and from behind the fronts' plane (but into a
-    pocket)."""
+def _kept(handle: Handle, scene: Scene, path: list[np.ndarray], gripper: tuple[ToolBox, ...]) -> float:
+    """How far the gripper moving through `path` keeps from `scene` (KEEP_CLEAR_M at most), less how deep it reaches
+    behind the fronts' plane (but into a pocket)."""
     margin = clearance(scene.points, path, gripper, KEEP_CLEAR_M)
     depth = 0.0 if handle.found == "recessed pull" else depth_behind(path, gripper, scene.origin, scene.normal)
-    return margin < 0, -(min(margin, -depth) if depth > 0 else margin)
+    return min(margin, -depth) if depth > 0 else margin
 
 
 def _where(point: np.ndarray, handle: Handle) -> str:

@@ -3,6 +3,7 @@ episode by raising `EpisodeStop` with a `StopReason`."""
 
 from __future__ import annotations
 
+import itertools
 import logging
 import time
 
@@ -44,7 +45,7 @@ from deploy.control.policy import (
     orient_axis,
     seen_opening,
 )
-from deploy.control.scene_clearance import ranked_grasps, scene_tree
+from deploy.control.scene_clearance import clear_grasps, scene_tree
 from deploy.control.state import EpisodeStop, StopReason, opening_unit
 from deploy.control.view import step_log
 from deploy.errors import PartHiddenError, PointerError
@@ -516,20 +517,17 @@ def _grasp_plan(episode: Episode, handle: Handle) -> tuple[np.ndarray, float, np
     grasp whose approach and first pull keep clear of the scene the first frame showed and that the arm carries
     (EpisodeStop when none keeps clear, IKError when the arm carries none); else the usual one, fully open. Every
     grasp is tried with the arm's usual postures before any with the elbow swung out sideways (an unusual posture,
-    sweeping more of the room on its way, is no better where a usual one carries a grasp), but every one keeping
-    out of the scene with either before any grazing it (a hand grazing a counter's edge loses the handle); each as
-    found or turned half a turn about its approach (`pregrasp_either_way`)."""
+    sweeping more of the room on its way, is no better where a usual one carries a grasp); each as found or turned
+    half a turn about its approach (`pregrasp_either_way`)."""
     pointed, widest, kin = episode.observer.pointed, episode.gripper.max_opening_m, episode.kin
     approach, q = episode.config.opening.approach_m, episode.arm.state().q
     if pointed is None:
-        grasps = [(grasp_pose(handle), widest if handle.open_m is None else handle.open_m, False)]
+        grasps = [(grasp_pose(handle), widest if handle.open_m is None else handle.open_m)]
     else:
         scene = scene_tree(episode.observer.first_look.frame, pointed)
-        grasps = ranked_grasps(handle, scene, lambda T: _planned_pulls(episode, handle, T), approach, widest)
-    tried = [(swung, (T, width)) for grazes in (False, True) for swung in (False, True)
-             for T, width, grazing in grasps if grazing == grazes]
+        grasps = clear_grasps(handle, scene, lambda T: _planned_pulls(episode, handle, T), approach, widest)
     refused = None
-    for swung, (T, width) in tried:
+    for swung, (T, width) in itertools.product((False, True), grasps):
         try:
             T_held, q_pre = pregrasp_either_way(kin, q, T, lambda P: _planned_pulls(episode, handle, P), approach,
                                                 swung)
