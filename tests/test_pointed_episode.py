@@ -140,9 +140,11 @@ def test_a_bar_standing_past_its_fronts_found_edge_is_no_obstacle_to_its_own_gra
     assert result["success"] and result["true_opened_m"] >= 0.1, result["message"]
 
 
-def test_the_benchmarks_drawer_in_a_stack_of_three_is_not_cut_at_a_step_along_its_sides(blind):
-    """The pointed drawer of the stack (the benchmark's 30 cm episode): no gap is seen between its bar and the next
-    one's, and the rectangle's side, which ended where the surface stopped, steps between them; stacked fronts share
-    one carcass's sides, so the cut is not put at that step (it was, and the neighbour's drawer was held)."""
-    result = simulate_episode("drawer", THREE_DRAWERS, "test", target=0.30)
+@pytest.mark.parametrize(("seed", "target"), [(THREE_DRAWERS, 0.30), (18, 0.45)])
+def test_a_run_of_drawers_is_not_cut_where_no_edge_steps(blind, seed, target):
+    """Benchmark drawer episodes with no gap seen between the pointed drawer's bar and the next one's. Drawer 3 (the
+    stack of three): the rectangle's side, which ended where the surface stopped, steps between them, but stacked
+    fronts share one carcass's sides. Drawer 18 (a run side by side): the top edge's surface runs on past the window
+    the edge is looked for in but next to a bar, which read as a step. Cut at either, the neighbour was held."""
+    result = simulate_episode("drawer", seed, "test", target=target)
     assert result["stop_reason"] == StopReason.TARGET_REACHED and result["success"], result["message"]

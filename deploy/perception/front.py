@@ -507,8 +507,9 @@ def _edge_step(view: PlaneView, extent: Extent, ends: tuple[int, int]) -> int | 
     rectangle's top or bottom edge where it ended at a gap or where the surface stopped: two units of different
     heights meet there. (Stacked fronts share their sides, one carcass's, so a side tells nothing of where they
     meet.) The edge's place per column is its outermost cell on the plane within EDGE_WINDOW_M of the rectangle's
-    edge; it steps where its medians over STEP_WINDOW_M either side differ most, and its medians over the whole
-    stretches either side, up to the handles, differ the same way by EDGE_STEP_M. None when no edge steps."""
+    edge (none where the surface runs on past that window: no edge is seen there); it steps where its medians over
+    STEP_WINDOW_M either side differ most, and its medians over the whole stretches either side, up to the handles,
+    differ the same way by EDGE_STEP_M. None when no edge steps."""
     on, seen = view.on_plane, view.seen
     sides = (("top", extent.top, -1), ("bottom", extent.bottom, 1))
     reach = int(round(EDGE_WINDOW_M / view.res_m))
@@ -526,7 +527,7 @@ def _edge_step(view: PlaneView, extent: Extent, ends: tuple[int, int]) -> int | 
         band = on[r0:r1, lines]
         place = np.arange(r0, r1)[:, None] * outward  # the larger, the farther out
         edge = np.where(band, place, -np.inf).max(axis=0)
-        edge = np.where(band.any(axis=0) & seen[r0:r1, lines].all(axis=0), edge, np.nan)
+        edge = np.where(band.any(axis=0) & seen[r0:r1, lines].all(axis=0) & (edge < place.max()), edge, np.nan)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # stretches the arm hides
             local = np.array([np.nanmedian(edge[k:k + window]) - np.nanmedian(edge[k - window:k]) for k in at])
