@@ -76,10 +76,10 @@ def checked_pull(episode: Episode, path: PathFn, length: float, label: str, limi
 def regrasp(episode: Episode) -> None:
     """Open, back off along the approach, find the handle again in a fresh frame near where it was held or,
     released, gone back along the estimated path (a door swinging shut), approach it, ease off a press left at the
-    approach's end (`ease_off_press`, as the first grasp does) and close. The opening is
-    the one measured before the slipping pull (its share is not counted: the arm errs toward opening further),
-    or less where the handle is found gone back; later travel counts from the new grip, and the grip's path fitted
-    for the axis starts there (the fingers hold the handle at another point of it: they slid along it)."""
+    approach's end (`ease_off_press`, as the first grasp does) and close. The opening is the one measured before the
+    slipping pull (its share is not counted: the arm errs toward opening further), or less where the handle is found
+    gone back; later travel counts from the new grip, and the grip's path fitted for the axis starts there (the
+    fingers hold the handle at another point of it: they slid along it)."""
     arm, kin, state = episode.arm, episode.kin, episode.state
     held = episode.tool()[:3, 3]
     arm.set_gripper(state.open_width_m)

@@ -7,9 +7,7 @@ from its cells where it has none (the ray's meeting with the plane).
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, replace
-from functools import partial
 
 import cv2
 import numpy as np
@@ -170,31 +168,29 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
             parts = [member & side for side in (col < extent.left, (col >= extent.left) & (col <= extent.right),
                                                 col > extent.right)]
             found = [blob_of(part, box) for part in parts if part.any() and part.sum() < member.sum()]
-        if len(parts) == 1:
-            parts, found = _band_past_edge(member, out[box], box[0].start + r0, extent, parts, found,
-                                           partial(blob_of, box=box))
+        pieces = _band_past_edge(member, out[box], box[0].start + r0, extent) if len(parts) == 1 else None
+        if pieces is not None:
+            found = [blob_of(piece, box) for piece in pieces]
         blobs += [b for b in found if b is not None and not _edge_line(view, b, extent)
                   and not _edge_of_beside(view, b, extent)]
     blobs = _under_hidden_edges(view, extent, blobs, camera_to_base, K)
     return _joined_pieces(view, blobs, extent, camera_to_base, K)
 
 
-def _band_past_edge(member: np.ndarray, out: np.ndarray, row0: int, extent: Extent, parts: list[np.ndarray],
-                    found: list, blob_of: Callable[[np.ndarray], Blob | None]) -> tuple[list[np.ndarray], list]:
+def _band_past_edge(member: np.ndarray, out: np.ndarray, row0: int, extent: Extent) -> list[np.ndarray] | None:
     """A candidate (`member`, its grid's first row `row0` of the view; `out`: its cells measured standing out) taken
     apart when its cells without depth past the rectangle's top or bottom edge run along STRUCTURE_SHARE of that
     edge: the dark band under or over a front's whole edge (the shadow there, the gap to what lies beyond) is no part
-    of the handles on the edge it joins (an edge pull's tab, however dark, is shorter than its front). The parts:
-    each piece of the rest (a handle each) and the band; else `parts` and `found` as they were."""
+    of the handles on the edge it joins (an edge pull's tab, however dark, is shorter than its front). The pieces:
+    each piece of the rest (a handle each) and the band; None when it is not taken apart."""
     rows = np.arange(member.shape[0])[:, None] + row0
     band = member & ~out & ((rows < extent.top) | (rows > extent.bottom))
     rest = member & ~band
     along = np.count_nonzero(band.any(axis=0))
     if not (rest & out).any() or along < STRUCTURE_SHARE * (extent.right - extent.left + 1):
-        return parts, found
+        return None
     count, labels = cv2.connectedComponents(rest.astype(np.uint8), connectivity=8)
-    parts = [labels == label for label in range(1, count)] + [band]
-    return parts, [blob_of(part) for part in parts]
+    return [labels == label for label in range(1, count)] + [band]
 
 
 def _pull_sized(sunk: np.ndarray, res_m: float) -> np.ndarray:
