@@ -198,4 +198,5 @@ ScaleOpt = Annotated[ScaleChoice, typer.Option(
     + ".")]
 PointOpt = Annotated[tuple[float, float] | None, typer.Option(
     "--point", metavar="U V", help="The pixel (column U, row V) on the part to open in the first frame, as a user "
-    "points at it \\[default: with --camera sim the simulated user's, said on the step log; on hardware none].")]
+    "points at it: on its front or on its handle \\[default: with --camera sim the simulated user's, said on the step "
+    "log; on hardware none].")]

@@ -27,6 +27,7 @@ from deploy.perception.front_extent import Extent
 from deploy.perception.furniture import Furniture, find_furniture
 from deploy.perception.handle import GripperSize, Handle, describe, own_blob
 from deploy.perception.handle_blobs import handle_blobs
+from deploy.perception.handle_pixel import behind_handle
 from deploy.perception.plane_view import PlaneView
 from drivers.camera.base import Frame
 
@@ -68,6 +69,8 @@ def point_at(frame: Frame, robot: np.ndarray, pointer: Pointer, reach_m: float |
         raise PartHiddenError(f"{pointer}: pixel ({u}, {v}) is on the arm, which hides the part there: move the arm "
                               "out of the view (the episode swings it aside) or point at a part of the front it does "
                               "not hide")
+    if pointer.box is None:
+        u, v = behind_handle(frame, robot, u, v)
     try:
         front = find_front(frame, robot, u, v, pointer.box)
     except PointerError as e:
