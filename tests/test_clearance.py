@@ -11,8 +11,8 @@ import pybullet_data
 import pytest
 from scipy.spatial import cKDTree
 
-from deploy.control.grasp import Handle, grasp_pose
-from deploy.control.scene_clearance import Scene, clear_grasps
+from deploy.control.grasp import Handle, grasp_pose, grip_depth_m
+from deploy.control.scene_clearance import Scene, clear_grasps, ranked_grasps
 from deploy.control.state import EpisodeStop
 from deploy.geometry.clearance import (
     clearance,
@@ -236,3 +236,23 @@ def test_the_grasps_from_above_come_after_every_usual_grasp():
     pitches = [float(np.arcsin(-T[2, 2])) for T, _ in clear_grasps(bar, scene, lambda T: [[T]], 0.1, 0.08)]
     assert sorted(np.round(pitches[:6], 6)) == sorted(np.round([0.25, 0.0, -0.25] * 2, 6))
     assert np.allclose(pitches[6:], [0.7, 0.7])
+
+
+def test_a_grasp_grazing_the_scene_goes_after_one_dipping_behind_the_fronts_plane():
+    """A bar 1.1 cm out of its front, a counter's underside 10 cm above it reaching out to the fronts' plane: held
+    level, the hand (21 cm along the fingers' closing direction) grazes the underside by 4 mm, which would hold it
+    there as the handle is centred between the fingers; tilted up, its upper edge leans out from under it while the
+    lower finger's corner dips 8 mm behind the fronts' plane (the front stops the compliant approach there): the
+    tilted-up grasp goes first."""
+    normal = np.array([-1.0, 0.0, 0.0])
+    x, y = np.meshgrid(np.arange(0.70, 0.80, 0.005), np.arange(-0.3, 0.3, 0.005))
+    underside = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, 0.8)])
+    scene = Scene(cKDTree(underside), np.array([0.80, 0.0, 0.7]), normal)
+    bar = Handle(np.array([0.789, 0.0, 0.7]), normal, np.array([0.0, 1.0, 0.0]), 0, "bar", open_m=0.08,
+                 thickness_m=0.017, depth_m=grip_depth_m(0.011, False))
+    (up, opening, grazes), *rest = ranked_grasps(bar, scene, lambda T: [[T]], 0.1, 0.08)
+    assert up[2, 2] > 0.2 and not grazes  # the approach tilted up
+    assert first_behind([up], parallel_gripper(opening, 0.08), scene.origin, normal, 0.005) is not None
+    assert rest and all(abs(T[2, 2]) < 1e-9 and grazes for T, _, grazes in rest)  # level, grazing
+    level, level_opening, _ = rest[0]
+    assert clearance(scene.points, [pregrasp_pose(level, 0.1), level], parallel_gripper(level_opening, 0.08), 0.01) < 0

@@ -1,5 +1,6 @@
 """The grasp planner's arm postures: the usual elbow seeds for every grasp first, the elbow swung out sideways only
-when they carry none (a hand tilted up under a counter's overhang needs the wrist past its limit from them)."""
+when they carry none as clear of the scene (a hand tilted up under a counter's overhang needs the wrist past its limit
+from them)."""
 
 from types import SimpleNamespace
 
@@ -48,12 +49,13 @@ def test_a_hand_tilted_up_is_carried_only_with_the_elbow_swung_out(kin):
 
 
 def test_every_grasp_is_tried_with_the_usual_postures_before_the_elbow_swings_out(kin, monkeypatch):
-    """The clear grasps in order, tilted up first: the tilted-down one, which a usual posture carries, is planned
-    before the tilted-up one with the elbow swung out; the tilted-up one alone is planned swung out."""
+    """The clear grasps in order, tilted up first, both grazing the scene alike: the tilted-down one, which a usual
+    posture carries, is planned before the tilted-up one with the elbow swung out; the tilted-up one alone is planned
+    swung out."""
     up, down = grasp_pose(BAR, pitch_rad=-GRASP_PITCH_RAD), grasp_pose(BAR)
     monkeypatch.setattr(stages, "scene_tree", lambda frame, pointed: None)
-    grasps = [(up, 0.08), (down, 0.08)]
-    monkeypatch.setattr(stages, "clear_grasps", lambda *args: grasps)
+    grasps = [(up, 0.08, True), (down, 0.08, True)]
+    monkeypatch.setattr(stages, "ranked_grasps", lambda *args: grasps)
     episode = _episode(kin)
     T, _, q = stages._grasp_plan(episode, BAR)
     assert np.allclose(T, down)
@@ -63,3 +65,18 @@ def test_every_grasp_is_tried_with_the_usual_postures_before_the_elbow_swings_ou
     T, _, q = stages._grasp_plan(episode, BAR)  # as found the swung-out elbow carries half the pull, turned half a
     # turn about its approach the whole of it
     assert np.allclose(T, up @ HALF_TURN) and np.allclose(kin.fk(q), pregrasp_pose(T, 0.1), atol=1e-3)
+
+
+def test_a_grasp_clear_of_the_scene_swung_out_goes_before_a_grazing_one(kin, monkeypatch):
+    """Tilted up, the hand keeps clear of a counter's overhang that the tilted-down hand grazes: the elbow swung out
+    carries its whole pull (turned half a turn), so it goes before the grazing grasp a usual posture carries; with a
+    pull longer than the swung-out arm carries whole, the grazing grasp is taken."""
+    up, down = grasp_pose(BAR, pitch_rad=-GRASP_PITCH_RAD), grasp_pose(BAR)
+    monkeypatch.setattr(stages, "scene_tree", lambda frame, pointed: None)
+    monkeypatch.setattr(stages, "ranked_grasps", lambda *args: [(up, 0.08, False), (down, 0.08, True)])
+    episode = _episode(kin)
+    T, _, q = stages._grasp_plan(episode, BAR)
+    assert np.allclose(T, up @ HALF_TURN) and np.allclose(kin.fk(q), pregrasp_pose(T, 0.1), atol=1e-3)
+    episode.config.opening.target_distance_m = 0.6
+    T, _, _ = stages._grasp_plan(episode, BAR)
+    assert np.allclose(T, down)

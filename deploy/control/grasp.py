@@ -206,12 +206,13 @@ def pregrasp_configuration(
 def pregrasp_either_way(
     kin: Kinematics, q_start: np.ndarray, T_grasp: np.ndarray,
     pulls: Callable[[np.ndarray], Sequence[list[np.ndarray]]], approach_m: float, swung: bool = False,
+    whole: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The grasp and its pre-grasp joints (`pregrasp_configuration`, `pulls` of the grasp pose): `T_grasp`, or, where
     that carries a pull but not the most wanted one, it turned half a turn about its approach when that one carries
     a more wanted pull (a parallel gripper holds a handle either way round: the wrist's last joint, near its limit
     as found, takes the door's turn the other way round). IKError when `T_grasp` carries no pull (the next grasp
-    is tried as found)."""
+    is tried as found), or with `whole` when neither way round carries the most wanted one."""
     found = _carried_pull(kin, q_start, T_grasp, pulls(T_grasp), approach_m, swung)
     if found is None:
         raise _out_of_reach(T_grasp)
@@ -219,7 +220,9 @@ def pregrasp_either_way(
         T_turned = T_grasp @ HALF_TURN
         turned = _carried_pull(kin, q_start, T_turned, pulls(T_turned), approach_m, swung)
         if turned is not None and turned[0] < found[0]:
-            return T_turned, turned[1]
+            T_grasp, found = T_turned, turned
+    if whole and found[0] > 0:
+        raise _out_of_reach(T_grasp)
     return T_grasp, found[1]
 
 

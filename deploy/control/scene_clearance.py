@@ -79,18 +79,27 @@ def scene_tree(frame: Frame, pointed: PointedPart) -> Scene:
 
 def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, max_opening_m: float
                  ) -> list[tuple[np.ndarray, float]]:
-    """The grasps (pose and finger opening) whose approach (from `approach_m` out, the fingers open) and first planned
-    pull (the fingers closed on the handle) keep clear of `scene` (CLEARANCE_M), the approach in front of the fronts'
-    plane too (PLANE_BAND_M deep at most; a tilted finger's far corner dips toward it; a recessed pull's pocket lies
-    behind it), in the order wanted: where the first planned pull is straight (a drawer's), those whose approach
-    keeps KEEP_CLEAR_M from the scene and in front of the fronts' plane (but into a pocket) first, then the others,
-    the nearer to the scene or the deeper behind the plane the later; along an arc (a door's) as tried, which is
-    what the arc asks (the tilt down keeps the wrist off its limit, a knob's fingers close level as the door turns);
-    ties as tried: a knob held as found then turned a quarter, each going in as deep as the handle asks, then for a
-    recessed pull to POCKET_DEPTH_M, each tilted down, level, then up (PITCHES_RAD; level first into a recessed
-    pull), each with the fingers opened as the handle asks, then only as wide as it needs (its thickness and
-    GRIP_MARGIN_M each side); the grasps from above (FROM_ABOVE_RAD) after all of those. EpisodeStop saying where
-    the gripper would touch the scene when none does."""
+    """The grasps (pose and finger opening) of `ranked_grasps`, in its order."""
+    return [(T, opening) for T, opening, _ in ranked_grasps(handle, scene, pulls, approach_m, max_opening_m)]
+
+
+def ranked_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, max_opening_m: float
+                  ) -> list[tuple[np.ndarray, float, bool]]:
+    """The grasps (pose, finger opening and whether it grazes the scene) whose approach (from `approach_m` out, the
+    fingers open) and first planned pull (the fingers closed on the handle) keep clear of `scene` (CLEARANCE_M), the
+    approach in front of the fronts' plane too (PLANE_BAND_M deep at most; a tilted finger's far corner dips toward it;
+    a recessed pull's pocket lies behind it), in the order wanted: where the first planned pull is straight (a
+    drawer's), those whose approach keeps KEEP_CLEAR_M from the scene and in front of the fronts' plane (but into a
+    pocket) first, then the others, the nearer to the scene or the deeper behind the plane the later, those grazing the
+    scene (reaching into it, within CLEARANCE_M) after all that do not: a fingertip meeting the front behind the handle
+    only stops the compliant approach short, which easing off the press undoes, but a hand resting on a counter's
+    overhang or a neighbour beside the handle holds it where centring the handle between the fingers must move it; along
+    an arc (a door's) as tried, which is what the arc asks (the tilt down keeps the wrist off its limit, a knob's
+    fingers close level as the door turns); ties as tried: a knob held as found then turned a quarter, each going in as
+    deep as the handle asks, then for a recessed pull to POCKET_DEPTH_M, each tilted down, level, then up (PITCHES_RAD;
+    level first into a recessed pull), each with the fingers opened as the handle asks, then only as wide as it needs
+    (its thickness and GRIP_MARGIN_M each side); the grasps from above (FROM_ABOVE_RAD) after all of those. EpisodeStop
+    saying where the gripper would touch the scene when none does."""
     openings = [handle.open_m or max_opening_m]
     closed = 0.0 if handle.thickness_m is None else handle.thickness_m
     if handle.thickness_m is not None and closed + 2 * GRIP_MARGIN_M < openings[0]:
@@ -119,24 +128,25 @@ def clear_grasps(handle: Handle, scene: Scene, pulls: Pulls, approach_m: float, 
             if touch is None and handle.found != "recessed pull":
                 touch = first_behind(path, gripper, scene.origin, scene.normal, PLANE_BAND_M)
             if touch is None:
-                kept = 0.0 if swings else -_kept(handle, scene, path, gripper)
-                clear.append((pitch in FROM_ABOVE_RAD, kept, len(clear), T, opening))
+                margin, behind = (KEEP_CLEAR_M, 0.0) if swings else _kept(handle, scene, path, gripper)
+                kept = -min(margin, -behind) if behind > 0 else -margin
+                clear.append((pitch in FROM_ABOVE_RAD, margin < 0, kept, len(clear), T, opening))
             elif contact is None:
                 contact, during = touch, "first pull" if pull is not None else "approach"
     if clear:
-        return [(T, opening) for *_, T, opening in sorted(clear, key=lambda c: c[:3])]
+        return [(T, opening, grazes) for _, grazes, _, _, T, opening in sorted(clear, key=lambda c: c[:4])]
     p = contact.point
     raise EpisodeStop(StopReason.NO_CLEAR_PATH, f"the gripper's {contact.box} would touch the scene at ({p[0]:.2f}, "
                       f"{p[1]:.2f}, {p[2]:.2f}) m during the {during} ({_where(p, handle)}), however it approached: "
                       "clear what stands there, or move the robot so that it reaches the handle from another side")
 
 
-def _kept(handle: Handle, scene: Scene, path: list[np.ndarray], gripper: tuple[ToolBox, ...]) -> float:
-    """How far the gripper moving through `path` keeps from `scene` (KEEP_CLEAR_M at most), less how deep it reaches
-    behind the fronts' plane (but into a pocket)."""
+def _kept(handle: Handle, scene: Scene, path: list[np.ndarray], gripper: tuple[ToolBox, ...]
+          ) -> tuple[float, float]:
+    """How far the gripper moving through `path` keeps from `scene` (KEEP_CLEAR_M at most; negative: that deep into
+    it) and how deep it reaches behind the fronts' plane (but into a pocket)."""
     margin = clearance(scene.points, path, gripper, KEEP_CLEAR_M)
-    depth = 0.0 if handle.found == "recessed pull" else depth_behind(path, gripper, scene.origin, scene.normal)
-    return min(margin, -depth) if depth > 0 else margin
+    return margin, 0.0 if handle.found == "recessed pull" else depth_behind(path, gripper, scene.origin, scene.normal)
 
 
 def _where(point: np.ndarray, handle: Handle) -> str:

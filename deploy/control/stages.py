@@ -3,7 +3,6 @@ episode by raising `EpisodeStop` with a `StopReason`."""
 
 from __future__ import annotations
 
-import itertools
 import logging
 import time
 
@@ -45,7 +44,7 @@ from deploy.control.policy import (
     orient_axis,
     seen_opening,
 )
-from deploy.control.scene_clearance import clear_grasps, scene_tree
+from deploy.control.scene_clearance import ranked_grasps, scene_tree
 from deploy.control.state import EpisodeStop, StopReason, opening_unit
 from deploy.control.view import step_log
 from deploy.errors import PartHiddenError, PointerError
@@ -515,26 +514,38 @@ def _drawer_pull(episode: Episode, direction: np.ndarray, length: float, label: 
 def _grasp_plan(episode: Episode, handle: Handle) -> tuple[np.ndarray, float, np.ndarray]:
     """The grasp pose, how wide the fingers open for it and the pre-grasp joints: with a pointed part, the first
     grasp whose approach and first pull keep clear of the scene the first frame showed and that the arm carries
-    (EpisodeStop when none keeps clear, IKError when the arm carries none); else the usual one, fully open. Every
-    grasp is tried with the arm's usual postures before any with the elbow swung out sideways (an unusual posture,
-    sweeping more of the room on its way, is no better where a usual one carries a grasp); each as found or turned
-    half a turn about its approach (`pregrasp_either_way`)."""
+    (EpisodeStop when none keeps clear, IKError when the arm carries none); else the usual one, fully open. The
+    grasps are tried in `_attempts`' order; each as found or turned half a turn about its approach
+    (`pregrasp_either_way`)."""
     pointed, widest, kin = episode.observer.pointed, episode.gripper.max_opening_m, episode.kin
     approach, q = episode.config.opening.approach_m, episode.arm.state().q
     if pointed is None:
-        grasps = [(grasp_pose(handle), widest if handle.open_m is None else handle.open_m)]
+        grasps = [(grasp_pose(handle), widest if handle.open_m is None else handle.open_m, False)]
     else:
         scene = scene_tree(episode.observer.first_look.frame, pointed)
-        grasps = clear_grasps(handle, scene, lambda T: _planned_pulls(episode, handle, T), approach, widest)
+        grasps = ranked_grasps(handle, scene, lambda T: _planned_pulls(episode, handle, T), approach, widest)
     refused = None
-    for swung, (T, width) in itertools.product((False, True), grasps):
+    for (T, width), swung, whole in _attempts(grasps):
         try:
             T_held, q_pre = pregrasp_either_way(kin, q, T, lambda P: _planned_pulls(episode, handle, P), approach,
-                                                swung)
+                                                swung, whole)
             return T_held, width, q_pre
         except IKError as e:
             refused = refused or e
     raise refused
+
+
+def _attempts(grasps: list[tuple[np.ndarray, float, bool]]
+              ) -> list[tuple[tuple[np.ndarray, float], bool, bool]]:
+    """The (grasp, elbow swung out, whole pull only) tried, in order: the grasps that graze nothing (`ranked_grasps`),
+    each with the arm's usual postures, then each with the elbow swung out sideways where that carries the whole
+    planned pull; the grazing ones likewise; then every grasp swung out carrying any of its planned pulls. An
+    unusual posture, sweeping more of the room on its way, is no better where a usual one carries a grasp as clear,
+    and one that carries only part of the pull leaves the rest to a re-seat in it; but a hand resting on the
+    scene (a counter's overhang above a thin drawer's bar) cannot centre the handle between its fingers."""
+    tiers = [[(T, width) for T, width, grazes in grasps if bool(grazes) == tier] for tier in (False, True)]
+    return [*((g, swung, swung) for tier in tiers for swung in (False, True) for g in tier),
+            *(((T, width), True, False) for T, width, _ in grasps)]
 
 
 def _planned_pulls(episode: Episode, handle: Handle, T_grasp: np.ndarray) -> list[list[np.ndarray]]:
