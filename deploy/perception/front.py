@@ -31,6 +31,7 @@ from deploy.perception.handle_blobs import (
 )
 from deploy.perception.panel_frame import framed_panel
 from deploy.perception.plane_view import D415, NOISE_SIGMAS, QUANTUM_M, UP, PlaneFrame, PlaneView, rectify
+from deploy.perception.seed_surface import seed_surface
 from drivers.camera.base import Frame
 
 SEED_RADII_PX = (12, 24, 48)  # the plane at the pixel is fitted to the depth this close to it (the first with enough)
@@ -253,6 +254,10 @@ def find_front(frame: Frame, robot: np.ndarray, u: int, v: int,
     res_m = depth / frame.intrinsics.fx  # a cell is about a pixel at the seed
     view = rectify(frame, robot, plane, s_range, z_range, res_m)
     seed = (int(view.row(0.0)), int(view.col(0.0)))
+    own = seed_surface(view, seed)
+    if own is not None:  # the plane misses the front's own surface at the seed: turned and moved onto it
+        plane = on_seed_surface(frame, plane, own, u, v)
+        view = rectify(frame, robot, plane, s_range, z_range, res_m)
     pockets = enclosed_pockets(view)  # a pull's pocket is crossed like a handle
     extent = front_extent(view, seed, pockets)
     framed = framed_panel(view, extent)
@@ -280,6 +285,17 @@ def find_front(frame: Frame, robot: np.ndarray, u: int, v: int,
     corners = plane.point(np.array([s0, s1, s1, s0]), np.array([z1, z1, z0, z0]))
     mask = front_pixels(frame, robot, plane, (s0, s1), (z0, z1))
     return Front(centred, float(s1 - s0), float(z1 - z0), corners, mask, dict(extent.ended), view, extent)
+
+
+def on_seed_surface(frame: Frame, plane: PlaneFrame, own: tuple[float, float], u: int, v: int) -> PlaneFrame:
+    """The vertical plane of the surface at offset `own` = (level, slope): level + slope * s from `plane` (the
+    front's own surface along the seed's rows: seed_surface.py), its origin where the pixel (u, v)'s ray meets it."""
+    level, slope = own
+    normal = plane.normal - slope * plane.right
+    normal /= np.linalg.norm(normal)
+    camera, ray = pixel_ray(frame, u, v)
+    origin = camera + ray * ((plane.origin + level * plane.normal - camera) @ normal) / (ray @ normal)
+    return PlaneFrame.facing(origin, normal, camera)
 
 
 def past_stile_line(view: PlaneView, extent: Extent, seed: tuple[int, int], crossed: np.ndarray,
