@@ -107,25 +107,27 @@ def front_colour(view: PlaneView, extent: Extent) -> np.ndarray:
 
 
 def front_surface(view: PlaneView, extent: Extent, rows: slice, cols: slice) -> np.ndarray:
-    """The front's surface (its offset from the plane, m) over the view's `rows` and `cols`: the plane through its
-    measured cells within the rectangle `extent` (least squares in the view's rows and columns, then again over the
-    cells within the noise band of that fit: not its handles, not what the rectangle overruns). The plane found at
-    the pointed pixel may lie a few millimetres off the front or turn a degree or two from it, which across a wide
-    front is more than the noise band; handles stand out of the front's surface."""
+    """The front's surface (its offset from the plane, m) over the view's `rows` and `cols`: the plane fitted (least
+    squares in the view's rows and columns) to the rectangle `extent`'s cells on the plane, then again to its cells
+    within the noise band of that fit. The plane found at the pointed pixel may lie a few millimetres off the front or
+    turn a degree or two from it, which across a wide front is more than the noise band; handles stand out of the
+    front's surface. Starting from the plane's own cells keeps to its surface (a panel set back into its frame, a
+    plinth's recess or a pull's pocket lie beyond the band). The offsets are those beyond QUANTUM_M of the plane."""
     sl = (slice(extent.top, extent.bottom + 1), slice(extent.left, extent.right + 1))
-    r, c = np.nonzero(view.seen[sl] & (np.abs(np.nan_to_num(view.smooth_m[sl], nan=np.inf)) <= MAX_POCKET_M))
-    grid_r, grid_c = np.meshgrid(np.arange(rows.start, rows.stop), np.arange(cols.start, cols.stop), indexing="ij")
-    if len(r) < 3 * MIN_POINTS:
-        return np.zeros(grid_r.shape)
-    r, c = r + extent.top, c + extent.left
-    design = np.stack([np.ones(len(r)), r - extent.top, c - extent.left], axis=1).astype(float)
-    offsets, keep = view.smooth_m[r, c].astype(float), np.ones(len(r), bool)
-    for _ in range(2):
-        coef = np.linalg.lstsq(design[keep], offsets[keep], rcond=None)[0]
-        keep = np.abs(design @ coef - offsets) <= view.tolerance_m[r, c]
+    grid_r, grid_c = np.meshgrid(np.arange(rows.start, rows.stop) - extent.top,
+                                 np.arange(cols.start, cols.stop) - extent.left, indexing="ij")
+    r, c = np.nonzero(view.seen[sl] & ~np.isnan(view.smooth_m[sl]))
+    offsets, tolerance = view.smooth_m[sl][r, c].astype(float), view.tolerance_m[sl][r, c]
+    design = np.stack([np.ones(len(r)), r, c], axis=1).astype(float)
+    keep = np.abs(offsets) <= tolerance
+    for _ in range(3):
         if np.count_nonzero(keep) < 3 * MIN_POINTS:
             return np.zeros(grid_r.shape)
-    return coef[0] + coef[1] * (grid_r - extent.top) + coef[2] * (grid_c - extent.left)
+        coef = np.linalg.lstsq(design[keep], offsets[keep], rcond=None)[0]
+        keep = np.abs(design @ coef - offsets) <= tolerance
+    fitted = coef[0] + coef[1] * grid_r + coef[2] * grid_c
+    return np.sign(fitted) * np.maximum(np.abs(fitted) - QUANTUM_M, 0.0)  # the noise band allows the plane's fit
+    # QUANTUM_M of error: only what lies beyond it is the plane's error
 
 
 def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K: np.ndarray) -> list[Blob]:
