@@ -106,13 +106,37 @@ def front_colour(view: PlaneView, extent: Extent) -> np.ndarray:
     return np.median(cells, axis=0) if len(cells) else np.median(view.lab[sl].reshape(-1, 3), axis=0)
 
 
+def front_surface(view: PlaneView, extent: Extent, rows: slice, cols: slice) -> np.ndarray:
+    """The front's surface (its offset from the plane, m) over the view's `rows` and `cols`: the plane fitted (least
+    squares in the view's rows and columns) to the rectangle `extent`'s cells on the plane, then again to its cells
+    within the noise band of that fit. The plane found at the pointed pixel may lie a few millimetres off the front or
+    turn a degree or two from it, which across a wide front is more than the noise band; handles stand out of the
+    front's surface. Starting from the plane's own cells keeps to its surface (a panel set back into its frame, a
+    plinth's recess or a pull's pocket lie beyond the band). The offsets are those beyond QUANTUM_M of the plane."""
+    sl = (slice(extent.top, extent.bottom + 1), slice(extent.left, extent.right + 1))
+    grid_r, grid_c = np.meshgrid(np.arange(rows.start, rows.stop) - extent.top,
+                                 np.arange(cols.start, cols.stop) - extent.left, indexing="ij")
+    r, c = np.nonzero(view.seen[sl] & ~np.isnan(view.smooth_m[sl]))
+    offsets, tolerance = view.smooth_m[sl][r, c].astype(float), view.tolerance_m[sl][r, c]
+    design = np.stack([np.ones(len(r)), r, c], axis=1).astype(float)
+    keep = np.abs(offsets) <= tolerance
+    for _ in range(3):
+        if np.count_nonzero(keep) < 3 * MIN_POINTS:
+            return np.zeros(grid_r.shape)
+        coef = np.linalg.lstsq(design[keep], offsets[keep], rcond=None)[0]
+        keep = np.abs(design @ coef - offsets) <= tolerance
+    fitted = coef[0] + coef[1] * grid_r + coef[2] * grid_c
+    return np.sign(fitted) * np.maximum(np.abs(fitted) - QUANTUM_M, 0.0)  # the noise band allows the plane's fit
+    # QUANTUM_M of error: only what lies beyond it is the plane's error
+
+
 def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K: np.ndarray) -> list[Blob]:
     """The handle candidates on the front `extent` of `view` and just outside its edges (edge pulls)."""
     reach = int(np.ceil(EDGE_REACH_M / view.res_m))
     r0, r1 = max(extent.top - reach, 0), min(extent.bottom + reach, view.shape[0] - 1)
     c0, c1 = max(extent.left - reach, 0), min(extent.right + reach, view.shape[1] - 1)
     sl = (slice(r0, r1 + 1), slice(c0, c1 + 1))
-    offset, tolerance = view.smooth_m[sl], view.tolerance_m[sl]
+    offset, tolerance = view.smooth_m[sl] - front_surface(view, extent, *sl), view.tolerance_m[sl]
     inner = int(np.ceil(POCKET_INSET_M / view.res_m))
     inside = np.zeros(offset.shape, bool)
     inside[extent.top - r0 + inner:extent.bottom - r0 + 1 - inner,
@@ -130,7 +154,9 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
     join = max(int(round(JOIN_M / view.res_m)), 1)
     joined = cv2.morphologyEx(candidate.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
     count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
-    surface, measured = view.on_plane[sl], view.seen[sl] & ~view.no_depth[sl]
+    with np.errstate(invalid="ignore"):
+        surface = view.seen[sl] & (np.abs(offset) <= tolerance)  # on the front's surface
+    measured = view.seen[sl] & ~view.no_depth[sl]
     open_past = view.behind[sl] & ~_within(offset.shape, (extent.top - r0, extent.bottom - r0),
                                            (extent.left - c0, extent.right - c0))  # the room seen past the front's
     # edges: an edge pull's tab or a bar on a stile by a door's edge, measured standing out, stands before it and is
@@ -163,11 +189,13 @@ def handle_blobs(view: PlaneView, extent: Extent, camera_to_base: np.ndarray, K:
         if len(parts) == 2 and any(b is None or b.seen_in_colour_only for b in found):  # both measured in depth:
             parts, found = [member], [blob_of(member, box)]  # a lost bar's colour outline steps with its shadows
         if len(parts) == 1 and found[0] is None:  # too large for a handle: taken apart where it crosses the
-            # front's sides (a handle joined to what lies beside the front, such as the IR shadow along a side edge)
+            # front's sides (a handle joined to what lies beside the front, such as the IR shadow along a side edge),
+            # each side's cells into their connected pieces (handles joined only through what lies past a side)
             col = np.arange(box[1].start, box[1].start + member.shape[1])[None, :] + c0
             parts = [member & side for side in (col < extent.left, (col >= extent.left) & (col <= extent.right),
                                                 col > extent.right)]
-            found = [blob_of(part, box) for part in parts if part.any() and part.sum() < member.sum()]
+            found = [blob_of(piece, box) for part in parts if part.any() and part.sum() < member.sum()
+                     for piece in _pieces(part & candidate[box], join)]
         pieces = _band_past_edge(member, out[box], box[0].start + r0, extent) if len(parts) == 1 else None
         if pieces is not None:
             found = [blob_of(piece, box) for piece in pieces]
@@ -189,8 +217,14 @@ def _band_past_edge(member: np.ndarray, out: np.ndarray, row0: int, extent: Exte
     along = np.count_nonzero(band.any(axis=0))
     if not (rest & out).any() or along < STRUCTURE_SHARE * (extent.right - extent.left + 1):
         return None
-    count, labels = cv2.connectedComponents(rest.astype(np.uint8), connectivity=8)
-    return [labels == label for label in range(1, count)] + [band]
+    return _pieces(rest) + [band]
+
+
+def _pieces(cells: np.ndarray, join: int = 1) -> list[np.ndarray]:
+    """The connected pieces (8-connected) of a grid of cells, those closer than `join` cells made one."""
+    closed = cv2.morphologyEx(cells.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((join, join), np.uint8))
+    count, labels = cv2.connectedComponents(closed, connectivity=8)
+    return [labels == label for label in range(1, count)]
 
 
 def _pull_sized(sunk: np.ndarray, res_m: float) -> np.ndarray:
