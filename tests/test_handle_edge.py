@@ -21,13 +21,14 @@ def _view() -> SimpleNamespace:
 
 
 def _bar(cols: tuple[int, int], rows: tuple[int, int]) -> SimpleNamespace:
-    """A firm vertical bar 17 cm long over the view's cells `cols` x `rows` (inclusive)."""
+    """A firm bar over the view's cells `cols` x `rows` (inclusive), along the longer of the two."""
     rr, cc = np.mgrid[rows[0]:rows[1] + 1, cols[0]:cols[1] + 1]
     centre = np.array([((cols[0] + cols[1]) / 2 - 50) * RES_M, (50 - (rows[0] + rows[1]) / 2) * RES_M])
-    return SimpleNamespace(firm=True, centre=centre, rows=rr.ravel(), cols=cc.ravel(), axis=np.array([0.0, 1.0]),
-                           length_m=(rows[1] - rows[0] + 1) * RES_M, relief_m=0.04, elongation=6.0,
-                           seen_in_colour_only=False, inside=False,
-                           points=np.zeros((0, 3)), across_m=(cols[1] - cols[0] + 1) * RES_M)
+    tall, wide = (rows[1] - rows[0] + 1) * RES_M, (cols[1] - cols[0] + 1) * RES_M
+    return SimpleNamespace(firm=True, centre=centre, rows=rr.ravel(), cols=cc.ravel(),
+                           axis=np.array([0.0, 1.0] if tall > wide else [1.0, 0.0]), length_m=max(tall, wide),
+                           relief_m=0.04, elongation=6.0, seen_in_colour_only=False, inside=False,
+                           points=np.zeros((0, 3)), across_m=min(tall, wide))
 
 
 def test_a_bar_overhanging_the_doors_side_by_most_of_its_width_is_its_handle():
@@ -42,8 +43,10 @@ def test_a_bar_overhanging_the_doors_side_by_most_of_its_width_is_its_handle():
 
 def test_a_bar_beyond_a_gap_or_clear_of_the_side_is_not_the_fronts():
     """The same bar past a side that ended at a gap is the next front's; one whose cells stop 3 cm short of a side
-    where the surface stopped stands on something else."""
+    where the surface stopped stands on something else, and so does a horizontal bar whose end comes within a
+    centimetre of that side (a neighbouring drawer's)."""
     extent = Extent(10, 100, 30, 70, {"top": "surface", "bottom": "surface", "left": "gap", "right": "surface"})
+    assert own_blob([_bar((71, 90), (60, 62))], _view(), extent) is None
     assert own_blob([_bar((27, 30), (60, 76))], _view(), extent) is None
     assert own_blob([_bar((74, 77), (60, 76))], _view(), extent) is None
     assert own_blob([_bar((71, 74), (60, 76))], _view(), extent) is not None

@@ -98,14 +98,17 @@ def own_blob(blobs: list[Blob], view: PlaneView, extent: Extent) -> Blob | None:
 
 def on_surface_side(blob: Blob, view: PlaneView, extent: Extent) -> bool:
     """Whether a candidate's centre lies beyond the rectangle `extent`'s left or right side, between its top and
-    bottom, where the front's surface stopped rather than at a gap, with its cells within EDGE_BAND_M of that side:
-    a bar on a door's very edge, as refrigerators and wardrobes have, overhanging it by up to its width (its centre
-    past the edge, its cells on it; the surface past it is too narrow to be crossed)."""
+    bottom, where the front's surface stopped rather than at a gap, within EDGE_BAND_M of that side: a handle on a
+    door's very edge (the surface past it is too narrow to be crossed). A bar running along the side, as
+    refrigerators and wardrobes have, may overhang the edge by up to its width: its cells, not its centre, lie within
+    the band. A bar across the side is a neighbour's whose end comes near it."""
     c, r = float(view.col(blob.centre[0])), float(view.row(blob.centre[1]))
     if extent.left <= c <= extent.right or not extent.top <= r <= extent.bottom:
         return False
     side = "left" if c < extent.left else "right"
-    apart = max(extent.left - int(blob.cols.max()), int(blob.cols.min()) - extent.right, 0)
+    along = abs(_snapped(blob.axis)[1]) == 1.0
+    cells = (blob.cols.max(), blob.cols.min()) if along else (c, c)
+    apart = max(extent.left - float(cells[0]), float(cells[1]) - extent.right, 0.0)
     return extent.ended.get(side) == "surface" and apart <= EDGE_BAND_M / view.res_m
 
 
