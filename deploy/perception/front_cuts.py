@@ -12,7 +12,7 @@ import warnings
 import numpy as np
 
 from deploy.perception.front_extent import Extent, gap_line_shares, long_gap_line_shares
-from deploy.perception.handle import EDGE_BAND_M, spills_over_edge, tab_over_top
+from deploy.perception.handle import EDGE_BAND_M, on_surface_side, spills_over_edge, tab_over_top
 from deploy.perception.handle_blobs import STEP_WINDOW_M, Blob, bounds, segment_distance, span_m
 from deploy.perception.plane_view import PlaneView
 
@@ -28,11 +28,13 @@ NARROW_FRONT_M = 0.1  # ... each at least this wide (the narrowest drawer or doo
 
 def split_by_handles(view: PlaneView, extent: Extent, blobs: list[Blob]) -> Extent:
     """The rectangle cut between the seed's handle and every other handle on it (or spilling over its top or bottom
-    edge: `spills_over_edge`): each front carries one, so a rectangle holding several spans more than one front (the
-    gaps between them were not seen). Each cut runs across the direction that separates two handles (either, for two
-    handles apart both ways: one of them separates their fronts), along the faint gap between them if one shows, else
-    midway; the seed's handle is the nearest one on the seed's (the view's origin's) side of a cut from every other."""
-    inside = [b for b in blobs if (b.inside or spills_over_edge(b, view, extent) or tab_over_top(b, view, extent))
+    edge: `spills_over_edge`, or on its very side edge: `on_surface_side`): each front carries one, so a rectangle
+    holding several spans more than one front (the gaps between them were not seen). Each cut runs across the
+    direction that separates two handles (either, for two handles apart both ways: one of them separates their
+    fronts), along the faint gap between them if one shows, else midway; the seed's handle is the nearest one on the
+    seed's (the view's origin's) side of a cut from every other."""
+    inside = [b for b in blobs if (b.inside or spills_over_edge(b, view, extent) or tab_over_top(b, view, extent)
+                                   or on_surface_side(b, view, extent))
               and b.firm and (b.length_m < 0.95 * span_m(view, extent, b.axis) or _standing_bar(b, view, extent))]
     if len(inside) < 2:
         return extent

@@ -70,22 +70,19 @@ class Handle:
 def own_blob(blobs: list[Blob], view: PlaneView, extent: Extent) -> Blob | None:
     """The front's handle among the candidates: a firm one whose centre lies on the front (its rectangle `extent`,
     inclusive), else just beyond its top or bottom edge (an edge pull's tab), else just beyond a side where the
-    front's surface stopped rather than at a gap (a bar on a door's very edge, as refrigerators and wardrobes have:
-    the surface past it is too narrow to be crossed); and not running past both the front's ends along it (by more
+    front's surface stopped (`on_surface_side`); and not running past both the front's ends along it (by more
     than an edge band each), unless the view cuts the front that way (such a line is an edge or its shadow). Among
     several: an edge pull on the top edge (where a hand reaches for it on a drawer or a base door; the tab on the
     bottom edge is then the next front's), else the one nearest the user's pixel (the view's origin)."""
     rows, cols = (extent.top, extent.bottom), (extent.left, extent.right)
     band = EDGE_BAND_M / view.res_m
-    lo = cols[0] - (band if extent.ended.get("left") == "surface" else 0)
-    hi = cols[1] + (band if extent.ended.get("right") == "surface" else 0)
     on, near, beside = [], [], []
     for b in blobs:
         r, c = float(view.row(b.centre[1])), float(view.col(b.centre[0]))
-        if not b.firm or rows_apart(b, extent) > band or not lo <= c <= hi or _longer_than(b, view, extent):
+        if not b.firm or rows_apart(b, extent) > band or _longer_than(b, view, extent):
             continue
         if not cols[0] <= c <= cols[1]:
-            if rows[0] <= r <= rows[1]:
+            if on_surface_side(b, view, extent):
                 beside.append(b)
         elif rows[0] <= r <= rows[1]:
             on.append(b)
@@ -97,6 +94,22 @@ def own_blob(blobs: list[Blob], view: PlaneView, extent: Extent) -> Blob | None:
     on_top = [b for b in found if _kind(b, view, rows) == "edge pull" and
               abs(b.centre[1] - view.z(rows[0])) <= EDGE_BAND_M]
     return min(on_top or found, key=lambda b: segment_distance(b, np.zeros(2)))
+
+
+def on_surface_side(blob: Blob, view: PlaneView, extent: Extent) -> bool:
+    """Whether a candidate's centre lies beyond the rectangle `extent`'s left or right side, between its top and
+    bottom, where the front's surface stopped rather than at a gap, within EDGE_BAND_M of that side: a handle on a
+    door's very edge (the surface past it is too narrow to be crossed). A bar running along the side, as
+    refrigerators and wardrobes have, may overhang the edge by up to its width: its cells, not its centre, lie within
+    the band. A bar across the side is a neighbour's whose end comes near it."""
+    c, r = float(view.col(blob.centre[0])), float(view.row(blob.centre[1]))
+    if extent.left <= c <= extent.right or not extent.top <= r <= extent.bottom:
+        return False
+    side = "left" if c < extent.left else "right"
+    along = abs(_snapped(blob.axis)[1]) == 1.0
+    cells = (blob.cols.max(), blob.cols.min()) if along else (c, c)
+    apart = max(extent.left - float(cells[0]), float(cells[1]) - extent.right, 0.0)
+    return extent.ended.get(side) == "surface" and apart <= EDGE_BAND_M / view.res_m
 
 
 def spills_over_edge(blob: Blob, view: PlaneView, extent: Extent) -> bool:
