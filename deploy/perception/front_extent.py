@@ -152,16 +152,17 @@ def _before_member(share: np.ndarray, surface: np.ndarray, start: int, centre: i
 def _is_member(surface: np.ndarray, front: tuple[int, int], stretch: tuple[int, int], centre: int,
                res_m: float) -> bool:
     """Whether the lines `stretch` (inclusive) of `surface` (1 the front's cell, 0 not, NaN unknown), off the
-    surface at cell `centre`, stay off it along them past both ends of the surface along the lines `front` by
-    MEMBER_PAST_M (each walked from `centre` as a front's side is, short interruptions crossed)."""
+    surface at cell `centre`, stay off it along them, unbroken, past both ends of the surface along the lines `front`
+    (walked from `centre` as a front's side is, short interruptions crossed) by MEMBER_PAST_M."""
     off = np.where(np.isnan(surface), np.nan, 1.0 - surface)
     none = np.zeros(surface.shape[1], bool)
     on_share = _share(surface[front[0]:front[1] + 1].T, None, res_m)
     off_share = _share(off[stretch[0]:stretch[1] + 1].T, None, res_m)
     past = MEMBER_PAST_M / res_m
     for step in (-1, 1):
-        side = _walk(on_share, none, centre, step, res_m)[0]
-        member_side = _walk(off_share, none, centre, step, res_m)[0]
+        side, member_side = _walk(on_share, none, centre, step, res_m)[0], centre
+        while 0 <= member_side + step < len(off_share) and not off_share[member_side + step] < SURFACE_SHARE:
+            member_side += step
         if (member_side - side) * step < past:
             return False
     return True
