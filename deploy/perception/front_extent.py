@@ -128,9 +128,9 @@ def _grow(view: PlaneView, surface: np.ndarray, depth_surface: np.ndarray, seed:
 def _before_member(share: np.ndarray, surface: np.ndarray, start: int, centre: int, walked: tuple[int, str],
                    step: int, res_m: float) -> tuple[int, str]:
     """`walked` (the walk's end from line `start` in direction `step` over the band's `share` profile, and what
-    ended it), ended instead before the first stretch off the surface it crossed, past RESUME_M of the surface,
-    that is a member across the furniture (`_is_member` along the lines of `surface`, the front's cells, from cell
-    `centre`): the front's surface ends there."""
+    ended it), ended instead before the first stretch off the surface it crossed (up to where the surface resumes
+    for RESUME_M, as the walk takes it), past RESUME_M of the surface, that is a member across the furniture
+    (`_is_member` along the lines of `surface`, the front's cells, from cell `centre`): the front ends there."""
     end, resume = walked[0], int(np.ceil(RESUME_M / res_m))
     i, on = start + step, 0
     while (end - i) * step >= 0:
@@ -138,14 +138,18 @@ def _before_member(share: np.ndarray, surface: np.ndarray, start: int, centre: i
             on += 0 if np.isnan(share[i]) else 1
             i += step
             continue
-        first = i
-        while (end - i) * step >= 0 and not share[i] >= SURFACE_SHARE:
+        first, last_off, run = i, i, 0
+        while (end - i) * step >= 0 and run < resume:
+            if share[i] >= SURFACE_SHARE:
+                run += 1
+            elif not np.isnan(share[i]):
+                run, last_off = 0, i
             i += step
         before = sorted((first - step, first - step * resume))
-        if on >= resume and _is_member(surface, (max(before[0], 0), before[1]), sorted((first, i - step)), centre,
+        if on >= resume and _is_member(surface, (max(before[0], 0), before[1]), sorted((first, last_off)), centre,
                                        res_m):
             return first - step, "surface"
-        on = 0
+        on = run
     return walked
 
 
