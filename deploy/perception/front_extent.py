@@ -6,7 +6,8 @@ profile of the cells of that side's band (the rows or columns the rectangle span
 - a gap: a thin line (at most GAP_LINE_M wide) darker or lighter than the surface on both sides, along most of the
   band (the slit between two fronts);
 - the surface ends: more than HANDLE_BAND_M of cells off the plane (a counter's overhang, a plinth, the floor, a
-  wall, a neighbour standing out). Shorter stretches are a handle, its shadow or a pocket, and are crossed;
+  wall, a neighbour standing out). Shorter stretches are a handle, its shadow or a pocket, and are crossed, but for
+  a member across the furniture: a stretch running on past both sides of the front (a counter's edge, a shelf);
 - the view ends (the image's border): the side is marked cut.
 Cells the camera does not see (the arm, no depth) are neither surface nor boundary: they are crossed, and so are the
 cells the caller says belong to the front whatever their depth (`crossed`: a recessed pull's pocket, cut into the
