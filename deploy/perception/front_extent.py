@@ -6,7 +6,8 @@ profile of the cells of that side's band (the rows or columns the rectangle span
 - a gap: a thin line (at most GAP_LINE_M wide) darker or lighter than the surface on both sides, along most of the
   band (the slit between two fronts);
 - the surface ends: more than HANDLE_BAND_M of cells off the plane (a counter's overhang, a plinth, the floor, a
-  wall, a neighbour standing out). Shorter stretches are a handle, its shadow or a pocket, and are crossed;
+  wall, a neighbour standing out). Shorter stretches are a handle, its shadow or a pocket, and are crossed, but for
+  a member across the furniture: a stretch running on past both sides of the front (a counter's edge, a shelf);
 - the view ends (the image's border): the side is marked cut.
 Cells the camera does not see (the arm, no depth) are neither surface nor boundary: they are crossed, and so are the
 cells the caller says belong to the front whatever their depth (`crossed`: a recessed pull's pocket, cut into the
@@ -50,6 +51,8 @@ COLOUR_DELTA_E = 15.0  # a colour this far (CIE76 Delta E) from the front's is a
 TEXTURE_SPREAD = 2.0  # ... or this many times farther than the front's own texture (wood grain) spreads (its 80th
 # percentile Delta E)
 START_HALF_M = 0.08  # the first band: this far either side of the seed (half the narrowest drawer's width)
+MEMBER_PAST_M = 0.02  # a stretch off the surface running on this far past both ends of the front's surface beside
+# it is a member across the furniture (a counter's edge, a shelf), not a handle, which ends on its front
 
 
 @dataclass(frozen=True)
@@ -118,7 +121,56 @@ def _grow(view: PlaneView, surface: np.ndarray, depth_surface: np.ndarray, seed:
     lines = gap_lines(grey, judged, view.res_m) | _faint_gaps(grey, judged, offset, (flat == 1.0) & ~raised,
                                                               view.res_m)
     start = seed[axis]
-    return _walk(share, lines, start, -1, view.res_m), _walk(share, lines, start, 1, view.res_m)
+    full = surface if axis == 0 else surface.T
+    return tuple(_before_member(share, full, start, seed[1 - axis], _walk(share, lines, start, step, view.res_m),
+                                step, view.res_m) for step in (-1, 1))
+
+
+def _before_member(share: np.ndarray, surface: np.ndarray, start: int, centre: int, walked: tuple[int, str],
+                   step: int, res_m: float) -> tuple[int, str]:
+    """`walked` (the walk's end from line `start` in direction `step` over the band's `share` profile, and what
+    ended it), ended instead before the first stretch off the surface it crossed (up to where the surface resumes
+    for RESUME_M, as the walk takes it), past RESUME_M of the surface, that is a member across the furniture
+    (`_is_member` along the lines of `surface`, the front's cells, from cell `centre`): the front ends there."""
+    end, resume = walked[0], int(np.ceil(RESUME_M / res_m))
+    i, on = start + step, 0
+    while (end - i) * step >= 0:
+        if np.isnan(share[i]) or share[i] >= SURFACE_SHARE:
+            on += 0 if np.isnan(share[i]) else 1
+            i += step
+            continue
+        first, last_off, run = i, i, 0
+        while (end - i) * step >= 0 and run < resume:
+            if share[i] >= SURFACE_SHARE:
+                run += 1
+            elif not np.isnan(share[i]):
+                run, last_off = 0, i
+            i += step
+        before = sorted((first - step, first - step * resume))
+        if on >= resume and _is_member(surface, (max(before[0], 0), before[1]), sorted((first, last_off)), centre,
+                                       res_m):
+            return first - step, "surface"
+        on = run
+    return walked
+
+
+def _is_member(surface: np.ndarray, front: tuple[int, int], stretch: tuple[int, int], centre: int,
+               res_m: float) -> bool:
+    """Whether the lines `stretch` (inclusive) of `surface` (1 the front's cell, 0 not, NaN unknown), off the
+    surface at cell `centre`, stay off it along them, unbroken, past both ends of the surface along the lines `front`
+    (walked from `centre` as a front's side is, short interruptions crossed) by MEMBER_PAST_M."""
+    off = np.where(np.isnan(surface), np.nan, 1.0 - surface)
+    none = np.zeros(surface.shape[1], bool)
+    on_share = _share(surface[front[0]:front[1] + 1].T, None, res_m)
+    off_share = _share(off[stretch[0]:stretch[1] + 1].T, None, res_m)
+    past = MEMBER_PAST_M / res_m
+    for step in (-1, 1):
+        side, member_side = _walk(on_share, none, centre, step, res_m)[0], centre
+        while 0 <= member_side + step < len(off_share) and not off_share[member_side + step] < SURFACE_SHARE:
+            member_side += step
+        if (member_side - side) * step < past:
+            return False
+    return True
 
 
 def same_colour(view: PlaneView, patch: tuple[slice, slice]) -> np.ndarray:
