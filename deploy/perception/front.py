@@ -118,15 +118,18 @@ def _plane_fit(points: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.n
 
 def _own_surface(depth_m: np.ndarray, pixel: tuple[int, int], step_m: float) -> np.ndarray:
     """Mask of the pixels of `depth_m` (0: none) on the piece of surface nearest `pixel` (row, col), cut from what
-    lies a step in front of or behind it: the pixels whose 3 x 3 neighbourhood's depths span less than `step_m` (the
-    depth's noise: not those along a depth edge), joined through their 4-neighbours. Flying pixels (depths between
-    an edge's two sides) are left out with the edge: through them, a surface would reach over a step a few
-    centimetres deep to the one beyond."""
-    z = depth_m.astype(np.float32)
-    square = np.ones((3, 3), np.uint8)
-    highest = cv2.dilate(np.where(z > 0, z, 0.0).astype(np.float32), square)
-    lowest = cv2.erode(np.where(z > 0, z, np.float32(1e6)).astype(np.float32), square)
-    inside = (z > 0) & (highest - lowest < step_m)
+    lies a step in front of or behind it: the pixels whose depth lies within `step_m` (the depth's noise) of the line
+    through their two neighbours in a row and in a column (a surface's depth runs on along it, however steep, and
+    bends only at an edge), or of their one neighbour with depth, joined through their 4-neighbours. Flying pixels
+    (depths between an edge's two sides) are left out with the edge: through them, a surface would reach over a step
+    a few centimetres deep to the one beyond."""
+    z = np.asarray(depth_m, float)
+    seen = z > 0
+    inside = seen.copy()
+    for before, here, after in ((np.s_[:, :-2], np.s_[:, 1:-1], np.s_[:, 2:]), (np.s_[:-2], np.s_[1:-1], np.s_[2:])):
+        ahead = np.where(seen[before] & seen[after], (z[before] + z[after]) / 2,
+                         np.where(seen[before], z[before], np.where(seen[after], z[after], z[here])))
+        inside[here] &= np.abs(ahead - z[here]) < np.where(seen[before] & seen[after], step_m / 2, step_m)
     rows, cols = np.nonzero(inside)
     if len(rows) == 0:
         return inside
