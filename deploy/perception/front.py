@@ -118,9 +118,10 @@ def _plane_fit(points: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.n
 
 def _own_surface(depth_m: np.ndarray, pixel: tuple[int, int], step_m: float) -> np.ndarray:
     """Mask of the pixels of `depth_m` (0: none) on the piece of surface nearest `pixel` (row, col), cut from what
-    lies a step in front of or behind it: the pixels whose depth lies within `step_m` (the depth's noise) of the line
-    through their two neighbours in a row and in a column (a surface's depth runs on along it, however steep, and
-    bends only at an edge), or of their one neighbour with depth, joined through their 4-neighbours. Flying pixels
+    lies a step in front of or behind it: the pixels whose depth bends by less than `step_m` (the depth's noise)
+    between their two neighbours in a row and in a column (z before + z after - 2 z: a surface's depth runs on
+    straight, however steep, and bends at an edge), or differs by less from their one neighbour with depth, joined
+    through their 4-neighbours. Flying pixels
     (depths between an edge's two sides) are left out with the edge: through them, a surface would reach over a step
     a few centimetres deep to the one beyond."""
     z = np.asarray(depth_m, float)
