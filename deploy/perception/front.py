@@ -12,9 +12,6 @@ from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 from deploy.errors import PointerError
 from deploy.geometry.cloud import depth_to_points
@@ -90,8 +87,9 @@ def seed_plane(frame: Frame, robot: np.ndarray, u: int, v: int) -> tuple[np.ndar
     h, w = frame.depth_m.shape
     nearest = None
     for radius in SEED_RADII_PX:
+        rows, cols = slice(max(v - radius, 0), v + radius + 1), slice(max(u - radius, 0), u + radius + 1)
         window = np.zeros((h, w), bool)
-        window[max(v - radius, 0):v + radius + 1, max(u - radius, 0):u + radius + 1] = True
+        window[rows, cols] = True
         window &= ~robot & (frame.depth_m > 0)
         if np.count_nonzero(window) < MIN_SEED_POINTS:
             continue
@@ -101,8 +99,8 @@ def seed_plane(frame: Frame, robot: np.ndarray, u: int, v: int) -> tuple[np.ndar
         fit = _plane_fit(points, tolerance) + (depth,)
         if tilt_deg(fit[1]) <= FRONT_TILT_DEG:
             return fit
-        rows, cols = np.nonzero(window)
-        own = points[_own_surface(points, int(np.argmin(np.hypot(rows - v, cols - u))), tolerance)]
+        crop = np.where(window[rows, cols], frame.depth_m[rows, cols], 0.0)
+        own = points[_own_surface(crop, (v - rows.start, u - cols.start), tolerance)[window[rows, cols]]]
         if len(own) >= MIN_SEED_POINTS and tilt_deg((own_fit := _plane_fit(own, tolerance))[1]) <= FRONT_TILT_DEG:
             return own_fit + (depth,)
         nearest = nearest or fit
@@ -119,14 +117,27 @@ def _plane_fit(points: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.n
     return centre, np.linalg.svd(inside - centre, full_matrices=False)[2][2]
 
 
-def _own_surface(points: np.ndarray, index: int, step_m: float) -> np.ndarray:
-    """Mask of the `points` joined to points[index] through points less than `step_m` apart (the depth's noise):
-    the piece of surface it lies on, cut from what lies a step in front of or behind it."""
-    pairs = cKDTree(points).query_pairs(step_m, output_type="ndarray")
-    n = len(points)
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    labels = connected_components(graph, directed=False)[1]
-    return labels == labels[index]
+def _own_surface(depth_m: np.ndarray, pixel: tuple[int, int], step_m: float) -> np.ndarray:
+    """Mask of the pixels of `depth_m` (0: none) on the piece of surface nearest `pixel` (row, col), cut from what
+    lies a step in front of or behind it: the pixels whose depth bends by less than `step_m` (the depth's noise)
+    between their two neighbours in a row and in a column (z before + z after - 2 z: a surface's depth runs on
+    straight, however steep, and bends at an edge), or differs by less from their one neighbour with depth, joined
+    through their 4-neighbours. Flying pixels
+    (depths between an edge's two sides) are left out with the edge: through them, a surface would reach over a step
+    a few centimetres deep to the one beyond."""
+    z = np.asarray(depth_m, float)
+    seen = z > 0
+    inside = seen.copy()
+    for before, here, after in ((np.s_[:, :-2], np.s_[:, 1:-1], np.s_[:, 2:]), (np.s_[:-2], np.s_[1:-1], np.s_[2:])):
+        ahead = np.where(seen[before] & seen[after], (z[before] + z[after]) / 2,
+                         np.where(seen[before], z[before], np.where(seen[after], z[after], z[here])))
+        inside[here] &= np.abs(ahead - z[here]) < np.where(seen[before] & seen[after], step_m / 2, step_m)
+    rows, cols = np.nonzero(inside)
+    if len(rows) == 0:
+        return inside
+    labels = cv2.connectedComponents(inside.astype(np.uint8), connectivity=4)[1]
+    nearest = int(np.argmin(np.hypot(rows - pixel[0], cols - pixel[1])))
+    return labels == labels[rows[nearest], cols[nearest]]
 
 
 def box_seed(frame: Frame, robot: np.ndarray, box: tuple[float, float, float, float]) -> tuple[int, int]:
