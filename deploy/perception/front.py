@@ -17,7 +17,7 @@ from deploy.errors import PointerError
 from deploy.geometry.cloud import depth_to_points
 from deploy.geometry.planes import dominant_plane
 from deploy.perception.front_cuts import NARROW_FRONT_M, split_by_handles, split_wide
-from deploy.perception.front_extent import Extent, front_extent
+from deploy.perception.front_extent import Extent, front_extent, rows_over_columns
 from deploy.perception.handle import own_blob
 from deploy.perception.handle_blobs import (
     MAX_POCKET_M,
@@ -281,7 +281,8 @@ def find_front(frame: Frame, robot: np.ndarray, u: int, v: int,
     def blobs_of(extent: Extent) -> list[Blob]:
         return handle_blobs(view, extent, frame.T_base_camera, frame.intrinsics.K)
 
-    extent = split_wide(view, extent)
+    narrowed = split_wide(view, extent)
+    extent = extent if narrowed == extent else rows_over_columns(view, seed, narrowed, pockets)
     blobs = blobs_of(extent)
     split = split_by_handles(view, extent, blobs)
     extent, blobs = split, (blobs if split == extent else blobs_of(split))

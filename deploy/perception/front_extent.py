@@ -17,7 +17,7 @@ panel and closed by it on every side, may run longer than HANDLE_BAND_M along a 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -73,14 +73,7 @@ def front_extent(view: PlaneView, seed: tuple[int, int], crossed: np.ndarray | N
     crossed as unseen; `through`: cells crossed whatever lines they show (no gap is looked for there)."""
     half = max(int(round(START_HALF_M / view.res_m)), 2)
     r, c = seed
-    depth_surface = _surface(view)
-    same = same_colour(view, (slice(max(r - half, 0), r + half + 1), slice(max(c - half, 0), c + half + 1)))
-    # the front's cells: on its plane and of its colour; a hole of another colour is not the front, one of its colour
-    # is not known (a pale wall and a dark front alike lose the D415's dots)
-    surface = np.where(np.isnan(depth_surface) & view.seen, np.where(same > 0, np.nan, 0.0), depth_surface * same)
-    for cells in (crossed, through):
-        if cells is not None:
-            surface[cells] = np.nan
+    surface, depth_surface = _front_cells(view, seed, crossed, through)
     rows, cols = (r, r), (c - half, c + half)
     ended: dict[str, str] = {}
     for _ in range(2):
@@ -98,6 +91,33 @@ def front_extent(view: PlaneView, seed: tuple[int, int], crossed: np.ndarray | N
         (left, ended["left"]), (right, ended["right"]) = _grow(view, surface, depth_surface, seed, rows, 1, through)
         cols = (left, right)
     return Extent(rows[0], rows[1], cols[0], cols[1], ended)
+
+
+def rows_over_columns(view: PlaneView, seed: tuple[int, int], extent: Extent,
+                      crossed: np.ndarray | None = None) -> Extent:
+    """`extent` with its top and bottom walked again from the seed over its own columns only: a rectangle cut
+    narrower (`front_cuts.split_wide`) had them judged over a neighbour's columns too, whose gaps (a drawer's beside
+    a taller front) do not bound the seed's front."""
+    surface, depth_surface = _front_cells(view, seed, crossed, None)
+    (top, ended_top), (bottom, ended_bottom) = _grow(view, surface, depth_surface, seed, (extent.left, extent.right),
+                                                     0, None)
+    return replace(extent, top=top, bottom=bottom, ended={**extent.ended, "top": ended_top, "bottom": ended_bottom})
+
+
+def _front_cells(view: PlaneView, seed: tuple[int, int], crossed: np.ndarray | None,
+                 through: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """(the front's cells: 1 on its plane and of its colour, 0 not, NaN unknown or crossed; the plane's surface in
+    depth, `_surface`) around the seed cell. A hole of another colour is not the front, one of its colour is not
+    known (a pale wall and a dark front alike lose the D415's dots)."""
+    half = max(int(round(START_HALF_M / view.res_m)), 2)
+    r, c = seed
+    depth_surface = _surface(view)
+    same = same_colour(view, (slice(max(r - half, 0), r + half + 1), slice(max(c - half, 0), c + half + 1)))
+    surface = np.where(np.isnan(depth_surface) & view.seen, np.where(same > 0, np.nan, 0.0), depth_surface * same)
+    for cells in (crossed, through):
+        if cells is not None:
+            surface[cells] = np.nan
+    return surface, depth_surface
 
 
 def _grow(view: PlaneView, surface: np.ndarray, depth_surface: np.ndarray, seed: tuple[int, int],
