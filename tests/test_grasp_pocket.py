@@ -19,6 +19,8 @@ def test_the_tool_goes_on_into_the_pocket_and_the_drawer_opens():
 
 
 def test_easing_off_the_lip_instead_draws_the_fingers_off_the_bar(monkeypatch):
-    monkeypatch.setattr(stages, "seat_in_pocket", lambda episode: False)  # the usual easing off, then closing
+    monkeypatch.setattr(stages, "seat_in_pocket", lambda episode: False)  # the usual easing off, then closing once
+    monkeypatch.setattr(stages, "close_or_reach",
+                        lambda episode, width: stages.close_and_check(episode, width, StopReason.GRASP_FAILED))
     result = simulate_episode("drawer", POCKET_SEED, split="test", target=0.1)
     assert result["stop_reason"] == StopReason.GRASP_FAILED, result["message"]

@@ -22,6 +22,7 @@ from deploy.control.grasp import (
     protruding_points,
 )
 from deploy.control.policy import opening
+from deploy.control.scene_clearance import GRIP_MARGIN_M
 from deploy.control.state import EpisodeStop, StopReason
 from deploy.errors import PointerError
 from deploy.geometry.cloud import points_to_pixels
@@ -33,6 +34,7 @@ from drivers.arm.motion import Outcome, PathFn, arc_path, follow_cartesian_path,
 from drivers.arm.trajectory import MotionLimits
 from drivers.arm.wrench import WrenchEstimator, torque_offset
 from drivers.camera.base import Frame
+from drivers.errors import ArmError
 
 log = logging.getLogger(__name__)
 
@@ -55,6 +57,9 @@ MAX_SEAT_M = 0.014  # into a pocket the tool goes on at most this far: the calib
 # (5 mm, and 0.5 deg over the camera's metre or so: 9 mm)
 SEAT_FORCE_N = 15.0  # ... pushing at most this hard
 SEAT_SPEED_M_S = 0.01  # ... this slowly (the force bound stops it within a millimetre)
+MISS_REACH_M = 0.04  # a gripper that closed on nothing goes on along its approach at most this far: a handle seen
+# nearer than it stands (its front's plane taken from a counter's edge before it) lies between the open fingers,
+# whose pads reach 5 cm past the palm
 
 
 def checked_pull(episode: Episode, path: PathFn, length: float, label: str, limits: MotionLimits | None = None,
@@ -200,6 +205,43 @@ def close_and_check(episode: Episode, open_width: float, failure: StopReason, co
         log.info("the fingers closed to %.1f mm on a %.1f mm handle: the tool moved %.1f mm across them to where "
                  "they close narrowest", width * 1e3, handle.thickness_m * 1e3, moved * 1e3)
         _close(episode, open_width, failure, context)
+
+
+def close_or_reach(episode: Episode, open_width: float) -> None:
+    """Close on the handle (`close_and_check`). When the fingers closed on nothing (a handle seen nearer than it
+    stands lies beyond them), open them only as wide as the handle needs (its thickness and GRIP_MARGIN_M each side:
+    a finger opened wide may stand on an overhang above a bar), go on along the approach, slowly (SEAT_SPEED_M_S, at
+    most the approach's own speed), yielding and force-bounded at SEAT_FORCE_N (the front, or the handle, stops it),
+    at most MISS_REACH_M; ease off the press left and close once more. EpisodeStop(GRASP_FAILED) when that misses
+    too, when the tool could not go on (nothing lies farther to hold) or the arm carries no such move, or on an arm
+    that measures no joint torques (no force bound)."""
+    try:
+        close_and_check(episode, open_width, StopReason.GRASP_FAILED)
+        return
+    except EpisodeStop as missed:
+        state = episode.arm.state()
+        if missed.reason is not StopReason.GRASP_FAILED or state.gripper_width_m > MIN_GRASP_WIDTH_M \
+                or state.tau is None:
+            raise
+        handle = episode.state.handle
+        if handle is not None and handle.thickness_m is not None:
+            open_width = min(open_width, handle.thickness_m + 2 * GRIP_MARGIN_M)
+        episode.arm.set_gripper(open_width)
+        episode.wait(CLOSE_TIME_S)
+        T = episode.tool()
+        v = min(SEAT_SPEED_M_S, float(episode.line_limits().v_max))
+        try:
+            follow_cartesian_path(episode.arm, episode.kin, line_path(T, T[:3, 2]), MISS_REACH_M,
+                                  MotionLimits(v, 4 * v, 40 * v), episode.show_arm,
+                                  compliance=episode.compliance.with_force_limit(SEAT_FORCE_N))
+        except ArmError:
+            raise missed from None
+        went = float((episode.tool()[:3, 3] - T[:3, 3]) @ T[:3, 2])
+        if went < PROBE_STEP_M:
+            raise
+        log.info("the gripper closed on nothing: the tool went %.1f mm further along its approach", went * 1e3)
+    ease_off_press(episode)
+    close_and_check(episode, open_width, StopReason.GRASP_FAILED, "after going on along the approach: ")
 
 
 def _close(episode: Episode, open_width: float, failure: StopReason, context: str) -> float:

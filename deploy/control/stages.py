@@ -29,6 +29,7 @@ from deploy.control.grasp import (
 from deploy.control.hand import (
     checked_pull,
     close_and_check,
+    close_or_reach,
     door_arc,
     ease_off_press,
     measure_torque_offset,
@@ -218,7 +219,7 @@ def grasp(episode: Episode, handle: Handle) -> None:
         ease_off_press(episode)
     else:
         ease_off_press(episode)
-        close_and_check(episode, open_width, StopReason.GRASP_FAILED)
+        close_or_reach(episode, open_width)
     state.open_width_m = open_width
     state.p_grasp = episode.tool()[:3, 3]
     state.timings["grasp_s"] += time.perf_counter() - clock
