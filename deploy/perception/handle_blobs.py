@@ -69,6 +69,7 @@ class Blob:
     noise_m: float  # the D415's noise band there (NOISE_SIGMAS sigmas of one measurement)
     base_m: tuple[float, float] = (0.0, 0.0)  # the surface around it, offset from the plane (`_surface_around`: a
     # bowed panel, a window set in)
+    depth_share: float = 0.0  # the share of its cells with depth
 
     @property
     def relief_m(self) -> float:
@@ -77,8 +78,10 @@ class Blob:
 
     @property
     def seen_in_colour_only(self) -> bool:
-        """Whether the D415 measured (almost) none of it: a thin, dark or shiny handle found by its colour."""
-        return len(self.points) < MIN_POINTS
+        """Whether the D415 measured (almost) none of it: a thin, dark or shiny handle found by its colour, most of
+        its cells without depth. Cells with depth but (almost) no points out of the plane's noise were measured on the
+        front's surface: a candidate found against the front's fitted surface where that turns off the plane."""
+        return len(self.points) < MIN_POINTS and self.depth_share < 0.5
 
     @property
     def firm(self) -> bool:
@@ -426,7 +429,7 @@ def _blob(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent, c
     r, c = int(view.row(centre[1])), int(view.col(centre[0]))
     inside = extent.top <= r <= extent.bottom and extent.left <= c <= extent.right
     return Blob(rows, cols, points, centre, axis, length, width, inside, rim, float(np.median(raw_noise)),
-                _surface_around(view, rows, cols, extent))
+                _surface_around(view, rows, cols, extent), float(np.mean(with_depth)))
 
 
 def _surface_around(view: PlaneView, rows: np.ndarray, cols: np.ndarray, extent: Extent) -> tuple[float, float]:
