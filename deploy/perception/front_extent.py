@@ -142,8 +142,12 @@ def _grow(view: PlaneView, surface: np.ndarray, depth_surface: np.ndarray, seed:
                                                               view.res_m)
     start = seed[axis]
     full = surface if axis == 0 else surface.T
-    return tuple(_before_member(share, full, start, seed[1 - axis], _walk(share, lines, start, step, view.res_m),
-                                step, view.res_m) for step in (-1, 1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # lines without depth
+        level = np.nanmedian(np.where(seen, offset, np.nan), axis=1)
+    return tuple(_before_member(share, full, start, seed[1 - axis],
+                                _walk(share, lines, start, step, view.res_m, level), step, view.res_m)
+                 for step in (-1, 1))
 
 
 def _before_member(share: np.ndarray, surface: np.ndarray, start: int, centre: int, walked: tuple[int, str],
@@ -244,12 +248,16 @@ def _surface(view: PlaneView) -> np.ndarray:
     return np.where(view.on_plane, 1.0, np.where(view.seen & ~np.isnan(view.offset_m), 0.0, np.nan))
 
 
-def _walk(share: np.ndarray, lines: np.ndarray, start: int, step: int, res_m: float) -> tuple[int, str]:
+def _walk(share: np.ndarray, lines: np.ndarray, start: int, step: int, res_m: float,
+          level: np.ndarray | None = None) -> tuple[int, str]:
     """From `start` in direction `step`: the last line of the front's surface before a gap, the surface's end or the
-    profile's end, and which of these ended it."""
+    profile's end, and which of these ended it. Past a handle a strip of the surface shorter than RESUME_M is the
+    front's own when the surface ends at an outer edge right past it (`_edge_after` on `level`, the lines' offsets
+    from the plane), where a surface crossing the plane goes on smoothly."""
     band_limit = int(np.ceil(HANDLE_BAND_M / res_m))
     resume = int(np.ceil(RESUME_M / res_m))
     last, off, on = start, 0, resume
+    strip, strip_end = start, start  # the current run of the surface: its first and last lines
     i = start + step
     while 0 <= i < len(share):
         if lines[i]:  # the surface went on up to its gap
@@ -260,13 +268,37 @@ def _walk(share: np.ndarray, lines: np.ndarray, start: int, step: int, res_m: fl
         if share[i] < SURFACE_SHARE:
             off, on = off + 1, 0
             if off > band_limit:
-                return last, "surface"
+                short = level is not None and strip_end != last and _edge_after(level, strip_end, i, step) \
+                    and _drop(level, last, strip, step) is None
+                return (strip_end if short else last), "surface"
         else:
-            on += 1
+            strip = i if on == 0 else strip
+            on, strip_end = on + 1, i
             if on >= resume:  # the surface goes on (not a surface crossing the plane: the floor, a shelf)
                 off, last = 0, i
         i += step
     return last, "view"
+
+
+def _edge_after(level: np.ndarray, begin: int, end: int, step: int) -> bool:
+    """Whether the lines from `begin` to `end` (in direction `step`; `level` their offsets from the plane, NaN
+    unknown) drop away behind the plane by more than HANDLE_BAND_M between neighbouring known lines (the view sees
+    past an outer edge: no surface the view follows falls so steeply) before any stands out of it by RELIEF_M."""
+    drop = _drop(level, begin, end, step)
+    between = level[min(begin, drop):max(begin, drop) + 1] if drop is not None else level[:0]
+    return drop is not None and not np.any(between > RELIEF_M)
+
+
+def _drop(level: np.ndarray, begin: int, end: int, step: int) -> int | None:
+    """The first line from `begin` to `end` (in direction `step`) lying behind the last known line before it by more
+    than HANDLE_BAND_M (`level`: the lines' offsets from the plane, NaN unknown), or None."""
+    prev = level[begin]
+    for j in range(begin + step, end + step, step):
+        if not np.isnan(level[j]):
+            if prev - level[j] > HANDLE_BAND_M:
+                return j
+            prev = level[j]
+    return None
 
 
 def gap_lines(grey: np.ndarray, surface: np.ndarray, res_m: float) -> np.ndarray:
